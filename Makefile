@@ -1,0 +1,42 @@
+# Two commands for users:  make demo   (set up, then run the live demo)
+#                          make test   (set up, then run the whole test suite)
+# Setup is a .venv in the repo that is also an ament prefix for this package,
+# so `ros2 run`-style lookups (lib/rigid_body_sim/<exe>, ament index) work in it.
+
+VENV        ?= .venv
+PY          := $(VENV)/bin/python
+STAMP       := $(VENV)/.rigid_body_sim-installed
+DEMO_DURATION ?= 30
+PYTEST_ARGS ?=
+NODES       := simulator controller recorder replay
+
+.PHONY: demo test venv bench clean
+.DEFAULT_GOAL := demo
+
+demo: venv
+	DEMO_DURATION=$(DEMO_DURATION) $(VENV)/bin/rigid-body-sim demo --duration $(DEMO_DURATION)
+
+test: venv
+	$(PY) -m pytest $(PYTEST_ARGS)
+
+bench: venv
+	$(VENV)/bin/rigid-body-sim bench --out out/bench
+
+venv: $(STAMP)
+
+# Rebuilt only when a dependency pin or the package metadata changes; code is an
+# editable install, and config/ and launch/ are linked, so edits need no reinstall.
+$(STAMP): requirements.txt setup.py setup.cfg package.xml .ci/make_venv.sh
+	sh .ci/make_venv.sh $(VENV)
+	$(VENV)/bin/pip install --disable-pip-version-check -q -r requirements.txt
+	$(VENV)/bin/pip install --disable-pip-version-check -q --no-deps --no-build-isolation -e .
+	mkdir -p $(VENV)/share/ament_index/resource_index/packages $(VENV)/share/rigid_body_sim $(VENV)/lib/rigid_body_sim
+	touch $(VENV)/share/ament_index/resource_index/packages/rigid_body_sim
+	ln -sfn $(CURDIR)/package.xml $(VENV)/share/rigid_body_sim/package.xml
+	ln -sfn $(CURDIR)/config $(VENV)/share/rigid_body_sim/config
+	ln -sfn $(CURDIR)/launch $(VENV)/share/rigid_body_sim/launch
+	for exe in $(NODES); do ln -sfn ../../bin/$$exe $(VENV)/lib/rigid_body_sim/$$exe; done
+	touch $@
+
+clean:
+	rm -rf $(VENV) build install log

@@ -1,0 +1,27 @@
+"""rigid_body_sim: live spacecraft attitude simulation for ROS 2 Jazzy.
+
+The physics lives in :mod:`rigid_body_sim.physics` (numpy/scipy only); ROS nodes in
+:mod:`rigid_body_sim.nodes`; MCAP I/O in :mod:`rigid_body_sim.bag`.
+"""
+import os
+import sys
+
+__version__ = '0.1.0'
+
+
+def _ensure_ament_prefix() -> None:
+    """Put this interpreter's prefix on AMENT_PREFIX_PATH when it is an ament prefix.
+
+    A venv built from the ROS wheels (``make venv``) is an ament prefix but nothing sets
+    AMENT_PREFIX_PATH for it; ament_index lookups (message definitions, share/ files)
+    would fail. A sourced ROS install already sets it and keeps precedence.
+    """
+    marker = os.path.join(sys.prefix, 'share', 'ament_index', 'resource_index', 'packages')
+    if not os.path.isdir(marker):
+        return
+    paths = [p for p in os.environ.get('AMENT_PREFIX_PATH', '').split(os.pathsep) if p]
+    if sys.prefix not in paths:
+        os.environ['AMENT_PREFIX_PATH'] = os.pathsep.join(paths + [sys.prefix])
+
+
+_ensure_ament_prefix()

@@ -1,0 +1,75 @@
+"""Quaternion helpers on batched numpy arrays, ROS order (x, y, z, w).
+
+scipy's Rotation does the one-off conversions; these few vectorised functions exist
+because the integrators call them every step on (N, 4) batches, where building
+Rotation objects would dominate the cost.
+"""
+import numpy as np
+
+
+def multiply(p, q):
+    """Hamilton product p ⊗ q (rotation q first, then p); shapes (..., 4)."""
+    px, py, pz, pw = np.moveaxis(np.asarray(p, float), -1, 0)
+    qx, qy, qz, qw = np.moveaxis(np.asarray(q, float), -1, 0)
+    return np.stack((pw * qx + px * qw + py * qz - pz * qy,
+                     pw * qy - px * qz + py * qw + pz * qx,
+                     pw * qz + px * qy - py * qx + pz * qw,
+                     pw * qw - px * qx - py * qy - pz * qz), axis=-1)
+
+
+def conjugate(q):
+    """Inverse of a unit quaternion."""
+    q = np.array(q, float)
+    q[..., :3] *= -1.0
+    return q
+
+
+def rotate(q, v):
+    """Rotate vectors v (..., 3) by unit quaternions q (..., 4): q v q*."""
+    q = np.asarray(q, float)
+    v = np.asarray(v, float)
+    u, w = q[..., :3], q[..., 3:4]
+    t = 2.0 * np.cross(u, v)
+    return v + w * t + np.cross(u, t)
+
+
+def exp(rotvec):
+    """Unit quaternion of the rotation by ``rotvec`` (axis × angle, rad), exact for any angle.
+
+    sin(θ/2)/θ is evaluated with np.sinc so small angles lose no digits.
+    """
+    rotvec = np.asarray(rotvec, float)
+    angle = np.linalg.norm(rotvec, axis=-1, keepdims=True)
+    return np.concatenate((rotvec * (0.5 * np.sinc(angle / (2.0 * np.pi))), np.cos(0.5 * angle)), axis=-1)
+
+
+def axis_rotation(axis: int, angle):
+    """Quaternions of rotations by ``angle`` (array, rad) about principal axis ``axis`` (0, 1, 2)."""
+    angle = np.asarray(angle, float)
+    q = np.zeros(angle.shape + (4,))
+    q[..., axis] = np.sin(0.5 * angle)
+    q[..., 3] = np.cos(0.5 * angle)
+    return q
+
+
+def angle_between(q1, q2):
+    """Rotation angle (rad, in [0, π]) taking attitude q1 to q2; sign-invariant (q ≡ −q)."""
+    d = multiply(conjugate(q1), q2)
+    return 2.0 * np.arctan2(np.linalg.norm(d[..., :3], axis=-1), np.abs(d[..., 3]))
+
+
+def validated(q, name='quaternion'):
+    """Return q normalised; ValueError if it is not finite or (near) zero.
+
+    A norm off by more than 1e-6 is normalised silently only when it is clearly a unit
+    quaternion written with few digits; zero, NaN or Inf can't be a rotation.
+    """
+    q = np.asarray(q, float)
+    if q.shape[-1] != 4:
+        raise ValueError(f'{name} must have 4 components (x, y, z, w), got shape {q.shape}')
+    if not np.all(np.isfinite(q)):
+        raise ValueError(f'{name} is not finite: {q.tolist()}')
+    norm = np.linalg.norm(q, axis=-1, keepdims=True)
+    if np.any(norm < 1e-6):
+        raise ValueError(f'{name} has zero norm; a rotation needs a unit quaternion (x, y, z, w)')
+    return q / norm

@@ -1,0 +1,88 @@
+"""Helpers for tests that start real node processes and exchange real messages."""
+import os
+import re
+import signal
+import subprocess
+import sys
+import tempfile
+import time
+
+
+def unique_namespace(test_name: str) -> str:
+    """A valid ROS namespace derived from the test name plus the pid and a counter."""
+    unique_namespace.counter = getattr(unique_namespace, 'counter', 0) + 1
+    base = re.sub(r'[^A-Za-z0-9_]', '_', test_name)[:40]
+    return f'/t_{base}_{os.getpid()}_{unique_namespace.counter}'
+
+
+def venv_exe(name: str) -> str:
+    """Path of an installed executable of this package (node or CLI) in this interpreter's prefix."""
+    for candidate in (os.path.join(sys.prefix, 'lib', 'rigid_body_sim', name),
+                      os.path.join(os.path.dirname(sys.executable), name)):
+        if os.path.exists(candidate):
+            return candidate
+    raise FileNotFoundError(f'{name} is not installed in {sys.prefix}; run make venv')
+
+
+class NodeProcess:
+    """A child process in its own process group with captured output.
+
+    ``stop()`` sends SIGINT, waits, then SIGKILLs the group: nothing outlives the test.
+    """
+
+    def __init__(self, cmd, env=None, cwd=None):
+        self.cmd = cmd
+        self._out = tempfile.TemporaryFile(mode='w+b')
+        full_env = dict(os.environ)
+        full_env.update(env or {})
+        self.proc = subprocess.Popen(cmd, stdout=self._out, stderr=subprocess.STDOUT,
+                                     env=full_env, cwd=cwd, start_new_session=True)
+
+    @property
+    def pid(self):
+        return self.proc.pid
+
+    def poll(self):
+        return self.proc.poll()
+
+    def output(self) -> str:
+        self._out.flush()
+        self._out.seek(0)
+        return self._out.read().decode(errors='replace')
+
+    def signal(self, sig):
+        if self.proc.poll() is None:
+            os.killpg(self.proc.pid, sig)
+
+    def wait(self, timeout):
+        return self.proc.wait(timeout=timeout)
+
+    def stop(self, timeout=10.0):
+        """SIGINT, then SIGKILL after ``timeout``; returns the exit code."""
+        if self.proc.poll() is None:
+            try:
+                os.killpg(self.proc.pid, signal.SIGINT)
+                self.proc.wait(timeout=timeout)
+            except (subprocess.TimeoutExpired, ProcessLookupError):
+                pass
+        if self.proc.poll() is None:
+            try:
+                os.killpg(self.proc.pid, signal.SIGKILL)
+            except ProcessLookupError:
+                pass
+            self.proc.wait(timeout=5)
+        return self.proc.returncode
+
+
+def spin_until(node, predicate, timeout, executor=None):
+    """Spin ``node`` until ``predicate()`` is true or ``timeout`` s pass; returns predicate()."""
+    import rclpy
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        if predicate():
+            return True
+        if executor is not None:
+            executor.spin_once(timeout_sec=0.05)
+        else:
+            rclpy.spin_once(node, timeout_sec=0.05)
+    return predicate()
