@@ -65,12 +65,12 @@ class Dynamics:
             return np.zeros_like(m)
         omega = m / self.moments
         if d.model == 'double_bracket':
-            return d.coefficient * np.cross(m, np.cross(m, omega))
+            return d.coefficient * rotation.cross(m, rotation.cross(m, omega))
         return -d.coefficient * omega  # viscous
 
     def momentum_rate(self, m, torque=None):
         """dm/dt = m × Ω + τ + dissipation (principal frame)."""
-        dm = np.cross(m, m / self.moments)
+        dm = rotation.cross(m, m / self.moments)
         if torque is not None:
             dm = dm + torque
         if self.dissipation.active:
@@ -79,8 +79,9 @@ class Dynamics:
 
     def attitude_rate(self, q, m):
         """dq/dt = ½ q ⊗ (Ω, 0)."""
-        omega = m / self.moments
-        return 0.5 * rotation.multiply(q, np.concatenate((omega, np.zeros(omega.shape[:-1] + (1,))), axis=-1))
+        omega_quat = np.zeros(m.shape[:-1] + (4,))
+        omega_quat[..., :3] = m / self.moments
+        return 0.5 * rotation.multiply(q, omega_quat)
 
     def kinetic_energy(self, m):
         """T = ½ m·Ω, J."""

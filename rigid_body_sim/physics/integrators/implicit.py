@@ -43,7 +43,7 @@ class ImplicitMidpoint(Integrator):
         j_cross = -_skew(omega) + _skew(x) * inv_i  # d(m×Ω)/dm
         d = dyn.dissipation
         if d.active and d.model == 'double_bracket':
-            c = np.cross(x, omega)
+            c = rotation.cross(x, omega)
             j_cross = j_cross + d.coefficient * (-_skew(c) + _skew(x) @ j_cross)
         elif d.active:  # viscous: −c Ω
             j_cross = j_cross - d.coefficient * np.diag(inv_i)

@@ -67,9 +67,9 @@ def _double_bracket_flow(m, t, moments, alpha):
     n = max(1, int(np.ceil(rate * t / 0.5)))
     dt = t / n
     for _ in range(n):
-        w = -alpha * np.cross(m, m / moments)
+        w = -alpha * rotation.cross(m, m / moments)
         m_half = rotation.rotate(rotation.exp(0.5 * dt * w), m)
-        w = -alpha * np.cross(m_half, m_half / moments)
+        w = -alpha * rotation.cross(m_half, m_half / moments)
         m = rotation.rotate(rotation.exp(dt * w), m)
     return m, n
 
