@@ -1,0 +1,150 @@
+"""Benchmark of the ``attitude_simulator`` node (real process, real DDS).
+
+``python -m rigid_body_sim.nodes.simulator_bench [--integrator auto] [--subscribe] [--seconds 6]``
+
+Prints, for 1 kHz physics (step 1 ms) and 100 Hz publishing:
+* µs per physics step of ``Propagator.step`` in-process (no ROS), torque-free and torqued;
+* achieved real-time factor with ``real_time_factor: 0`` (from the node's diagnostics);
+* CPU use of the node process at ``real_time_factor: 1`` in % of one core (/proc utime+stime).
+``--subscribe`` adds a subscriber on every state topic (otherwise unobserved topics are
+skipped by the node, as in a deployment where nobody listens to them).
+``run(...)`` returns the figures as a dict for the bench command.
+"""
+import argparse
+import os
+import random
+import subprocess
+import sys
+import time
+
+import numpy as np
+
+STEP, PUBLISH_RATE = 0.001, 100.0
+
+
+def step_cost_us(integrator: str, n: int = 3000) -> dict:
+    from ..physics import Propagator, RigidBody
+    body = RigidBody.from_inertia([1.0, 2.0, 3.0])
+    out = {}
+    for label, torque in (('free', None), ('torque', np.array([0.0, 0.0, 0.01]))):
+        p = Propagator(body, angular_velocity=[0.05, 1.0, 0.0], integrator=integrator)
+        p.step(STEP, torque)
+        best = float('inf')
+        for _ in range(3):
+            t0 = time.perf_counter()
+            for _ in range(n):
+                p.step(STEP, torque)
+            best = min(best, (time.perf_counter() - t0) / n * 1e6)
+        out[label] = best
+    return out
+
+
+def _start(ns, integrator, rtf):
+    exe = os.path.join(sys.prefix, 'lib', 'rigid_body_sim', 'simulator')
+    cmd = [exe if os.path.exists(exe) else sys.executable, *([] if os.path.exists(exe) else
+           ['-m', 'rigid_body_sim.nodes.simulator']),
+           '--ros-args', '-r', f'__ns:={ns}', '-p', f'integrator:={integrator}', '-p', f'step:={STEP}',
+           '-p', f'publish_rate:={PUBLISH_RATE}', '-p', f'real_time_factor:={rtf}']
+    return subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
+
+
+def _cpu_seconds(pid):
+    with open(f'/proc/{pid}/stat') as f:
+        fields = f.read().rsplit(')', 1)[1].split()
+    return (int(fields[11]) + int(fields[12])) / os.sysconf('SC_CLK_TCK')
+
+
+def run(integrator='auto', subscribe=False, seconds=6.0) -> dict:
+    import rclpy
+    from rclpy.node import Node
+    from diagnostic_msgs.msg import DiagnosticArray
+    from .simulator import NODE_NAME
+    os.environ.setdefault('ROS_DOMAIN_ID', str(random.randint(101, 200)))
+    os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
+    result = {'integrator': integrator, 'step_s': STEP, 'publish_rate_hz': PUBLISH_RATE,
+              'subscribers_on_all_topics': subscribe, 'step_cost_us': {}}
+    rclpy.init()
+    probe = Node('simulator_bench')
+    try:
+        for rtf in (0.0, 1.0):
+            ns = f'/bench_{os.getpid()}_{int(rtf)}'
+            diags = []
+            sub = probe.create_subscription(
+                DiagnosticArray, '/diagnostics',
+                lambda a: diags.extend(s for s in a.status if s.hardware_id == f'{ns}/{NODE_NAME}'), 10)
+            subs = []
+            if subscribe:
+                from .simulator import Simulator  # noqa: F401  (topic types below)
+                from geometry_msgs.msg import (PoseStamped, QuaternionStamped, TransformStamped,
+                                               Vector3Stamped)
+                from nav_msgs.msg import Odometry
+                from std_msgs.msg import Float64
+                for topic, t in (('attitude', QuaternionStamped), ('pose', PoseStamped),
+                                 ('transform', TransformStamped), ('odometry', Odometry),
+                                 ('angular_velocity', Vector3Stamped), ('angular_momentum', Vector3Stamped),
+                                 ('angular_momentum_body', Vector3Stamped), ('kinetic_energy', Float64)):
+                    subs.append(probe.create_subscription(t, f'{ns}/{topic}', lambda m: None, 10))
+            proc = _start(ns, integrator, rtf)
+            try:
+                deadline = time.monotonic() + 20
+                while not diags and time.monotonic() < deadline:
+                    rclpy.spin_once(probe, timeout_sec=0.05)
+                end = time.monotonic() + 2.0  # warm-up: discovery, integrator selection
+                while time.monotonic() < end:
+                    rclpy.spin_once(probe, timeout_sec=0.05)
+                diags.clear()
+                cpu0, wall0 = _cpu_seconds(proc.pid), time.monotonic()
+                end = wall0 + seconds
+                while time.monotonic() < end:
+                    rclpy.spin_once(probe, timeout_sec=0.05)
+                cpu = (_cpu_seconds(proc.pid) - cpu0) / (time.monotonic() - wall0)
+                values = [{kv.key: kv.value for kv in s.values} for s in diags]
+                achieved = [float(v['real_time_factor_achieved']) for v in values]
+                key = 'rtf0' if rtf == 0 else 'rtf1'
+                result[key] = {'achieved_real_time_factor': float(np.median(achieved)) if achieved else None,
+                               'cpu_percent_of_one_core': 100.0 * cpu,
+                               'integrator_used': values[-1]['integrator'] if values else None,
+                               'step_used_s': float(values[-1]['step']) if values else None,
+                               'missed_deadlines': int(values[-1]['missed_deadlines']) if values else None}
+                if values:
+                    result['step_cost_us'].setdefault(values[-1]['integrator'], None)
+            finally:
+                proc.send_signal(2)
+                try:
+                    proc.wait(10)
+                except subprocess.TimeoutExpired:
+                    proc.kill()
+                probe.destroy_subscription(sub)
+                for s in subs:
+                    probe.destroy_subscription(s)
+    finally:
+        probe.destroy_node()
+        rclpy.try_shutdown()
+    for name in set(result['step_cost_us']) | {'splitting2', 'exact'}:
+        result['step_cost_us'][name] = step_cost_us(name)
+    return result
+
+
+def main(argv=None):
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument('--integrator', default='auto')
+    parser.add_argument('--subscribe', action='store_true', help='subscribe to every state topic')
+    parser.add_argument('--seconds', type=float, default=6.0)
+    args = parser.parse_args(argv)
+    r = run(args.integrator, args.subscribe, args.seconds)
+    print(f'simulator benchmark: integrator {args.integrator}, step {STEP * 1e3:g} ms, publish {PUBLISH_RATE:g} Hz, '
+          f'subscribers on all topics: {args.subscribe}')
+    for key, label in (('rtf0', 'real_time_factor 0 (as fast as possible)'), ('rtf1', 'real_time_factor 1')):
+        v = r.get(key, {})
+        rtf = v.get('achieved_real_time_factor')
+        print(f'  {label}: achieved RTF {rtf if rtf is None else f"{rtf:.2f}"}, '
+              f'CPU {v.get("cpu_percent_of_one_core", float("nan")):.1f} % of one core, '
+              f'integrator {v.get("integrator_used")} step {v.get("step_used_s")}, '
+              f'missed deadlines {v.get("missed_deadlines")}')
+    for name, cost in r['step_cost_us'].items():
+        print(f'  Propagator.step {name}: {cost["free"]:.1f} us torque-free, {cost["torque"]:.1f} us with torque')
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())

@@ -1,0 +1,419 @@
+"""The attitude_simulator node: real node processes, real messages through rclpy.
+
+Each test starts its own simulator in a unique namespace (``namespace`` fixture) through
+``ros_process`` (always stopped) and observes it with the ``rclpy_node`` probe.
+"""
+import math
+import re
+import signal
+import time
+from collections import defaultdict
+
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+from ros_helpers import spin_until, venv_exe
+
+from builtin_interfaces.msg import Time
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
+from geometry_msgs.msg import (PoseStamped, QuaternionStamped, TransformStamped, Vector3Stamped,
+                               WrenchStamped)
+from nav_msgs.msg import Odometry
+from rcl_interfaces.msg import Parameter as ParameterMsg
+from rcl_interfaces.srv import SetParameters
+from rclpy.parameter import Parameter
+from rclpy.qos import QoSProfile, ReliabilityPolicy
+from rosgraph_msgs.msg import Clock
+from std_msgs.msg import Float64
+from std_srvs.srv import Trigger
+
+NODE = 'attitude_simulator'
+STATE_TOPICS = {
+    'attitude': QuaternionStamped, 'pose': PoseStamped, 'transform': TransformStamped, 'odometry': Odometry,
+    'angular_velocity': Vector3Stamped, 'angular_momentum': Vector3Stamped,
+    'angular_momentum_body': Vector3Stamped, 'kinetic_energy': Float64,
+}
+
+
+def _fmt(value):
+    if isinstance(value, bool):
+        return 'true' if value else 'false'
+    if isinstance(value, (list, tuple)):
+        return '[' + ', '.join(_fmt(v) for v in value) + ']'
+    if isinstance(value, float):
+        return repr(float(value))  # np.float64 reprs as 'np.float64(...)' in numpy 2
+    return str(value)
+
+
+def start_simulator(ros_process, namespace, **params):
+    """Start the installed simulator executable in ``namespace``; params: name=value ('.' as '__')."""
+    cmd = [venv_exe('simulator'), '--ros-args', '-r', f'__ns:={namespace}']
+    assert '__' not in namespace, 'use the namespace fixture of this module (ROS names forbid "__")' 
+    for key, value in params.items():
+        cmd += ['-p', f'{key.replace("__", ".")}:={_fmt(value)}']
+    return ros_process(*cmd)
+
+
+class Probe:
+    """Subscribes to a simulator's topics and records (receive wall time, message)."""
+
+    def __init__(self, node, namespace, topics=(), clock=False, diagnostics=True):
+        self.node, self.ns = node, namespace
+        self.msgs = defaultdict(list)
+        qos = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE)
+        for topic in topics:
+            self._sub(STATE_TOPICS[topic], f'{namespace}/{topic}', topic, qos)
+        if clock:
+            self._sub(Clock, '/clock', 'clock', QoSProfile(depth=1000))
+        if diagnostics:
+            self._sub(DiagnosticArray, '/diagnostics', 'diagnostics', qos)
+        self.torque_pub = node.create_publisher(Vector3Stamped, f'{namespace}/torque_command', 10)
+        self.wrench_pub = node.create_publisher(WrenchStamped, f'{namespace}/wrench_command', 10)
+
+    def _sub(self, msg_type, topic, key, qos):
+        self.node.create_subscription(msg_type, topic,
+                                      lambda m: self.msgs[key].append((time.monotonic(), m)), qos)
+
+    def spin(self, seconds):
+        spin_until(self.node, lambda: False, seconds)
+
+    def wait_for(self, predicate, timeout, what):
+        assert spin_until(self.node, predicate, timeout), f'timed out waiting for {what}'
+
+    def status(self):
+        """Latest DiagnosticStatus of this namespace's simulator (or None)."""
+        mine = f'{self.ns}/{NODE}'
+        for _, array in reversed(self.msgs['diagnostics']):
+            for status in array.status:
+                if status.hardware_id == mine:
+                    return status
+        return None
+
+    def diag(self):
+        status = self.status()
+        return {} if status is None else {kv.key: kv.value for kv in status.values}
+
+    def wait_diag(self, predicate, timeout, what):
+        self.wait_for(lambda: self.status() is not None and predicate(self.diag(), self.status()), timeout, what)
+
+    def send_torque(self, torque, frame='base_link', stamp=None, wrench=False):
+        if wrench:
+            msg = WrenchStamped()
+            msg.header.frame_id = frame
+            msg.wrench.torque.x, msg.wrench.torque.y, msg.wrench.torque.z = map(float, torque)
+        else:
+            msg = Vector3Stamped()
+            msg.header.frame_id = frame
+            msg.vector.x, msg.vector.y, msg.vector.z = map(float, torque)
+        if stamp is not None:
+            msg.header.stamp = stamp
+        (self.wrench_pub if wrench else self.torque_pub).publish(msg)
+
+    def wait_subscribed(self, timeout=10.0):
+        self.wait_for(lambda: self.torque_pub.get_subscription_count() > 0
+                      and self.wrench_pub.get_subscription_count() > 0, timeout, 'command subscriptions')
+
+    def call(self, srv_type, name, request, timeout=10.0):
+        client = self.node.create_client(srv_type, name)
+        assert client.wait_for_service(timeout_sec=timeout), f'service {name} not available'
+        future = client.call_async(request)
+        self.wait_for(future.done, timeout, f'response of {name}')
+        self.node.destroy_client(client)
+        return future.result()
+
+    def set_parameters(self, **params):
+        """Set parameters ('.' as '__') one call; returns the SetParametersResult list."""
+        request = SetParameters.Request()
+        for key, value in params.items():
+            p = Parameter(key.replace('__', '.'), value=value).to_parameter_msg()
+            assert isinstance(p, ParameterMsg)
+            request.parameters.append(p)
+        return self.call(SetParameters, f'{self.ns}/{NODE}/set_parameters', request).results
+
+    def reset(self):
+        return self.call(Trigger, f'{self.ns}/{NODE}/reset', Trigger.Request())
+
+
+@pytest.fixture
+def namespace(namespace):
+    """The conftest namespace, made valid for parametrized tests ('[a]' gave '_a__', and ROS forbids '__')."""
+    return re.sub('_+', '_', namespace)
+
+
+def stamp_s(msg):
+    return msg.header.stamp.sec + 1e-9 * msg.header.stamp.nanosec
+
+
+def vec(v):
+    return np.array([v.x, v.y, v.z])
+
+
+def quat(q):
+    return np.array([q.x, q.y, q.z, q.w])
+
+
+def expected_momentum(inertia, attitude, omega):
+    """Inertial angular momentum R(q) I ω for principal moments ``inertia``."""
+    return Rotation.from_quat(attitude).apply(np.asarray(inertia) * np.asarray(omega))
+
+
+def assert_clean_exit(proc):
+    assert proc.stop() == 0, proc.output()
+    assert 'Traceback' not in proc.output(), proc.output()
+
+
+# ------------------------------------------------------------------------------------------------
+
+def test_topics_types_frames_rates(ros_process, namespace, rclpy_node):
+    sim = start_simulator(ros_process, namespace, integrator='splitting2', publish_rate=50.0,
+                          frame_id='map', child_frame_id='craft')
+    probe = Probe(rclpy_node, namespace, topics=STATE_TOPICS)
+    probe.wait_for(lambda: all(len(probe.msgs[t]) >= 5 for t in STATE_TOPICS) and probe.status(), 15.0,
+                   'messages on every topic')
+    # types as advertised in the graph
+    types = dict(rclpy_node.get_topic_names_and_types())
+    for topic, msg_type in STATE_TOPICS.items():
+        module = msg_type.__module__.split('.')[0]
+        assert types[f'{namespace}/{topic}'] == [f'{module}/msg/{msg_type.__name__}']
+    assert types[f'{namespace}/torque_command'] == ['geometry_msgs/msg/Vector3Stamped']
+    assert types[f'{namespace}/wrench_command'] == ['geometry_msgs/msg/WrenchStamped']
+    # rate over a 2 s window
+    for msgs in probe.msgs.values():
+        msgs.clear()
+    t0 = time.monotonic()
+    probe.spin(2.0)
+    elapsed = time.monotonic() - t0
+    for topic in STATE_TOPICS:
+        rate = len(probe.msgs[topic]) / elapsed
+        assert 40.0 < rate < 60.0, f'{topic}: {rate:.1f} Hz, expected 50'
+    # frames (REP-103/105) and unit quaternions
+    for topic in ('attitude', 'pose', 'transform', 'odometry', 'angular_momentum'):
+        assert all(m.header.frame_id == 'map' for _, m in probe.msgs[topic]), topic
+    for topic in ('angular_velocity', 'angular_momentum_body'):
+        assert all(m.header.frame_id == 'craft' for _, m in probe.msgs[topic]), topic
+    assert all(m.child_frame_id == 'craft' for _, m in probe.msgs['transform'])
+    assert all(m.child_frame_id == 'craft' for _, m in probe.msgs['odometry'])
+    quats = [quat(m.quaternion) for _, m in probe.msgs['attitude']]
+    quats += [quat(m.pose.orientation) for _, m in probe.msgs['pose']]
+    quats += [quat(m.transform.rotation) for _, m in probe.msgs['transform']]
+    quats += [quat(m.pose.pose.orientation) for _, m in probe.msgs['odometry']]
+    assert max(abs(np.linalg.norm(q) - 1.0) for q in quats) < 1e-12
+    # stamps: node clock (wall) when not publishing /clock, increasing
+    stamps = [stamp_s(m) for _, m in probe.msgs['attitude']]
+    assert np.all(np.diff(stamps) > 0) and abs(stamps[-1] - time.time()) < 5.0
+    # the same instant on all stamped topics: odometry twist = angular_velocity, pose = attitude
+    by_stamp = {stamp_s(m): m for _, m in probe.msgs['angular_velocity']}
+    for _, m in probe.msgs['odometry']:
+        if stamp_s(m) in by_stamp:
+            assert np.array_equal(vec(m.twist.twist.angular), vec(by_stamp[stamp_s(m)].vector))
+    # diagnostics at ~1 Hz with the documented keys
+    d, status = probe.diag(), probe.status()
+    # WARN only for missed deadlines (a loaded CI machine), never ERROR
+    assert status.level == DiagnosticStatus.OK or (status.level == DiagnosticStatus.WARN
+                                                   and 'missed deadlines' in status.message), status
+    for key in ('integrator', 'step', 'real_time_factor_achieved', 'kinetic_energy', 'angular_momentum_norm',
+                'kinetic_energy_drift', 'angular_momentum_norm_drift', 'quaternion_norm_error',
+                'energy_dissipated', 'commands_rejected.non_finite', 'commands_rejected.wrong_frame',
+                'missed_deadlines'):
+        assert key in d, key
+    assert d['integrator'] == 'splitting2' and float(d['step']) == pytest.approx(0.001)
+    n_diag = sum(1 for _, a in probe.msgs['diagnostics'] for s in a.status if s.hardware_id.startswith(namespace))
+    assert 1 <= n_diag <= 4
+    assert 'integrator splitting2' in sim.output()  # one-line start-up summary
+    # SIGTERM (as from a process manager) ends it cleanly too
+    sim.signal(signal.SIGTERM)
+    assert sim.wait(10) == 0 and 'Traceback' not in sim.output()
+
+
+@pytest.mark.parametrize('integrator', ['auto', 'splitting2'])
+def test_torque_free_invariants(ros_process, namespace, rclpy_node, integrator):
+    inertia, q0, w0 = [1.0, 2.0, 3.0], [0.1, 0.2, 0.3, 0.927361849549570], [0.3, 0.8, -0.4]
+    sim = start_simulator(ros_process, namespace, integrator=integrator, inertia=inertia, initial_attitude=q0,
+                    initial_angular_velocity=w0, step=0.01, publish_rate=20.0, real_time_factor=4.0,
+                    publish_clock=True)
+    probe = Probe(rclpy_node, namespace, topics=('angular_momentum', 'kinetic_energy'))
+    span = lambda msgs: stamp_s(msgs[-1][1]) - stamp_s(msgs[0][1]) if msgs else 0.0  # noqa: E731
+    probe.wait_for(lambda: span(probe.msgs['angular_momentum']) >= 10.2, 20.0, '10 s of sim time')
+    samples = [(stamp_s(m), vec(m.vector)) for _, m in probe.msgs['angular_momentum']]
+    assert samples[-1][0] - samples[0][0] >= 10.0
+    q0 = np.array(q0) / np.linalg.norm(q0)
+    L0 = expected_momentum(inertia, q0, w0)
+    err = max(np.linalg.norm(L - L0) for _, L in samples) / np.linalg.norm(L0)
+    assert err < 1e-9, err
+    T0 = 0.5 * np.dot(inertia, np.square(w0))
+    T_err = max(abs(m.data - T0) for _, m in probe.msgs['kinetic_energy']) / T0
+    # exact flow: round-off; Strang splitting: bounded O(h^2) energy error (≈ 1e-5 at h = 0.01 here)
+    assert T_err < (1e-11 if integrator == 'auto' else 1e-4), T_err
+    d = probe.diag()
+    assert abs(float(d['angular_momentum_inertial_drift'])) < 1e-9
+
+
+def test_constant_torque_changes_inertial_momentum(ros_process, namespace, rclpy_node):
+    """Spin about principal axis 3 plus torque along it: τ_inertial = R(q0) τ stays fixed."""
+    inertia, q0, w0 = [1.0, 2.0, 3.0], Rotation.from_euler('xyz', [0.3, -0.5, 1.1]).as_quat(), [0.0, 0.0, 0.5]
+    tau = np.array([0.0, 0.0, 0.2])
+    start_simulator(ros_process, namespace, integrator='splitting2', inertia=inertia,
+                    initial_attitude=list(q0), initial_angular_velocity=w0, publish_rate=50.0,
+                    real_time_factor=2.0, publish_clock=True, command_timeout=100.0)
+    probe = Probe(rclpy_node, namespace, topics=('angular_momentum',))
+    probe.wait_subscribed()
+    probe.wait_for(lambda: len(probe.msgs['angular_momentum']) >= 5, 10.0, 'momentum samples')
+    probe.send_torque(tau)
+    probe.spin(1.5)
+    samples = [(stamp_s(m), vec(m.vector)) for _, m in probe.msgs['angular_momentum']]
+    L0 = expected_momentum(inertia, q0, w0)
+    changed = [i for i, (_, L) in enumerate(samples) if np.linalg.norm(L - L0) > 1e-12]
+    assert changed, 'torque never applied'
+    on = samples[changed[0]:]  # every interval between these samples had the torque on throughout
+    assert on[-1][0] - on[0][0] > 1.0
+    tau_inertial = Rotation.from_quat(q0).apply(tau)
+    for (t1, L1), (t2, L2) in zip(on, on[1:]):
+        expected = tau_inertial * (t2 - t1)
+        assert np.linalg.norm((L2 - L1) - expected) < 1e-6 * np.linalg.norm(expected)
+    # and from the start: ΔL = τ_inertial · n·h with an integer number n of 1 ms steps
+    n = np.linalg.norm(on[-1][1] - L0) / (np.linalg.norm(tau) * 0.001)
+    assert abs(n - round(n)) < 1e-6 * n
+    # a wrench's torque part is a command too
+    probe.send_torque([0.0, 0.0, -0.2], wrench=True)
+    probe.wait_diag(lambda d, s: d['commands_accepted'] == '2', 5.0, 'wrench accepted')
+
+
+def test_stale_and_rejected_commands(ros_process, namespace, rclpy_node):
+    sim = start_simulator(ros_process, namespace, integrator='splitting2', initial_angular_velocity=[0.0, 0.0, 0.0],
+                          publish_rate=50.0, command_timeout=0.2, max_torque=0.5)
+    probe = Probe(rclpy_node, namespace, topics=('angular_momentum',))
+    probe.wait_subscribed()
+    future = Time(sec=int(time.time()) + 60)
+    probe.send_torque([math.nan, 0.0, 0.1])
+    probe.send_torque([0.0, math.inf, 0.1], wrench=True)
+    probe.send_torque([0.1, 0.0, 0.0], frame='world')
+    probe.send_torque([0.1, 0.0, 0.0], stamp=future)
+    probe.wait_diag(lambda d, s: d['commands_rejected.non_finite'] == '2' and d['commands_rejected.wrong_frame'] == '1'
+                    and d['commands_rejected.future_stamp'] == '1', 5.0, 'rejections counted')
+    probe.spin(0.3)
+    assert all(np.linalg.norm(vec(m.vector)) == 0.0 for _, m in probe.msgs['angular_momentum']), \
+        'a rejected command was applied'
+    assert probe.diag()['commands_accepted'] == '0'
+    assert 'rejected (non_finite)' in sim.output() and 'rejected (wrong_frame)' in sim.output()
+    # a valid command, saturated to max_torque per axis, is held for command_timeout then dropped
+    probe.send_torque([2.0, 0.0, 0.0])
+    probe.wait_diag(lambda d, s: d['commands_timed_out'] == '1', 5.0, 'command timeout')
+    probe.spin(0.3)
+    final = [vec(m.vector) for _, m in probe.msgs['angular_momentum'][-5:]]
+    assert all(np.array_equal(f, final[-1]) for f in final), 'torque still applied after the timeout'
+    # |ΔL| = 0.5 N·m (saturated) × 0.2 s, to one step
+    assert abs(np.linalg.norm(final[-1]) - 0.1) <= 0.5 * 0.001 + 1e-12
+    d = probe.diag()
+    assert d['commands_saturated'] == '1' and d['commands_accepted'] == '1'
+    assert_clean_exit(sim)
+
+
+def test_invalid_parameters_rejected_and_runtime_switch(ros_process, namespace, rclpy_node):
+    sim = start_simulator(ros_process, namespace, integrator='splitting2', publish_rate=20.0)
+    probe = Probe(rclpy_node, namespace, topics=('angular_momentum',))
+    for params, words in (({'inertia': [1.0, 1.0, 5.0]}, 'triangle'),
+                          ({'inertia': [1.0, 2.0]}, '3 or 9'),
+                          ({'initial_attitude': [0.0, 0.0, 0.0, 0.0]}, 'zero norm'),
+                          ({'integrator': 'nope'}, 'one of'),
+                          ({'step': -0.1}, 'out of range'),
+                          ({'step': 'fast'}, 'number'),
+                          ({'publish_rate': 0.0}, 'out of range'),
+                          ({'dissipation__model': 'friction'}, 'one of'),
+                          ({'dissipation__coefficient': -1.0}, 'out of range'),
+                          ({'child_frame_id': 'world'}, 'differ'),
+                          ({'qos': 'sensor_data'}, 'read-only')):
+        [result] = probe.set_parameters(**params)
+        assert not result.successful, params
+        assert words in result.reason, (params, result.reason)
+    assert sim.poll() is None
+    probe.wait_for(lambda: len(probe.msgs['angular_momentum']) >= 3, 10.0, 'momentum')
+    L_before = vec(probe.msgs['angular_momentum'][-1][1].vector)
+    # integer values for float parameters are accepted; the integrator changes while running
+    [r1, r2] = probe.set_parameters(integrator='rk4', step=1)
+    assert r1.successful and r2.successful
+    probe.wait_diag(lambda d, s: d['integrator'] == 'rk4', 5.0, 'integrator switched')
+    n = len(probe.msgs['angular_momentum'])
+    probe.wait_for(lambda: len(probe.msgs['angular_momentum']) >= n + 3, 5.0, 'momentum after switch')
+    L_after = vec(probe.msgs['angular_momentum'][-1][1].vector)
+    assert np.linalg.norm(L_after - L_before) < 1e-6 * np.linalg.norm(L_before)  # state continuous
+    assert float(probe.diag()['step']) == pytest.approx(0.05)  # step capped at the publish period
+    assert_clean_exit(sim)
+
+
+def test_reset_restores_initial_state_and_clears_fault(ros_process, namespace, rclpy_node):
+    inertia, q0, w0 = [1.0, 2.0, 3.0], [0.0, 0.0, 0.0, 1.0], [0.2, 0.1, 1.0]
+    sim = start_simulator(ros_process, namespace, integrator='rk4', inertia=inertia, initial_attitude=q0,
+                          initial_angular_velocity=w0, step=0.01, publish_rate=50.0)
+    probe = Probe(rclpy_node, namespace, topics=('angular_momentum', 'kinetic_energy', 'attitude'))
+    probe.wait_subscribed()
+    probe.send_torque([0.3, -0.2, 0.1])
+    L0 = expected_momentum(inertia, q0, w0)
+    probe.wait_for(lambda: probe.msgs['angular_momentum'] and
+                   np.linalg.norm(vec(probe.msgs['angular_momentum'][-1][1].vector) - L0) > 0.05, 5.0,
+                   'the torque to change L')
+    assert probe.reset().success
+    n = len(probe.msgs['angular_momentum'])
+    probe.wait_for(lambda: len(probe.msgs['angular_momentum']) >= n + 3, 5.0, 'samples after reset')
+    L = vec(probe.msgs['angular_momentum'][-1][1].vector)
+    assert np.linalg.norm(L - L0) < 1e-6 * np.linalg.norm(L0)
+    T0 = 0.5 * np.dot(inertia, np.square(w0))
+    assert probe.msgs['kinetic_energy'][-1][1].data == pytest.approx(T0, rel=1e-6)
+    # drive it into a fault: stiff double-bracket dissipation with explicit RK4 diverges
+    [result] = probe.set_parameters(dissipation__model='double_bracket')
+    [result] = probe.set_parameters(dissipation__coefficient=1e7)
+    assert result.successful
+    probe.wait_diag(lambda d, s: s.level == DiagnosticStatus.ERROR, 10.0, 'ERROR status')
+    assert probe.diag()['fault']
+    assert sim.poll() is None
+    probe.spin(0.3)
+    n = len(probe.msgs['angular_momentum'])
+    probe.spin(0.5)
+    assert len(probe.msgs['angular_momentum']) == n, 'still publishing after a fault'
+    for key in ('angular_momentum', 'kinetic_energy', 'attitude'):
+        for _, m in probe.msgs[key]:
+            values = [m.data] if key == 'kinetic_energy' else \
+                (quat(m.quaternion) if key == 'attitude' else vec(m.vector))
+            assert np.all(np.isfinite(values)), 'published a non-finite value'
+    # fix the scene and reset: running again, OK
+    [result] = probe.set_parameters(dissipation__coefficient=0.0)
+    assert probe.reset().success
+    probe.wait_diag(lambda d, s: s.level == DiagnosticStatus.OK and not d['fault'], 5.0, 'OK after reset')
+    probe.wait_for(lambda: len(probe.msgs['angular_momentum']) >= n + 3, 5.0, 'publishing after reset')
+    assert_clean_exit(sim)
+
+
+@pytest.mark.parametrize('rtf', [2.0, 0.0])
+def test_clock_follows_real_time_factor(ros_process, namespace, rclpy_node, rtf):
+    start_simulator(ros_process, namespace, integrator='splitting2', publish_clock=True, real_time_factor=rtf,
+                    publish_rate=100.0)
+    probe = Probe(rclpy_node, namespace, topics=('attitude',), clock=True)
+    # /clock is shared by every test's simulator in this domain: keep the samples that match our stamps
+    probe.wait_for(lambda: len(probe.msgs['attitude']) >= 10, 10.0, 'attitude')
+    window = 5.0 if rtf else 2.0
+    for msgs in probe.msgs.values():
+        msgs.clear()
+    probe.spin(window)
+    samples = [(w, stamp_s(m)) for w, m in probe.msgs['attitude']]
+    wall = samples[-1][0] - samples[0][0]
+    sim = samples[-1][1] - samples[0][1]
+    stamps = {stamp_s(m) for _, m in probe.msgs['attitude']}
+    clock = [m.clock.sec + 1e-9 * m.clock.nanosec for _, m in probe.msgs['clock']]
+    assert sum(1 for c in clock if c in stamps) >= 0.8 * len(stamps)  # header stamps == /clock
+    if rtf:
+        assert sim / wall == pytest.approx(rtf, rel=0.05)
+    else:
+        assert sim / wall > 5.0, f'as fast as possible reached only {sim / wall:.1f}x'
+
+
+def test_invalid_startup_parameters_exit_cleanly(ros_process, namespace):
+    proc = start_simulator(ros_process, namespace, inertia=[1.0, 1.0, 5.0])
+    assert proc.wait(20) == 2
+    out = proc.output()
+    assert 'triangle' in out and 'Traceback' not in out, out
+
+
+def test_duration_ends_the_run(ros_process, namespace):
+    proc = start_simulator(ros_process, namespace, integrator='splitting2', real_time_factor=0.0, duration=2.0)
+    assert proc.wait(20) == 0
+    assert 'duration 2 s reached' in proc.output() and 'Traceback' not in proc.output()
