@@ -1,0 +1,91 @@
+"""PNG charts (matplotlib, Agg backend)."""
+import os
+
+import numpy as np
+
+
+def _plt():
+    import matplotlib
+    matplotlib.use('Agg')
+    import matplotlib.pyplot as plt
+    return plt
+
+
+def work_precision(rows, scene, path, machine=''):
+    plt = _plt()
+    fig, ax = plt.subplots(figsize=(7.5, 5.2))
+    methods = list(dict.fromkeys(r['method'] for r in rows if r['scene'] == scene.name))
+    for i, method in enumerate(methods):
+        rs = [r for r in rows if r['scene'] == scene.name and r['method'] == method and r['status'] == 'ok']
+        if not rs:
+            continue
+        rs.sort(key=lambda r: r['cpu_s'])
+        peer = rs[0]['family'] == 'peer'
+        err = np.maximum([r['attitude_error'] for r in rs], 1e-17)
+        ax.loglog([r['cpu_s'] for r in rs], err, ('--' if peer else '-') + ('s' if peer else 'o'),
+                  ms=3.5, lw=1.3, label=method + (' (peer)' if peer else ''), color=f'C{i % 10}')
+    ax.set_xlabel('CPU seconds (process time, includes Python overhead)')
+    ax.set_ylabel('final attitude error (rad)')
+    ax.set_title(f'Work-precision: {scene.title}\n{scene.description}', fontsize=9)
+    ax.grid(True, which='major', alpha=0.3)
+    ax.legend(fontsize=7, ncol=2)
+    if machine:
+        fig.text(0.01, 0.005, machine, fontsize=6, color='0.4')
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def stability(rows, path):
+    plt = _plt()
+    scenes = list(dict.fromkeys(r['scene'] for r in rows))
+    fig, axes = plt.subplots(len(scenes), 2, figsize=(11, 4.2 * len(scenes)), squeeze=False)
+    for row_axes, scene in zip(axes, scenes):
+        rs_scene = [r for r in rows if r['scene'] == scene]
+        x_name = rs_scene[0]['x_name']
+        for col, (key, label) in enumerate((('max_momentum_drift', 'max |L| drift (relative)'),
+                                            ('max_energy_drift', 'max T error (relative)'))):
+            ax = row_axes[col]
+            for i, method in enumerate(dict.fromkeys(r['method'] for r in rs_scene)):
+                rs = [r for r in rs_scene if r['method'] == method]
+                ok = [r for r in rs if r['status'] == 'ok']
+                ax.loglog([r['x'] for r in ok], [max(r[key], 1e-17) for r in ok], 'o-', ms=3, lw=1.2,
+                          color=f'C{i % 10}', label=method)
+                bad = [r for r in rs if r['status'] != 'ok']
+                if bad:
+                    ax.loglog([r['x'] for r in bad], [1e3] * len(bad), 'x', ms=8, mew=2, color=f'C{i % 10}')
+            ax.axhline(0.01, color='k', lw=0.8, ls=':')
+            if 'alpha' in x_name:
+                ax.axvline(2.785, color='r', lw=0.8, ls='--')
+            ax.set_xlabel(x_name)
+            ax.set_ylabel(label)
+            ax.set_ylim(1e-17, 1e4)
+            ax.set_title(f'{scene}: {label} (x at 1e3 = blown up; dotted = 1 %)', fontsize=8)
+            ax.grid(True, alpha=0.3)
+        row_axes[0].legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+
+
+def long_horizon(rows, path):
+    plt = _plt()
+    fig, axes = plt.subplots(1, 2, figsize=(11, 4.2))
+    for i, method in enumerate(dict.fromkeys(r['method'] for r in rows)):
+        rs = [r for r in rows if r['method'] == method and np.isfinite(r['energy_drift'])]
+        for ax, key in zip(axes, ('energy_drift', 'momentum_drift')):
+            ax.loglog([r['periods'] for r in rs], [max(r[key], 1e-17) for r in rs], '-', color=f'C{i % 10}',
+                      label=method)
+    for ax, key in zip(axes, ('T drift (relative)', '|L| drift (relative)')):
+        ax.set_xlabel('rotation periods')
+        ax.set_ylabel(key)
+        ax.grid(True, alpha=0.3)
+    axes[0].legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+
+
+def ensure_dir(path):
+    os.makedirs(path, exist_ok=True)
+    return path

@@ -1,0 +1,77 @@
+"""Live figures, measured by scripts other modules own (run as subprocesses).
+
+* simulator: ``rigid_body_sim.nodes.simulator_bench`` (real-time factor as fast as possible
+  at 1 kHz physics / 100 Hz publishing, CPU share at real time);
+* recorder: ``rigid_body_sim.bag.loadtest`` (messages/s through a real recorder, loss).
+Absent modules or failures are reported as 'not measured (<reason>)', never as errors.
+"""
+import importlib.util
+import json
+import re
+import subprocess
+import sys
+
+RECORDER_RATE_HZ = 3400  # per topic; 3 topics → 10,200 messages/s offered
+
+
+def _module_missing(name):
+    try:
+        return importlib.util.find_spec(name) is None
+    except (ImportError, ValueError):
+        return True
+
+
+def simulator(quick, log=print):
+    mod = 'rigid_body_sim.nodes.simulator_bench'
+    if quick:
+        return {'status': 'not measured (skipped in --quick: starts ROS processes; run without --quick)'}
+    if _module_missing(mod):
+        return {'status': f'not measured ({mod} not found)'}
+    try:
+        proc = subprocess.run([sys.executable, '-m', mod], capture_output=True, text=True, timeout=600)
+    except subprocess.TimeoutExpired:
+        return {'status': f'not measured ({mod} timed out after 600 s)'}
+    out = proc.stdout.strip()
+    result = {'status': 'ok' if proc.returncode == 0 else f'exit code {proc.returncode}', 'output': out[-2000:]}
+    for line in reversed(out.splitlines()):
+        try:
+            data = json.loads(line)
+        except ValueError:
+            continue
+        if isinstance(data, dict):
+            result.update(data)
+            break
+    # text form: "real_time_factor 0 (...): achieved RTF 37.45, CPU 75.4 % of one core" and
+    # "real_time_factor 1: achieved RTF 1.00, CPU 13.7 % of one core"
+    fast = re.search(r'real_time_factor 0\b[^\n]*?achieved RTF ([\d.]+)', out)
+    real = re.search(r'real_time_factor 1\b[^\n]*?CPU ([\d.]+) % of one core', out)
+    if fast and 'real_time_factor' not in result:
+        result['real_time_factor'] = float(fast.group(1))
+    if real and 'cpu_share_at_real_time' not in result:
+        result['cpu_share_at_real_time'] = float(real.group(1)) / 100.0
+    if proc.returncode != 0 and not out:
+        result['status'] = f'not measured ({mod} failed: {proc.stderr.strip()[-300:]})'
+    return result
+
+
+def recorder(quick, log=print):
+    mod = 'rigid_body_sim.bag.loadtest'
+    if quick:
+        return {'status': 'not measured (skipped in --quick: starts ROS processes; run without --quick)'}
+    if _module_missing(mod):
+        return {'status': f'not measured ({mod} not found)'}
+    cmd = [sys.executable, '-m', mod, '--rate', str(RECORDER_RATE_HZ), '--duration', '10']
+    try:
+        proc = subprocess.run(cmd, capture_output=True, text=True, timeout=300)
+    except subprocess.TimeoutExpired:
+        return {'status': 'not measured (loadtest timed out after 300 s)'}
+    out = proc.stdout
+    m_pub = re.search(r'published (\d+) messages in ([\d.]+) s \((\d+) msg/s', out)
+    m_rec = re.search(r'recorded (\d+) \((\d+) msg/s\), lost (-?\d+)', out)
+    if not (m_pub and m_rec):
+        return {'status': f'not measured (loadtest output not understood; exit {proc.returncode}: '
+                          f'{(proc.stderr or out).strip()[-300:]})'}
+    return {'status': 'ok', 'command': ' '.join(cmd[1:]), 'offered_msgs_per_s': RECORDER_RATE_HZ * 3,
+            'published': int(m_pub.group(1)), 'published_msgs_per_s': int(m_pub.group(3)),
+            'recorded': int(m_rec.group(1)), 'recorded_msgs_per_s': int(m_rec.group(2)),
+            'lost': int(m_rec.group(3))}

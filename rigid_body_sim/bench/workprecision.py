@@ -1,0 +1,139 @@
+"""Work-precision sweep: every method on every scene, CPU seconds against final error.
+
+Fixed-step methods sweep h coarse → fine, adaptive ones rtol loose → tight. Each
+(scene, method) has a CPU budget: a finer run is skipped when its predicted cost (from the
+previous run, scaled by the step count) would exceed it, and a sweep stops once the
+attitude error is at the float64 floor (≤ 1e-13 rad) or stops improving.
+"""
+import math
+
+import numpy as np
+
+from ..physics import INTEGRATORS, IntegrationError, create
+from .common import metrics, simulate, timed
+
+FIELDS = ('scene', 'method', 'family', 'kind', 'param', 'steps', 'cpu_s', 'nfev', 'attitude_error',
+          'omega_error', 'energy_drift', 'momentum_drift', 'status')
+FLOOR = 1e-13
+
+
+def our_methods():
+    return list(INTEGRATORS)
+
+
+def _params(scene, name, quick):
+    cls = INTEGRATORS[name]
+    if cls.adaptive:
+        return 'rtol', list(scene.rtols if not quick else scene.rtols[::2])
+    if name == 'exact' and scene.torque_free:  # no stepping error: a few step counts
+        return 'h', [scene.t_end / n for n in (1, 10, 100, 1000)]
+    steps = scene.steps(quick)
+    return 'h', steps
+
+
+def _row(scene, method, family, kind, param, steps, cpu_s, nfev, err, status='ok'):
+    row = {'scene': scene.name, 'method': method, 'family': family, 'kind': kind, 'param': param,
+           'steps': steps, 'cpu_s': cpu_s, 'nfev': nfev, 'status': status}
+    row.update(err or {k: float('nan') for k in FIELDS[8:12]})
+    return row
+
+
+def _n_steps(scene, h):
+    return int(round(scene.t_end / h))
+
+
+def sweep_ours(scene, ref, budget, quick, log=print):
+    rows = []
+    q_ref, m_ref = ref[0], ref[1]
+    for name in our_methods():
+        kind, params = _params(scene, name, quick)
+        spent, last = 0.0, None  # last = (cost, steps)
+        best_err = math.inf
+        stale = 0
+        for p in params:
+            steps = _n_steps(scene, p) if kind == 'h' else 0
+            if last is not None:
+                predicted = last[0] * (steps / last[1] if kind == 'h' and last[1] else 1.5)
+                if spent + predicted > budget:
+                    log(f'  {scene.name}/{name}: {kind}={p:.3g} skipped (predicted {predicted:.2g} s CPU > budget)')
+                    break
+            opts = {'rtol': p, 'atol': p * 1e-3} if kind == 'rtol' else {}
+            box = {}
+
+            def run():
+                integ = create(name, scene.dynamics, **opts)
+                box['integ'] = integ
+                return simulate(scene, integ, None if kind == 'rtol' else p)
+            try:
+                cost, (q, m) = timed(run)
+            except IntegrationError as exc:
+                rows.append(_row(scene, name, 'ours', kind, p, steps, float('nan'), box['integ'].nfev, None,
+                                 f'blown up at h={p:.3g}: {exc.reason}'))
+                continue
+            spent += cost
+            last = (cost, steps)
+            err = metrics(scene, q, m, q_ref, m_ref)
+            rows.append(_row(scene, name, 'ours', kind, p, steps, cost, box['integ'].nfev, err))
+            e = err['attitude_error']
+            if e <= FLOOR:
+                break
+            stale = stale + 1 if e > 0.5 * best_err else 0
+            best_err = min(best_err, e)
+            if stale >= 2 and e < 1e-6:  # round-off floor reached
+                break
+    return rows
+
+
+def sweep_peers(scene, peers, ref, budget, quick, log=print):
+    rows = []
+    q_ref, m_ref = ref[0], ref[1]
+    for name, peer in peers.items():
+        if not peer.supports(scene):
+            log(f'  {scene.name}/{name}: n/a (the double-bracket dissipation model is not built into it)')
+            continue
+        if peer.kind == 'adaptive':
+            kind, params = 'rtol', list(scene.rtols if not quick else scene.rtols[::2])
+        else:
+            kind, params = 'h', scene.steps(quick)
+        spent, last = 0.0, None
+        best_err, stale = math.inf, 0
+        for p in params:
+            steps = _n_steps(scene, p) if kind == 'h' else 0
+            if last is not None:
+                predicted = last[0] * (steps / last[1] if kind == 'h' and last[1] else 1.5)
+                if spent + predicted > budget:
+                    log(f'  {scene.name}/{name}: {kind}={p:.3g} skipped (predicted {predicted:.2g} s CPU > budget)')
+                    break
+            try:
+                if name.startswith('scipy'):
+                    cost, (q, m, nfev) = timed(lambda: peer.run(scene, p))
+                else:  # model set-up excluded: the runner times its own stepping
+                    best = None
+                    for _ in range(3):
+                        q, m, nfev, c = peer.run(scene, p)
+                        best = c if best is None else min(best, c)
+                        if best > 0.05:
+                            break
+                    cost = best
+            except Exception as exc:  # noqa: BLE001 - a peer's failure is a data point
+                rows.append(_row(scene, name, 'peer', kind, p, steps, float('nan'), float('nan'), None,
+                                 f'blown up at {kind}={p:.3g}: {type(exc).__name__}: {exc}'[:200]))
+                continue
+            spent += cost
+            last = (cost, steps)
+            err = metrics(scene, q, m, q_ref, m_ref)
+            rows.append(_row(scene, name, 'peer', kind, p, steps, cost, nfev, err))
+            e = err['attitude_error']
+            if e <= FLOOR:
+                break
+            stale = stale + 1 if e > 0.5 * best_err else 0
+            best_err = min(best_err, e)
+            if stale >= 2 and e < 1e-6:
+                break
+    return rows
+
+
+def finite_row(row):
+    return row['status'] == 'ok' and all(
+        isinstance(row[k], (int, float)) and np.isfinite(row[k])
+        for k in ('cpu_s', 'attitude_error', 'omega_error', 'energy_drift', 'momentum_drift'))

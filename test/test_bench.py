@@ -1,0 +1,104 @@
+"""`rigid-body-sim bench --quick`: one run (module-scoped) checked several ways.
+
+The run takes ~1 min of CPU on 2 cores; its targets are printed, not asserted here.
+"""
+import argparse
+import csv
+import math
+import os
+
+import pytest
+
+from rigid_body_sim import bench
+from rigid_body_sim.bench.scenes import SCENES
+from rigid_body_sim.physics import INTEGRATORS
+
+RK4_REAL_AXIS_LIMIT = 2.7853
+NUMERIC = ('cpu_s', 'attitude_error', 'omega_error', 'energy_drift', 'momentum_drift')
+
+
+def _read(path):
+    with open(path, newline='') as f:
+        return list(csv.DictReader(f))
+
+
+@pytest.fixture(scope='module')
+def quick_run(tmp_path_factory):
+    out = tmp_path_factory.mktemp('bench')
+    parser = argparse.ArgumentParser()
+    bench.add_arguments(parser)
+    args = parser.parse_args(['--quick', '--out', str(out)])
+    assert bench.run(args) == 0
+    return out
+
+
+def test_cli_exposes_the_subcommand():
+    parser = argparse.ArgumentParser()
+    bench.add_arguments(parser)
+    args = parser.parse_args([])
+    assert args.quick is False and args.peers is False
+
+
+def test_outputs_written(quick_run):
+    for name in ('work_precision.csv', 'stability.csv', 'long_horizon.csv', 'batch.csv', 'targets.csv',
+                 'targets.md', 'stability.png', 'work_precision_intermediate_axis.png'):
+        assert os.path.getsize(quick_run / name) > 0, name
+
+
+def test_every_method_and_scene_has_finite_figures(quick_run):
+    rows = _read(quick_run / 'work_precision.csv')
+    methods = list(INTEGRATORS) + ['scipy_rk45', 'scipy_dop853']
+    for scene in SCENES:
+        for method in methods:
+            ok = [r for r in rows if r['scene'] == scene.name and r['method'] == method and r['status'] == 'ok']
+            assert ok, f'{scene.name}/{method}: no successful run'
+            for r in ok:
+                for key in NUMERIC:
+                    assert math.isfinite(float(r[key])), (scene.name, method, key, r[key])
+                assert float(r['cpu_s']) > 0.0
+                assert float(r['nfev']) >= 1
+
+
+def test_euler_momentum_grows_at_every_step(quick_run):
+    rows = [r for r in _read(quick_run / 'stability.csv') if r['method'] == 'euler']
+    assert {r['scene'] for r in rows} >= {'tumble', 'stiff_dissipation'}
+    # Under stiff dissipation the body settles on the major axis, where Euler's growth
+    # h²|m×Ω|² drops below round-off; the every-step check is on the free tumble.
+    for r in rows:
+        assert float(r['max_momentum_drift']) > 0.0 or r['status'] != 'ok', r
+    rows = [r for r in rows if r['scene'] == 'tumble']
+    for r in rows:
+        done = int(r['steps_done'])
+        assert done >= 1
+        # every completed step increased |L| (a blown-up run counts the steps before the blow-up)
+        assert int(r['momentum_growth_steps']) == done, r
+        if r['status'] == 'ok':
+            assert done == int(r['steps'])
+    assert len({float(r['x']) for r in rows if r['scene'] == 'tumble'}) >= 5
+
+
+def test_rk4_diverges_past_its_real_axis_limit_under_stiff_dissipation(quick_run):
+    rows = [r for r in _read(quick_run / 'stability.csv')
+            if r['method'] == 'rk4' and r['scene'] == 'stiff_dissipation']
+    below = [r for r in rows if float(r['x']) < RK4_REAL_AXIS_LIMIT * 0.95]
+    beyond = [r for r in rows if float(r['x']) > RK4_REAL_AXIS_LIMIT * 1.05]
+    assert below and beyond
+    for r in below:
+        assert r['verdict'] == 'bounded', r
+    for r in beyond:
+        assert r['verdict'] != 'bounded', r
+
+
+def test_splitting_keeps_momentum_in_stability_sweep(quick_run):
+    rows = [r for r in _read(quick_run / 'stability.csv') if r['method'].startswith('splitting')]
+    assert rows
+    for r in rows:
+        assert r['status'] == 'ok', r
+        assert float(r['max_momentum_drift']) <= 1e-12, r
+
+
+def test_targets_table_has_ratios_for_every_scene(quick_run):
+    rows = _read(quick_run / 'targets.csv')
+    scenes = {r['scene'] for r in rows if r['target'].startswith('cpu ratio')}
+    assert scenes == {s.name for s in SCENES}
+    assert all(r['verdict'] in ('PASS', 'MISS', 'n/a') for r in rows)
