@@ -1,0 +1,274 @@
+"""mcap_recorder: record topics into a rosbag2-compatible MCAP bag (see rigid_body_sim.bag).
+
+Subscriptions are raw (the CDR bytes go to disk untouched) and the node runs in a
+SingleThreadedExecutor ``spin()`` with minimal callbacks: that is what lets Python keep
+up with several kHz. Each topic is subscribed once a publisher is seen, with a QoS
+compatible with all its publishers, and their offered QoS is stored like rosbag2 does.
+"""
+from __future__ import annotations
+
+import datetime
+import os
+import sys
+import time
+from typing import Any, Callable
+
+import rclpy
+import rclpy.logging
+from rclpy.clock import Clock, ClockType
+from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.node import Node
+from rclpy.parameter import parameter_value_to_python
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+
+from rigid_body_sim.bag.errors import BagError
+from rigid_body_sim.bag.recover import unfinished_files
+from rigid_body_sim.bag.reader import recover_hint
+from rigid_body_sim.bag.schema import TypeNotFound, message_class, qos_to_dict, qos_yaml
+from rigid_body_sim.bag.writer import BagWriter
+
+# What the simulator and controller publish (relative names resolve in our namespace).
+# /clock is left out: replay --clock regenerates it from the log time. /tf appears only
+# where tf2_msgs is installed.
+DEFAULT_TOPICS = [
+    'attitude', 'pose', 'transform', 'odometry', 'angular_velocity', 'angular_momentum',
+    'angular_momentum_body', 'kinetic_energy', 'torque_command', 'wrench_command',
+    'attitude_target', '/diagnostics', '/tf',
+]
+# Messages taken per callback beyond the one the executor delivered (see _callback).
+DRAIN_LIMIT = 200
+
+
+class Recorder(Node):
+    """Node ``mcap_recorder``; parameters are documented in the package README."""
+
+    def __init__(self) -> None:
+        super().__init__('mcap_recorder')
+        p = self.declare_parameter
+        p('topics', DEFAULT_TOPICS)
+        p('all', False)
+        p('exclude', [''])
+        p('output', '')
+        p('name', '')
+        p('max_bag_duration', 0.0)
+        p('max_bag_size', 0)
+        p('flush_period', 1.0)
+        p('compression', 'zstd')
+        p('qos_depth', 1000)
+        p('discovery_period', 0.2)
+        p('simulator_node', 'attitude_simulator')
+        p('config_timeout', 10.0)
+        p('scene', '')
+        get = self.get_parameter
+
+        self._all = bool(get('all').value)
+        self._wanted = {self.resolve_topic_name(t) for t in get('topics').value if t}
+        self._exclude = {self.resolve_topic_name(t) for t in get('exclude').value if t}
+        self._depth = int(get('qos_depth').value)
+        self._sim_time = bool(get('use_sim_time').value)
+        output = get('output').value or \
+            f'rigid_body_sim_{datetime.datetime.now():%Y_%m_%d-%H_%M_%S}'
+        self._warn_unfinished(os.path.abspath(output))
+        self.writer = BagWriter(output, name=get('name').value or None,
+                                max_bag_duration=float(get('max_bag_duration').value),
+                                max_bag_size=int(get('max_bag_size').value),
+                                flush_period=float(get('flush_period').value),
+                                compression=get('compression').value)
+        self.get_logger().info(f'recording to {self.writer.directory} '
+                               f'({"all topics" if self._all else sorted(self._wanted)})')
+        self._subs: dict[str, Any] = {}
+        self._record: dict[str, Callable[[bytes, dict], None]] = {}
+        self._skipped: set[str] = set()
+        # Same keys as the offline run's bag (rigid_body_sim.offline) where they overlap.
+        self._config: dict[str, Any] = {'mode': 'live', 'scene': get('scene').value or None,
+                                        'recorder': self._own_parameters()}
+        self.writer.add_run_configuration(self._config)
+
+        # Wall-clock timers: under use_sim_time a stalled /clock must not stop flushing.
+        steady = Clock(clock_type=ClockType.STEADY_TIME)
+        flush_period = float(get('flush_period').value)
+        self.create_timer(max(0.01, flush_period / 4), self.writer.flush_if_due, clock=steady)
+        self._discovery = self.create_timer(float(get('discovery_period').value),
+                                            self._discover, clock=steady)
+        self._discover()
+        self._start_config_fetch(get('simulator_node').value, float(get('config_timeout').value),
+                                 steady)
+
+    # --- topics --------------------------------------------------------------------
+
+    def _discover(self) -> None:
+        for topic, types in self.get_topic_names_and_types():
+            if topic in self._subs or topic in self._skipped or topic in self._exclude:
+                continue
+            if not (topic in self._wanted or (self._all and not _hidden(topic))):
+                continue
+            publishers = self.get_publishers_info_by_topic(topic)
+            if publishers:  # QoS and type come from the publishers
+                self._subscribe(topic, publishers[0].topic_type, publishers)
+        if not self._all and self._wanted <= set(self._subs) | self._skipped:
+            self._discovery.cancel()
+
+    def _subscribe(self, topic: str, type_name: str, publishers: list[Any]) -> None:
+        try:
+            msg_type = message_class(type_name)
+            self.writer.add_topic(topic, type_name,
+                                  qos_yaml(qos_to_dict(p.qos_profile) for p in publishers))
+        except (TypeNotFound, BagError) as exc:
+            self.get_logger().warning(f'not recording {topic}: {exc}')
+            self._skipped.add(topic)
+            return
+        offered = [p.qos_profile for p in publishers]
+        # Like rosbag2: request the strongest policy every publisher offers.
+        reliable = all(q.reliability == ReliabilityPolicy.RELIABLE for q in offered)
+        latched = all(q.durability == DurabilityPolicy.TRANSIENT_LOCAL for q in offered)
+        qos = QoSProfile(
+            history=HistoryPolicy.KEEP_LAST,
+            depth=max([self._depth] + [q.depth for q in offered]),
+            reliability=ReliabilityPolicy.RELIABLE if reliable else ReliabilityPolicy.BEST_EFFORT,
+            durability=DurabilityPolicy.TRANSIENT_LOCAL if latched else DurabilityPolicy.VOLATILE)
+        subscription = self.create_subscription(msg_type, topic, lambda *_: None, qos, raw=True)
+        self._record[topic] = self._recorder(topic)
+        subscription.callback = self._callback(topic, subscription)
+        self._subs[topic] = subscription
+        self.get_logger().info(f'subscribed to {topic} [{type_name}]')
+
+    def _callback(self, topic: str, subscription: Any) -> Callable[[bytes, dict], None]:
+        """The per-message path: stamp and append the raw bytes, nothing else.
+
+        The executor costs far more per wake-up than the write, so each callback also
+        drains what is already queued on the subscription (bounded, to stay fair).
+        """
+        handle, msg_type = subscription.handle, subscription.msg_type
+        record = self._record[topic]
+
+        def on_message(data: bytes, info: dict) -> None:
+            record(data, info)
+            with handle:
+                for _ in range(DRAIN_LIMIT):
+                    taken = handle.take_message(msg_type, True)
+                    if taken is None:
+                        return
+                    record(*taken)
+        return on_message
+
+    def _recorder(self, topic: str) -> Callable[[bytes, dict], None]:
+        write = self.writer.write
+        clock = self.get_clock()
+        sim_time = self._sim_time
+
+        def record(data: bytes, info: dict) -> None:
+            stamp = clock.now().nanoseconds if sim_time else \
+                info.get('received_timestamp') or time.time_ns()
+            write(topic, data, stamp, info.get('source_timestamp'))
+        return record
+
+    # --- run configuration ---------------------------------------------------------
+
+    def _own_parameters(self) -> dict[str, Any]:
+        names = self.list_parameters([], 0).names
+        return {p.name: p.value for p in self.get_parameters(names)}
+
+    def _start_config_fetch(self, node_name: str, timeout: float, clock: Clock) -> None:
+        """Ask the simulator for its parameters in the background (never blocks recording)."""
+        from rcl_interfaces.srv import GetParameters, ListParameters
+        if not node_name:
+            return
+        base = node_name if node_name.startswith('/') else \
+            f'{self.get_namespace().rstrip("/")}/{node_name}'
+        self._config['simulator_node'] = base
+        self._list = self.create_client(ListParameters, f'{base}/list_parameters')
+        self._get = self.create_client(GetParameters, f'{base}/get_parameters')
+        deadline = time.monotonic() + timeout
+
+        def poll() -> None:
+            if self._list.service_is_ready() and self._get.service_is_ready():
+                self._poll.cancel()
+                self._list.call_async(ListParameters.Request()).add_done_callback(on_list)
+            elif time.monotonic() > deadline:
+                self._poll.cancel()
+                self.get_logger().info(f'{base} not found: run configuration holds the '
+                                       'recorder parameters only')
+
+        def on_list(future: Any) -> None:
+            names = list(future.result().result.names) if future.result() else []
+            request = GetParameters.Request(names=names)
+            self._get.call_async(request).add_done_callback(lambda f: on_get(names, f))
+
+        def on_get(names: list[str], future: Any) -> None:
+            if future.result() is None:
+                return
+            params = {n: parameter_value_to_python(v)
+                      for n, v in zip(names, future.result().values)}
+            self._config.update({'integrator': params.get('integrator'),
+                                 'simulator_parameters': params})
+            self._config['scene'] = self._config['scene'] or params.get('scene')
+            self.writer.add_run_configuration(self._config)
+            self.get_logger().info(f'stored the run configuration of {base} '
+                                   f'({len(params)} parameters)')
+
+        self._poll = self.create_timer(0.2, poll, clock=clock)
+
+    # --- lifecycle -----------------------------------------------------------------
+
+    def _warn_unfinished(self, output: str) -> None:
+        """Unfinished files (a killed recorder) in the output or sibling bags: say how to
+        recover them; they are never touched."""
+        parent = os.path.dirname(output)
+        found = sorted(set(unfinished_files(output)) | set(unfinished_files(parent)))
+        for path in found:
+            # A file inside a bag directory: recover the whole bag (gets a metadata.yaml).
+            target = path if os.path.dirname(path) == parent else os.path.dirname(path)
+            self.get_logger().warning(f'unfinished bag file {path} (recorder killed?); '
+                                      f'recover it with: {recover_hint(target)}')
+
+    def drain(self) -> None:
+        """Write what is still queued in the subscriptions (a backlog at shutdown)."""
+        for topic, sub in self._subs.items():
+            try:
+                with sub.handle:
+                    while (taken := sub.handle.take_message(sub.msg_type, True)) is not None:
+                        self._record[topic](*taken)
+            except Exception:  # handle already gone: nothing left to save
+                pass
+
+    def close(self) -> None:
+        self.drain()
+        self.writer.close()
+        counts = self.writer.topic_counts()
+        # After SIGINT the context is gone: log without the /rosout publisher.
+        rclpy.logging.get_logger('rigid_body_sim.recorder').info(
+            f'wrote {sum(counts.values())} messages to {self.writer.directory}: {counts}')
+
+
+def _hidden(topic: str) -> bool:
+    return any(part.startswith('_') for part in topic.split('/'))
+
+
+def main(argv: list[str] | None = None) -> int:
+    rclpy.init(args=argv)
+    node = None
+    code = 0
+    try:
+        node = Recorder()
+        executor = SingleThreadedExecutor()
+        executor.add_node(node)
+        executor.spin()
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    except BagError as exc:
+        print(f'error: {exc}', file=sys.stderr)
+        code = 1
+    finally:
+        if node is not None:
+            try:
+                node.close()
+            except BagError as exc:
+                print(f'error: {exc}', file=sys.stderr)
+                code = 1
+            node.destroy_node()
+        rclpy.try_shutdown()
+    return code
+
+
+if __name__ == '__main__':
+    sys.exit(main())

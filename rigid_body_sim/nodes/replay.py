@@ -1,0 +1,190 @@
+"""replay: publish a recorded bag again (``ros2 run rigid_body_sim replay PATH [options]``).
+
+Each message goes out on its topic with its recorded type and offered QoS, as the stored
+serialized bytes (no deserialize/re-serialize), spaced by log time. ``--clock`` publishes
+``/clock`` from the log time so ``use_sim_time`` nodes follow the recording.
+"""
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from typing import Any
+
+from rigid_body_sim.bag.errors import BagError
+
+USAGE_EPILOG = 'Example: ros2 run rigid_body_sim replay my_bag --rate 2 --clock'
+
+
+def parse_args(argv: list[str]) -> argparse.Namespace:
+    parser = argparse.ArgumentParser(prog='replay', description='Publish a recorded bag again.',
+                                     epilog=USAGE_EPILOG)
+    parser.add_argument('path', help='bag directory or .mcap file')
+    parser.add_argument('--rate', type=float, default=1.0, help='playback speed factor')
+    parser.add_argument('--loop', action='store_true', help='play again when the bag ends')
+    parser.add_argument('--start-offset', type=float, default=0.0, metavar='S',
+                        help='skip the first S seconds of the bag')
+    parser.add_argument('--topics', nargs='+', metavar='TOPIC', help='only these topics')
+    parser.add_argument('--remap', action='append', default=[], metavar='OLD:=NEW',
+                        help='publish topic OLD as NEW (repeatable)')
+    parser.add_argument('--clock', nargs='?', type=float, const=100.0, default=0.0,
+                        metavar='HZ', help='publish /clock from log time (default 100 Hz)')
+    parser.add_argument('--delay', type=float, default=0.5, metavar='S',
+                        help='wait S seconds after creating publishers so subscribers match')
+    parser.add_argument('--wait-for-subscribers', type=float, default=0.0, metavar='S',
+                        help='wait up to S seconds until every replayed topic has a subscriber')
+    args = parser.parse_args(argv)
+    if args.rate <= 0:
+        parser.error('--rate must be positive')
+    for item in args.remap:
+        if ':=' not in item:
+            parser.error(f'--remap expects OLD:=NEW, got {item!r}')
+    return args
+
+
+def split_ros_args(argv: list[str]) -> tuple[list[str], list[str]]:
+    """(our arguments, ROS arguments). Done by hand: rcl would swallow ``--remap a:=b``
+    values as deprecated bare remap rules."""
+    ours, ros, in_ros = [], [], False
+    for arg in argv[1:]:
+        if arg == '--ros-args':
+            in_ros = True
+        elif arg == '--' and in_ros:
+            in_ros = False
+            continue
+        (ros if in_ros else ours).append(arg)
+    return ours, argv[:1] + ros
+
+
+def _absolute(topic: str) -> str:
+    return topic if topic.startswith('/') else '/' + topic
+
+
+class Player:
+    """Publishers for the playable topics of one bag, and the timed playback loop."""
+
+    def __init__(self, node: Any, args: argparse.Namespace) -> None:
+        from rigid_body_sim.bag.reader import read_info
+        from rigid_body_sim.bag.schema import (TypeNotFound, message_class, parse_qos_yaml,
+                                               qos_from_dict)
+        self.node, self.args = node, args
+        self.info = read_info(args.path)
+        remap = dict(item.split(':=', 1) for item in args.remap)
+        remap = {_absolute(k): _absolute(v) for k, v in remap.items()}
+        wanted = {_absolute(t) for t in args.topics} if args.topics else None
+        if wanted:
+            for topic in sorted(wanted - set(self.info.topics)):
+                node.get_logger().warning(f'topic {topic} is not in the bag')
+        self.publishers: dict[str, Any] = {}
+        for name, topic in sorted(self.info.topics.items()):
+            if (wanted is not None and name not in wanted) or (args.clock and name == '/clock'):
+                continue
+            try:
+                msg_type = message_class(topic.type)
+            except TypeNotFound as exc:
+                node.get_logger().warning(f'skipping {name}: {exc}')
+                continue
+            offered = parse_qos_yaml(topic.offered_qos_profiles)
+            qos = qos_from_dict(offered[0] if offered else {})
+            self.publishers[name] = node.create_publisher(msg_type, remap.get(name, name), qos)
+        if not self.publishers:
+            raise BagError(f'{args.path}: no playable topics')
+        self.clock_pub = None
+        if args.clock:
+            from rclpy.qos import QoSProfile
+            from rosgraph_msgs.msg import Clock
+            self.clock_pub = node.create_publisher(Clock, '/clock', QoSProfile(depth=1))
+            self._clock_msg = Clock()
+        self.published = 0
+
+    def wait_for_subscribers(self, timeout: float) -> None:
+        deadline = time.monotonic() + timeout
+        waiting = dict(self.publishers)
+        while waiting and time.monotonic() < deadline and self.node.context.ok():
+            waiting = {t: p for t, p in waiting.items() if p.get_subscription_count() == 0}
+            time.sleep(0.02)
+        if waiting and timeout > 0:
+            self.node.get_logger().warning(f'no subscriber yet on {sorted(waiting)}; playing')
+        elif timeout > 0:
+            time.sleep(0.2)  # the subscriber side may still be matching our writers
+
+    def wait_for_acks(self, timeout: float) -> None:
+        """Before exiting: let reliable subscribers get (or re-request) the last messages."""
+        from rclpy.duration import Duration
+        deadline = time.monotonic() + timeout
+        for pub in self.publishers.values():
+            left = deadline - time.monotonic()
+            if left <= 0 or not self.node.context.ok():
+                return
+            pub.wait_for_all_acked(Duration(nanoseconds=int(left * 1e9)))
+
+    def _publish_clock(self, stamp_ns: int) -> None:
+        self._clock_msg.clock.sec, self._clock_msg.clock.nanosec = divmod(stamp_ns, 10**9)
+        self.clock_pub.publish(self._clock_msg)
+
+    def _wait_until(self, wall_ns: int, bag_origin: int, wall_origin: int) -> None:
+        """Sleep until ``wall_ns`` (monotonic), ticking /clock meanwhile when enabled."""
+        tick = int(1e9 / self.args.clock) if self.clock_pub else 100_000_000
+        while self.node.context.ok():
+            now = time.monotonic_ns()
+            if now >= wall_ns:
+                return
+            if self.clock_pub:
+                self._publish_clock(bag_origin + int((now - wall_origin) * self.args.rate))
+            time.sleep(min(wall_ns - now, tick) / 1e9)
+
+    def play_once(self) -> None:
+        from rigid_body_sim.bag.reader import iter_messages
+        start = self.info.start_ns + int(self.args.start_offset * 1e9)
+        bag_origin = wall_origin = None
+        for msg in iter_messages(self.args.path, topics=list(self.publishers), start_ns=start):
+            if not self.node.context.ok():
+                return
+            if bag_origin is None:
+                bag_origin, wall_origin = msg.log_time_ns, time.monotonic_ns()
+            target = wall_origin + int((msg.log_time_ns - bag_origin) / self.args.rate)
+            self._wait_until(target, bag_origin, wall_origin)
+            if self.clock_pub:
+                self._publish_clock(msg.log_time_ns)
+            self.publishers[msg.topic].publish(msg.data)
+            self.published += 1
+
+
+def main(argv: list[str] | None = None) -> int:
+    import rclpy
+    import rclpy.logging
+    ours, ros_args = split_ros_args(sys.argv if argv is None else argv)
+    args = parse_args(ours)
+    rclpy.init(args=ros_args)
+    node = rclpy.create_node('mcap_replay')
+    code = 0
+    try:
+        player = Player(node, args)
+        node.get_logger().info(f'playing {args.path}: {len(player.publishers)} topics, '
+                               f'{player.info.message_count} messages, rate {args.rate}')
+        time.sleep(max(0.0, args.delay))
+        player.wait_for_subscribers(args.wait_for_subscribers)
+        while node.context.ok():
+            player.play_once()
+            if not args.loop:
+                break
+        player.wait_for_acks(2.0)
+        rclpy.logging.get_logger('rigid_body_sim.replay').info(
+            f'published {player.published} messages')
+    except KeyboardInterrupt:
+        pass
+    except BagError as exc:
+        print(f'error: {exc}', file=sys.stderr)
+        code = 1
+    except Exception as exc:  # shutdown mid-publish and the like: no traceback
+        if node.context.ok():
+            print(f'error: {type(exc).__name__}: {exc}', file=sys.stderr)
+            code = 1
+    finally:
+        node.destroy_node()
+        rclpy.try_shutdown()
+    return code
+
+
+if __name__ == '__main__':
+    sys.exit(main())
