@@ -1,0 +1,399 @@
+"""``attitude_controller``: detumble and slew a simulated (or real) spacecraft.
+
+A thin shell over :mod:`rigid_body_sim.control` (the law, shared with offline runs):
+messages and parameters in, ``torque_command`` out at ``control_rate`` — its own rate,
+independent of the simulator's step and publish rate.
+
+Topics (relative names, remappable):
+    sub ``attitude`` (geometry_msgs/QuaternionStamped, body→``frame_id``),
+        ``angular_velocity`` (geometry_msgs/Vector3Stamped, body frame),
+        ``attitude_target`` (geometry_msgs/QuaternionStamped, in the attitude's frame_id or empty).
+    pub ``torque_command`` (geometry_msgs/Vector3Stamped, body frame ``child_frame_id``,
+        stamped with the node clock), ``/diagnostics``.
+
+Time. The age of the state is the node clock minus the older of the two state stamps (a
+zero stamp counts as received now), so it works with ``use_sim_time`` as well. State
+older than ``state_timeout`` (or none yet) gives explicit zero torque and a throttled
+warning; so does mode ``off``.
+
+Target. ``target_attitude`` (parameter) sets the target at start and whenever it is set;
+an ``attitude_target`` message replaces it until the parameter is set again (latest wins).
+NaN, zero-norm or non-unit targets (|norm − 1| > 1e-3) and targets in a frame other than
+the attitude's are rejected with a warning naming the reason; the previous target stays.
+"""
+import math
+import sys
+import time
+
+import numpy as np
+import rclpy
+from rclpy.clock import Clock, ClockType
+from rclpy.executors import ExternalShutdownException
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+from rcl_interfaces.msg import SetParametersResult
+
+from diagnostic_msgs.msg import DiagnosticArray
+from geometry_msgs.msg import QuaternionStamped, Vector3Stamped
+
+from .. import control
+from .common import (QOS_CHOICES, ParamSpec, coerce_parameters, declare_parameters, diagnostic_status,
+                     frame_id_problem, qos_profile)
+
+NODE_NAME = 'attitude_controller'
+DIAGNOSTICS_PERIOD_S = 1.0  # wall clock
+WARN_THROTTLE_S = 2.0       # wall clock
+
+
+class _ScalarOrArraySpec(ParamSpec):
+    """A float_array parameter that also accepts a single number (``natural_frequency:=1.0``)."""
+
+    def coerce(self, parameter):
+        if parameter.type_ in (Parameter.Type.DOUBLE, Parameter.Type.INTEGER):
+            parameter = Parameter(parameter.name, Parameter.Type.DOUBLE_ARRAY, [float(parameter.value)])
+        return super().coerce(parameter)
+
+
+class _ModeSpec(ParamSpec):
+    """The mode string; also takes ``false``, which is what YAML makes of an unquoted ``off``
+    (``-p mode:=off``)."""
+
+    def descriptor(self):
+        d = super().descriptor()
+        d.type = 0  # PARAMETER_NOT_SET: dynamic typing so that a bool can arrive and be coerced
+        d.dynamic_typing = True
+        return d
+
+    def coerce(self, parameter):
+        if parameter.type_ == Parameter.Type.BOOL and parameter.value is False:
+            parameter = Parameter(parameter.name, Parameter.Type.STRING, 'off')
+        return super().coerce(parameter)
+
+
+D = control.PARAMETER_DEFAULTS
+SPECS = (
+    _ModeSpec('mode', D['mode'], 'detumble: tau = -K_w w; slew: go to the target and hold; off: zero torque',
+              kind='string', choices=control.MODES, note='switchable at runtime'),
+    ParamSpec('inertia', D['inertia'], 'inertia of the controlled body: 3 principal moments or 9 values '
+              'row-major, body frame (same format as the simulator\'s)', kind='float_array', unit='kg*m^2',
+              sizes=(3, 9), note='positive definite, symmetric, triangle inequalities'),
+    ParamSpec('control_rate', D['control_rate'], 'rate of torque_command (node clock)', kind='float', unit='Hz',
+              low=0.0, high=10000.0, low_open=True),
+    _ScalarOrArraySpec('natural_frequency', D['natural_frequency'], 'slew natural frequency w_n, one value or one per principal '
+                       'axis: kp = 2 I w_n^2, kd = 2 zeta w_n I', kind='float_array', unit='rad/s', sizes=(1, 3),
+                       low=0.0, low_open=True, note='ignored when kp and kd are set'),
+    _ScalarOrArraySpec('damping_ratio', D['damping_ratio'], 'slew damping ratio zeta (1 = critical), one value or one per '
+                       'principal axis', kind='float_array', sizes=(1, 3), low=0.0, low_open=True),
+    ParamSpec('kp', D['kp'], 'direct proportional gains per principal axis on the error '
+              'quaternion vector part; all zero = from natural_frequency/damping_ratio', kind='float_array',
+              unit='N*m', sizes=(3,), low=0.0, note='set both kp and kd (they then win), or neither'),
+    ParamSpec('kd', D['kd'], 'direct rate gains per principal axis; all zero = from '
+              'natural_frequency/damping_ratio', kind='float_array', unit='N*m*s', sizes=(3,), low=0.0),
+    _ScalarOrArraySpec('rate_gain', D['rate_gain'], 'detumble gain K_w: 0 = kd (proportional to inertia, |L| decays '
+                       'as exp(-2 zeta w_n t)); one value = isotropic; three = per principal axis',
+                       kind='float_array', unit='N*m*s', sizes=(1, 3), low=0.0),
+    ParamSpec('gyroscopic_compensation', D['gyroscopic_compensation'], 'add w x Iw to the slew torque', kind='bool'),
+    ParamSpec('max_torque', D['max_torque'], 'bound on the Euclidean norm of the commanded torque (vector scaled, '
+              'direction kept; the slew rate is limited to match); 0 = unlimited', kind='float', unit='N*m',
+              low=0.0, high=1e9),
+    ParamSpec('max_rate', D['max_rate'], 'bound on the commanded slew rate; 0 = from max_torque only', kind='float',
+              unit='rad/s', low=0.0, high=1e9),
+    ParamSpec('state_timeout', 0.5, 'state older than this (node clock vs. message stamps) gives zero torque',
+              kind='float', unit='s', low=0.0, high=1e6, low_open=True),
+    ParamSpec('target_attitude', D['target_attitude'], 'slew target (x, y, z, w) in the attitude\'s frame_id; '
+              'attitude_target messages replace it until this is set again', kind='float_array', sizes=(4,),
+              note='unit quaternion (|norm - 1| <= 1e-3)'),
+    ParamSpec('mission.free_time', D['mission.free_time'], 'free phase: no torque for this long after the '
+              'first state received (state time)', kind='float', unit='s', low=0.0, high=1e9),
+    ParamSpec('mission.detumble_exit_rate', D['mission.detumble_exit_rate'], 'in detumble, switch to slew '
+              'once |w| falls below this; 0 = never', kind='float', unit='rad/s', low=0.0, high=1e6),
+    ParamSpec('child_frame_id', 'base_link', 'body frame: frame_id of torque_command', kind='string'),
+    ParamSpec('qos', 'reliable', 'QoS of state subscriptions and torque_command', kind='string',
+              choices=QOS_CHOICES, read_only=True),
+)
+
+
+def build_config(p) -> control.ControlConfig:
+    """ControlConfig from coerced parameter values; ValueError with the reason."""
+    return control.config_from_parameters(p)
+
+
+def check_parameters(p):
+    """(config, target) for a full set of coerced values; ValueError(reason)."""
+    problem = frame_id_problem(p['child_frame_id'])
+    if problem:
+        raise ValueError(f'child_frame_id {p["child_frame_id"]!r} {problem}')
+    try:
+        target = control.validated_target(p['target_attitude'])
+    except ValueError as exc:
+        raise ValueError(f'target_attitude: {exc}') from None
+    return build_config(p), target
+
+
+def _stamp_seconds(stamp) -> float:
+    return stamp.sec + 1e-9 * stamp.nanosec
+
+
+class Controller(Node):
+    """The ``attitude_controller`` node."""
+
+    def __init__(self, **kwargs):
+        super().__init__(NODE_NAME, **kwargs)
+        self._p = declare_parameters(self, SPECS)  # ValueError on bad overrides
+        if self.get_parameter('mode').type_ != Parameter.Type.STRING:  # `mode:=off` arrived as false
+            self.set_parameters([Parameter('mode', Parameter.Type.STRING, self._p['mode'])])
+        config, target = check_parameters(self._p)
+        self._log = self.get_logger()
+        self._ctl = control.AttitudeController(config, self._p['mode'], target)
+        self._mission = control.Mission(self._p['mission.free_time'], self._p['mission.detumble_exit_rate'])
+        self._in_free_phase = False
+
+        # latest state: value, stamp (s, node clock), frame of the attitude
+        self._q = None
+        self._w = None
+        self._q_stamp = None
+        self._w_stamp = None
+        self._attitude_frame = None
+        self._last = None           # last ControlOutput (None while stale / off / no state)
+        self._age = math.inf
+        self._stale_reason = 'no state received yet'
+        self._published = 0
+        self._ticks = self._saturated_ticks = self._rate_limited_ticks = 0  # since the last diagnostics
+        self._rejected_targets = 0
+        self._last_reject = ''
+        self._rejected_states = 0
+        self._next_warn = {}
+
+        qos = qos_profile(self._p['qos'])
+        self._pub = self.create_publisher(Vector3Stamped, 'torque_command', qos)
+        self._diag_pub = self.create_publisher(DiagnosticArray, '/diagnostics', qos_profile('reliable'))
+        self.create_subscription(QuaternionStamped, 'attitude', self._on_attitude, qos)
+        self.create_subscription(Vector3Stamped, 'angular_velocity', self._on_angular_velocity, qos)
+        self.create_subscription(QuaternionStamped, 'attitude_target', self._on_target, qos)
+        self._timer = self.create_timer(1.0 / self._p['control_rate'], self._tick)
+        self.create_timer(DIAGNOSTICS_PERIOD_S, self._publish_diagnostics,
+                          clock=Clock(clock_type=ClockType.STEADY_TIME))
+        self.add_on_set_parameters_callback(self._validate_parameters)
+        self.add_post_set_parameters_callback(self._apply_parameters)
+        self._log.info(self._summary())
+
+    # ------------------------------------------------------------------ helpers
+    def _summary(self) -> str:
+        c = self._ctl.config
+        limit = 'unlimited' if not math.isfinite(c.torque_limit) else f'{c.torque_limit:g} N*m'
+        return (f'mode {self._ctl.mode}, {self._p["control_rate"]:g} Hz; kp {np.round(c.kp_principal, 6).tolist()}, '
+                f'kd {np.round(c.kd_principal, 6).tolist()}, K_w {np.round(c.rate_gain_principal, 6).tolist()} '
+                f'(principal axes), gyroscopic compensation {"on" if c.gyroscopic_compensation else "off"}, '
+                f'max_torque {limit}, target {np.round(self._ctl.target, 6).tolist()}')
+
+    def _warn(self, key: str, text: str):
+        now = time.monotonic()
+        if now >= self._next_warn.get(key, 0.0):
+            self._next_warn[key] = now + WARN_THROTTLE_S
+            self._log.warn(text)
+
+    def _now(self) -> float:
+        return self.get_clock().now().nanoseconds * 1e-9
+
+    def _stamp_or_now(self, header) -> float:
+        s = _stamp_seconds(header.stamp)
+        return s if s != 0.0 else self._now()
+
+    # ------------------------------------------------------------------ inputs
+    def _on_attitude(self, msg: QuaternionStamped):
+        o = msg.quaternion
+        q = np.array((o.x, o.y, o.z, o.w))
+        n = float(np.linalg.norm(q))
+        if not (np.all(np.isfinite(q)) and n > 1e-6):
+            self._rejected_states += 1
+            return self._warn('bad_attitude', f'attitude {q.tolist()} ignored: not a rotation (NaN/Inf or zero)')
+        self._q = q / n
+        self._q_stamp = self._stamp_or_now(msg.header)
+        self._attitude_frame = msg.header.frame_id.lstrip('/')
+
+    def _on_angular_velocity(self, msg: Vector3Stamped):
+        v = msg.vector
+        w = np.array((v.x, v.y, v.z))
+        if not np.all(np.isfinite(w)):
+            self._rejected_states += 1
+            return self._warn('bad_rate', f'angular_velocity {w.tolist()} ignored: not finite')
+        self._w = w
+        self._w_stamp = self._stamp_or_now(msg.header)
+
+    def _on_target(self, msg: QuaternionStamped):
+        o = msg.quaternion
+        frame = msg.header.frame_id.lstrip('/')
+        try:
+            if frame and self._attitude_frame is not None and frame != self._attitude_frame:
+                raise ValueError(f'frame_id {msg.header.frame_id!r} differs from the attitude\'s '
+                                 f'{self._attitude_frame!r} (or leave it empty)')
+            self._ctl.set_target((o.x, o.y, o.z, o.w))
+        except ValueError as exc:
+            self._rejected_targets += 1
+            self._last_reject = str(exc)
+            self._log.warn(f'attitude_target rejected: {exc}; keeping target {np.round(self._ctl.target, 6).tolist()}')
+            return
+        self._log.info(f'new target {np.round(self._ctl.target, 6).tolist()}')
+
+    # ------------------------------------------------------------------ control tick
+    def _tick(self):
+        now = self._now()
+        torque = (0.0, 0.0, 0.0)
+        self._last = None
+        if self._q is None or self._w is None:
+            self._age = math.inf
+            self._stale_reason = 'no state received yet'
+        else:
+            self._age = now - min(self._q_stamp, self._w_stamp)
+            if self._age > self._p['state_timeout']:
+                self._stale_reason = (f'state is {self._age:.3g} s old (> state_timeout '
+                                      f'{self._p["state_timeout"]:g} s)')
+            else:
+                self._stale_reason = ''
+        if self._stale_reason:
+            if self._ctl.mode != 'off':
+                self._warn('no_state' if self._q is None or self._w is None else 'stale',
+                           f'{self._stale_reason}: commanding zero torque')
+        elif self._mission_free():
+            pass  # the scene's free phase: zero torque
+        elif self._ctl.mode != 'off':
+            self._last = self._ctl.compute(self._q, self._w)
+            torque = tuple(float(x) for x in self._last.torque)
+            self._saturated_ticks += self._last.saturated
+            self._rate_limited_ticks += self._last.rate_limited
+        self._ticks += 1
+        msg = Vector3Stamped()
+        msg.header.stamp = self.get_clock().now().to_msg()
+        msg.header.frame_id = self._p['child_frame_id']
+        msg.vector.x, msg.vector.y, msg.vector.z = torque
+        self._pub.publish(msg)
+        self._published += 1
+
+    def _mission_free(self) -> bool:
+        """Advance the scene's schedule on the state time; True during the free phase."""
+        if not self._mission.active:
+            return False
+        free, switched = self._mission.update(self._ctl, self._w_stamp, self._w)
+        if switched:
+            self._log.info(f'|w| = {np.linalg.norm(self._w):.3g} rad/s < mission.detumble_exit_rate: '
+                           f'switching to {switched}')
+            self.set_parameters([Parameter('mode', value=switched)])
+        self._in_free_phase = free
+        return free
+
+    # ------------------------------------------------------------------ parameters
+    def _validate_parameters(self, params) -> SetParametersResult:
+        try:
+            merged = dict(self._p, **coerce_parameters(SPECS, params))
+            check_parameters(merged)
+        except ValueError as exc:
+            return SetParametersResult(successful=False, reason=str(exc))
+        return SetParametersResult(successful=True)
+
+    def _apply_parameters(self, params):
+        new = coerce_parameters(SPECS, params)
+        changed = {k: v for k, v in new.items() if self._p.get(k) != v}
+        if 'target_attitude' in new:  # setting it (even to the same value) re-asserts it over messages
+            changed['target_attitude'] = new['target_attitude']
+        if not changed:
+            return
+        self._p.update(changed)
+        config, target = check_parameters(self._p)
+        self._ctl.set_config(config)
+        if 'target_attitude' in changed:
+            self._ctl.set_target(target)
+        if 'mode' in changed:
+            self._ctl.set_mode(self._p['mode'])
+        if 'mission.free_time' in changed or 'mission.detumble_exit_rate' in changed:
+            start = self._mission.start  # keep the schedule's time origin
+            self._mission = control.Mission(self._p['mission.free_time'], self._p['mission.detumble_exit_rate'])
+            self._mission.start = start
+        if 'control_rate' in changed:
+            self.destroy_timer(self._timer)
+            self._timer = self.create_timer(1.0 / self._p['control_rate'], self._tick)
+        self._log.info(f'{", ".join(sorted(changed))} changed: {self._summary()}')
+
+    # ------------------------------------------------------------------ diagnostics
+    def _publish_diagnostics(self):
+        out = self._last
+        if self._q is not None:
+            angle = float(control.error_angle(self._q, self._ctl.target))
+        else:
+            angle = math.nan
+        rate = float(np.linalg.norm(self._w)) if self._w is not None else math.nan
+        c = self._ctl.config
+        values = {
+            'mode': self._ctl.mode,
+            'mission_phase': 'free' if self._in_free_phase else self._ctl.mode,
+            'attitude_error_angle': angle,
+            'attitude_error_angle_deg': math.degrees(angle),
+            'rate_norm': rate,
+            # over the ticks since the last diagnostics message (short saturations count too)
+            'saturation_active': self._saturated_ticks > 0,
+            'saturated_fraction': self._saturated_ticks / max(self._ticks, 1),
+            'rate_limit_active': self._rate_limited_ticks > 0,
+            'rate_limited_fraction': self._rate_limited_ticks / max(self._ticks, 1),
+            'state_age': self._age,
+            'state_timeout': self._p['state_timeout'],
+            'torque_norm': float(np.linalg.norm(out.torque)) if out is not None else 0.0,
+            'target': ' '.join(f'{x:.9g}' for x in self._ctl.target),
+            'targets_rejected': self._rejected_targets,
+            'last_target_rejection': self._last_reject,
+            'states_rejected': self._rejected_states,
+            'commands_published': self._published,
+            'max_torque': c.torque_limit if math.isfinite(c.torque_limit) else 0.0,
+        }
+        if self._stale_reason:
+            level = 'OK' if self._ctl.mode == 'off' else 'WARN'
+            message = f'{self._ctl.mode}: zero torque, {self._stale_reason}'
+        elif self._ctl.mode == 'off':
+            level, message = 'OK', 'off: zero torque'
+        elif self._ctl.mode == 'detumble':
+            level, message = 'OK', f'detumble: |w| = {rate:.3g} rad/s'
+        else:
+            level, message = 'OK', f'slew: error {math.degrees(angle):.3g} deg, |w| = {rate:.3g} rad/s'
+        if self._saturated_ticks:
+            message += ' (torque saturated)'
+        elif self._rate_limited_ticks:
+            message += ' (slew rate limited)'
+        self._ticks = self._saturated_ticks = self._rate_limited_ticks = 0
+        status = diagnostic_status(f'{self.get_name()}: control', self.get_fully_qualified_name(), level,
+                                   message, values)
+        array = DiagnosticArray(status=[status])
+        array.header.stamp = self.get_clock().now().to_msg()
+        self._diag_pub.publish(array)
+
+
+def main(args=None):
+    """Entry point of ``ros2 run rigid_body_sim controller``; returns the exit code."""
+    try:
+        rclpy.init(args=args)
+    except Exception as exc:  # bad --ros-args: no traceback
+        print(f'[FATAL] [{NODE_NAME}]: cannot initialise ROS: {exc}', file=sys.stderr)
+        return 2
+    node = None
+    try:
+        try:
+            node = Controller()
+        except ValueError as exc:
+            rclpy.logging.get_logger(NODE_NAME).fatal(f'invalid parameters: {exc}')
+            return 2
+        rclpy.spin(node)
+        return 0
+    except (KeyboardInterrupt, ExternalShutdownException):
+        return 0
+    except Exception:
+        if not rclpy.ok():  # SIGINT/SIGTERM shut the context down in the middle of a call
+            return 0
+        raise
+    finally:
+        if node is not None:
+            try:
+                node.destroy_node()
+            except Exception:  # noqa: BLE001 - context already gone; nothing left to release
+                pass
+        rclpy.try_shutdown()
+
+
+if __name__ == '__main__':
+    sys.exit(main())
