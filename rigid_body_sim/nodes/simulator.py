@@ -257,12 +257,22 @@ class Simulator(Node):
         self._next_refresh_wall = 0.0
 
     def _set_grid(self, h_max, t=None, k=None):
-        """Step h = largest step <= h_max dividing the publish period; publish ticks from t on."""
+        """Step h = largest step <= h_max dividing the publish period; publish ticks from t on.
+
+        Between publish instants the change waits for the next one (``_advance`` applies
+        it), so the publish grid keeps its phase and sim time its spacing.
+        """
+        if t is None and k is None and (self._k - self._seg_k) % self._steps_per_publish:
+            self._pending_h_max = self._h_max = h_max  # requested now, applied at the next instant
+            return
+        self._pending_h_max = None
+        # Read the current time before the step changes: _t() depends on _h.
+        seg_t = self._t() if t is None else t
         period = 1.0 / self._p['publish_rate']
         self._steps_per_publish = max(1, math.ceil(period / h_max - 1e-9))
         self._h = period / self._steps_per_publish
         self._h_max = h_max
-        self._seg_t = self._t() if t is None else t
+        self._seg_t = seg_t
         self._k = self._k if k is None else k  # total steps taken (monotonic)
         self._seg_k = self._k
         self._cmd_expiry_k = self._expiry_step()
@@ -373,6 +383,10 @@ class Simulator(Node):
                     self._publish_tick()
                     if self._fault:
                         return done
+                    if self._pending_h_max is not None:  # a step change waiting for this instant
+                        self._set_grid(self._pending_h_max)
+                        self._anchor()
+                        h, spp, end_k = self._h, self._steps_per_publish, self._end_step()
                 if k >= end_k:
                     self._finish()
                     return done

@@ -1,0 +1,253 @@
+"""``make demo`` / ``rigid-body-sim demo``: the live graph on a scene, with a status line.
+
+Starts the recorder, then the simulator and controller, as separate processes (the
+installed node executables, as ``ros2 run`` would), loaded with the scene's params file.
+An in-process rclpy node watches the state and prints sim time, real-time factor,
+attitude error, |ω|, T and |L|. After ``--duration`` wall seconds (or Ctrl-C, or the
+simulator reaching its ``duration``) the nodes are stopped cleanly and a summary is printed:
+final pointing error, T and |L| drift during the free phase, messages recorded, and where
+the bag and plots are.
+"""
+import math
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import time
+
+import numpy as np
+
+from .scene import SceneError, load
+
+
+def _executable(name):
+    """The installed node executable (ament layout), else the module behind it."""
+    path = os.path.join(sys.prefix, 'lib', 'rigid_body_sim', name)
+    return [path] if os.path.exists(path) else [sys.executable, '-m', f'rigid_body_sim.nodes.{name}']
+
+
+class _Process:
+    def __init__(self, name, args, log_dir):
+        self.name = name
+        self.log_path = os.path.join(log_dir, f'{name}.log')
+        self.log = open(self.log_path, 'wb')
+        self.proc = subprocess.Popen(_executable(name) + args, stdout=self.log, stderr=subprocess.STDOUT,
+                                     start_new_session=True)
+
+    def stop(self, timeout=10.0):
+        if self.proc.poll() is None:
+            os.killpg(self.proc.pid, signal.SIGINT)
+            try:
+                self.proc.wait(timeout)
+            except subprocess.TimeoutExpired:
+                os.killpg(self.proc.pid, signal.SIGKILL)
+                self.proc.wait()
+        self.log.close()
+        return self.proc.returncode
+
+
+class _Watcher:
+    """Subscribes to the simulator's state and the controller's command; keeps what the summary needs."""
+
+    def __init__(self, node, target):
+        from diagnostic_msgs.msg import DiagnosticArray
+        from geometry_msgs.msg import QuaternionStamped, Vector3Stamped
+        from std_msgs.msg import Float64
+        from .nodes.common import qos_profile
+        self.target = target
+        self.q = self.w = self.L = None
+        self.T = None
+        self.t = 0.0
+        self.t0 = None  # first stamp: the status shows time since the simulation started
+        self.rtf = math.nan
+        self.torque_seen = False
+        self.free = {'T': [], 'L': []}  # T and |L| while no torque has been commanded yet
+        qos = qos_profile('reliable', 100)
+        node.create_subscription(QuaternionStamped, 'attitude', self._on_attitude, qos)
+        node.create_subscription(Vector3Stamped, 'angular_velocity', self._on_w, qos)
+        node.create_subscription(Vector3Stamped, 'angular_momentum', self._on_L, qos)
+        node.create_subscription(Float64, 'kinetic_energy', self._on_T, qos)
+        node.create_subscription(Vector3Stamped, 'torque_command', self._on_torque, qos)
+        node.create_subscription(DiagnosticArray, '/diagnostics', self._on_diag, qos)
+
+    def _on_attitude(self, msg):
+        o = msg.quaternion
+        self.q = np.array((o.x, o.y, o.z, o.w))
+        stamp = msg.header.stamp.sec + 1e-9 * msg.header.stamp.nanosec
+        self.t0 = stamp if self.t0 is None else self.t0
+        self.t = stamp - self.t0
+
+    def _on_w(self, msg):
+        v = msg.vector
+        self.w = np.array((v.x, v.y, v.z))
+
+    def _on_L(self, msg):
+        v = msg.vector
+        self.L = np.array((v.x, v.y, v.z))
+        if not self.torque_seen:
+            self.free['L'].append(float(np.linalg.norm(self.L)))
+
+    def _on_T(self, msg):
+        self.T = msg.data
+        if not self.torque_seen:
+            self.free['T'].append(msg.data)
+
+    def _on_torque(self, msg):
+        v = msg.vector
+        if v.x or v.y or v.z:
+            self.torque_seen = True
+
+    def _on_diag(self, msg):
+        for status in msg.status:
+            if status.name.startswith('attitude_simulator'):
+                for kv in status.values:
+                    if kv.key == 'real_time_factor_achieved':
+                        try:
+                            self.rtf = float(kv.value)
+                        except ValueError:
+                            pass
+
+    def error_deg(self):
+        if self.q is None:
+            return math.nan
+        from .physics import rotation
+        return math.degrees(float(rotation.angle_between(self.q, self.target)))
+
+    def status(self):
+        w = float(np.linalg.norm(self.w)) if self.w is not None else math.nan
+        L = float(np.linalg.norm(self.L)) if self.L is not None else math.nan
+        T = self.T if self.T is not None else math.nan
+        phase = 'controlled' if self.torque_seen else 'free'
+        return (f't = {self.t:7.2f} s  rtf {self.rtf:5.2f}  error {self.error_deg():7.3f}°  '
+                f'|ω| {w:.3e} rad/s  T {T:.6e} J  |L| {L:.6e} kg·m²/s  [{phase}]')
+
+
+def _drift(values):
+    if len(values) < 2 or values[0] == 0:
+        return math.nan
+    v = np.asarray(values)
+    return float(np.max(np.abs(v - v[0])) / abs(v[0]))
+
+
+def _plots_from_bag(bag, scene, out_dir):
+    """The recorded state → the offline plots (same figures as `rigid-body-sim run`)."""
+    from rclpy.serialization import deserialize_message
+    from .bag.reader import iter_messages
+    from .bag.schema import message_class
+    from .plots import write_plots
+    from .nodes.simulator import build_scene
+    series = {'/attitude': [], '/angular_velocity': [], '/angular_momentum': [], '/kinetic_energy': []}
+    for m in iter_messages(bag, topics=list(series)):
+        msg = deserialize_message(m.data, message_class(m.type))
+        if m.topic == '/attitude':
+            o = msg.quaternion
+            series[m.topic].append((m.log_time_ns, (o.x, o.y, o.z, o.w)))
+        elif m.topic == '/kinetic_energy':
+            series[m.topic].append((m.log_time_ns, msg.data))
+        else:
+            v = msg.vector
+            series[m.topic].append((m.log_time_ns, (v.x, v.y, v.z)))
+    n = min(len(v) for v in series.values())
+    if n < 2:
+        return []
+    t0 = series['/attitude'][0][0]
+    samples = {'t': np.array([(ts - t0) * 1e-9 for ts, _ in series['/attitude'][:n]]),
+               'attitude': np.array([v for _, v in series['/attitude'][:n]]),
+               'angular_velocity': np.array([v for _, v in series['/angular_velocity'][:n]]),
+               'angular_momentum': np.array([v for _, v in series['/angular_momentum'][:n]]),
+               'kinetic_energy': np.array([v for _, v in series['/kinetic_energy'][:n]])}
+    return write_plots(samples, build_scene(scene.simulator).body, out_dir, f'{scene.name} (live)')
+
+
+def add_arguments(parser):
+    parser.add_argument('--scene', default='default', help='scene name or params file (default: default)')
+    parser.add_argument('--duration', type=float, default=float(os.environ.get('DEMO_DURATION', 30)),
+                        help='wall seconds to run (default: $DEMO_DURATION or 30)')
+    parser.add_argument('--out', default=os.path.join('out', 'demo'), help='output directory (default out/demo)')
+
+
+def run(args) -> int:
+    import rclpy
+    from rclpy.executors import SingleThreadedExecutor
+    from rclpy.node import Node
+    from .bag.errors import BagError
+    from .bag.reader import read_info
+    try:
+        scene = load(args.scene)
+    except SceneError as exc:
+        print(f'error: {exc}', file=sys.stderr)
+        return 2
+    if not args.duration > 0:
+        print('error: --duration must be > 0 wall seconds', file=sys.stderr)
+        return 2
+    os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')  # a demo stays on this machine
+    out = os.path.abspath(args.out)
+    bag = os.path.join(out, 'bag')
+    shutil.rmtree(bag, ignore_errors=True)  # each demo replaces the previous one's bag
+    os.makedirs(out, exist_ok=True)
+    params = ['--ros-args', '--params-file', os.path.abspath(scene.path)]
+    target = np.asarray(scene.controller.get('target_attitude', (0.0, 0.0, 0.0, 1.0)), float)
+    print(f'demo: scene {scene.name} — {scene.description}')
+    print(f'demo: logs and output in {out}; stopping after {args.duration:g} s (Ctrl-C stops earlier)')
+
+    procs = [_Process('recorder', ['--ros-args', '-p', f'output:={bag}', '-p', f'scene:={scene.name}'], out)]
+    rclpy.init()
+    node = Node('demo_status')
+    watcher = _Watcher(node, target)
+    executor = SingleThreadedExecutor()
+    executor.add_node(node)
+    interrupted = False
+    try:
+        # Give the recorder a moment to be discovered so it sees the first messages.
+        deadline = time.monotonic() + 2.0
+        while time.monotonic() < deadline:
+            executor.spin_once(timeout_sec=0.1)
+        procs.append(_Process('simulator', params, out))
+        if scene.controlled:
+            procs.append(_Process('controller', params, out))
+        tty = sys.stdout.isatty()
+        start, last_print = time.monotonic(), 0.0
+        while time.monotonic() - start < args.duration:
+            executor.spin_once(timeout_sec=0.05)
+            if procs[1].proc.poll() is not None:
+                break  # the simulator reached its duration (or failed: see its log)
+            now = time.monotonic()
+            if now - last_print >= (0.25 if tty else 2.0):
+                last_print = now
+                print(('\r' if tty else '') + watcher.status(), end='' if tty else '\n', flush=True)
+    except KeyboardInterrupt:
+        interrupted = True
+    finally:
+        if sys.stdout.isatty():
+            print()
+        codes = {p.name: p.stop() for p in procs[1:]}
+        end = time.monotonic() + 1.0  # let the recorder take the last messages
+        try:
+            while time.monotonic() < end:
+                executor.spin_once(timeout_sec=0.05)
+        except KeyboardInterrupt:
+            pass
+        codes['recorder'] = procs[0].stop()
+        node.destroy_node()
+        rclpy.try_shutdown()
+
+    failed = {n: c for n, c in codes.items() if c not in (0, None, -signal.SIGINT)}
+    print('demo: summary' + (' (interrupted)' if interrupted else ''))
+    print(f'  final pointing error: {watcher.error_deg():.4f}° (target {np.round(target, 6).tolist()})')
+    print(f'  free phase: {len(watcher.free["T"])} samples, relative drift T {_drift(watcher.free["T"]):.2e}, '
+          f'|L| {_drift(watcher.free["L"]):.2e}')
+    try:
+        info = read_info(bag)
+        print(f'  messages recorded: {info.message_count} on {len(info.topics)} topics, '
+              f'{info.duration_s:.2f} s — bag: {bag}')
+        plots = _plots_from_bag(bag, scene, out)
+        for path in plots:
+            print(f'  plot: {path}')
+    except BagError as exc:
+        print(f'  bag: not readable ({exc}); recorder log: {procs[0].log_path}')
+        return 1
+    if failed:
+        print(f'  node exit codes: {failed} (logs in {out})')
+        return 1
+    return 0
