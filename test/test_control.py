@@ -299,7 +299,7 @@ def test_mission_from_parameters_for_offline_runs():
     ctl, mission, period = C.mission_from_parameters(
         {'mode': 'slew', 'natural_frequency': [1.0], 'control_rate': 25.0, 'target_attitude': [0, 0, 1, 0],
          'state_timeout': 0.3})
-    assert mission is None and period == pytest.approx(0.04)
+    assert not mission.active and period == pytest.approx(0.04)
     assert ctl.mode == 'slew'
     np.testing.assert_allclose(ctl.target, [0, 0, 1, 0])
     np.testing.assert_allclose(ctl.config.kp_principal, 2 * np.array(INERTIA))
@@ -307,3 +307,19 @@ def test_mission_from_parameters_for_offline_runs():
         C.mission_from_parameters({'target_attitude': [0, 0, 0, 0]})
     with pytest.raises(ValueError, match='unknown mode'):
         C.mission_from_parameters({'mode': 'spin'})
+    with pytest.raises(ValueError, match='mission.free_time must be finite and >= 0'):
+        C.mission_from_parameters({'mission.free_time': -1.0})
+
+
+def test_mission_free_phase_then_detumble_then_slew():
+    """Zero torque for free_time (state time), then detumble until |ω| < exit rate, then slew."""
+    ctl, mission, _ = C.mission_from_parameters({'mode': 'detumble', 'mission.free_time': 2.0,
+                                                 'mission.detumble_exit_rate': 0.05})
+    assert mission.active
+    assert mission.update(ctl, 10.0, [0.0, 1.0, 0.0]) == (True, None)   # first state: t0 = 10 s
+    assert mission.update(ctl, 11.9, [0.0, 1.0, 0.0]) == (True, None)
+    assert mission.update(ctl, 12.0, [0.0, 1.0, 0.0]) == (False, None)  # detumbling
+    assert ctl.mode == 'detumble'
+    assert mission.update(ctl, 15.0, [0.0, 0.04, 0.0]) == (False, 'slew')
+    assert ctl.mode == 'slew'
+    assert mission.update(ctl, 16.0, [0.0, 0.01, 0.0]) == (False, None)  # switches once
