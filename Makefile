@@ -7,6 +7,7 @@ VENV        ?= .venv
 PY          := $(VENV)/bin/python
 STAMP       := $(VENV)/.rigid_body_sim-installed
 DEMO_DURATION ?= 30
+DEMO_OUT    ?= out/demo
 PYTEST_ARGS ?=
 NODES       := simulator controller recorder replay
 
@@ -14,7 +15,7 @@ NODES       := simulator controller recorder replay
 .DEFAULT_GOAL := demo
 
 demo: venv
-	DEMO_DURATION=$(DEMO_DURATION) $(VENV)/bin/rigid-body-sim demo --duration $(DEMO_DURATION)
+	$(VENV)/bin/rigid-body-sim demo --duration $(DEMO_DURATION) --out $(DEMO_OUT)
 
 test: venv
 	$(PY) -m pytest $(PYTEST_ARGS)

@@ -22,7 +22,6 @@ setup(
     maintainer_email='dev@rigid-body-sim.invalid',
     description='Live spacecraft attitude simulation for ROS 2 Jazzy',
     license='Apache-2.0',
-    tests_require=['pytest'],
     entry_points={
         'console_scripts': [
             'rigid-body-sim = rigid_body_sim.cli:main',

@@ -67,8 +67,11 @@ class _Progress:
 
 
 def simulate(scene: SceneFile, duration=None, integrator=None, step=None, accuracy=None,
-             progress=False) -> RunResult:
-    """Run ``scene``; CLI overrides replace the scene's values when given."""
+             progress=False, integrator_options=None) -> RunResult:
+    """Run ``scene``; CLI overrides replace the scene's values when given.
+
+    ``integrator_options`` go to a fixed integrator (e.g. dop853 rtol/atol for a reference).
+    """
     from .nodes.simulator import build_scene
     p = dict(scene.simulator)
     for key, value in (('duration', duration), ('integrator', integrator), ('step', step), ('accuracy', accuracy)):
@@ -94,7 +97,13 @@ def simulate(scene: SceneFile, duration=None, integrator=None, step=None, accura
             h, reason = sample_period, reason + '; evaluated once per sample'
     else:
         h, reason = max_step, f'set by the scene or --integrator ({name})'
-    prop = Propagator(model.body, model.attitude, model.angular_velocity, model.dissipation, integrator=name)
+    # Like the live node under auto: until the first torque the motion is free, so the exact
+    # flow runs (no stepping error); the selected method takes over at the first torque.
+    free_first = p['integrator'] == 'auto' and controller is not None and not model.dissipation.active
+    prop = Propagator(model.body, model.attitude, model.angular_velocity, model.dissipation,
+                      integrator='exact' if free_first else name, **(integrator_options or {}))
+    if free_first:
+        reason += '; exact flow until the first torque'
     limit = p['max_torque']
 
     n_samples = int(math.floor(horizon / sample_period + 1e-9)) + 1
@@ -114,6 +123,9 @@ def simulate(scene: SceneFile, duration=None, integrator=None, step=None, accura
                 free, _ = mission.update(controller, prop.t, prop.angular_velocity)
                 torque = np.zeros(3) if free else \
                     np.clip(controller.torque(prop.attitude, prop.angular_velocity), -limit, limit)
+                if free_first and np.any(torque != 0.0):
+                    prop.set_integrator(name)
+                    free_first = False
                 next_control += control_period
             target = min(t_sample, next_control) if controller is not None else t_sample
             if target - prop.t <= 1e-12:
@@ -121,8 +133,8 @@ def simulate(scene: SceneFile, duration=None, integrator=None, step=None, accura
                     break
                 continue
             span = target - prop.t
-            n = max(1, int(math.ceil(span / h - 1e-9)))
-            prop.advance(span, span / n, torque if controller is not None else None)
+            n = 1 if free_first else max(1, int(math.ceil(span / h - 1e-9)))
+            prop.advance(span, span / n, torque if controller is not None and not free_first else None)
             prop.t = target  # land exactly on the event (no accumulated rounding in t)
             steps += n
         out['t'].append(prop.t)

@@ -1,0 +1,198 @@
+"""Built-in scenes run offline and meet their physics; bad scene files fail cleanly."""
+import json
+import math
+import os
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from rigid_body_sim.offline import simulate
+from rigid_body_sim.physics import rotation
+from rigid_body_sim.physics.exact import TorqueFreeSolution
+from rigid_body_sim.scene import SceneError, list_scenes, load
+
+CLI = os.path.join(os.path.dirname(sys.executable), 'rigid-body-sim')
+BUILT_IN = ('default', 'tennis_racket', 'explorer1', 'symmetric_top', 'rigid_earth', 'slew', 'detumble')
+TORQUE_FREE = ('tennis_racket', 'symmetric_top', 'rigid_earth')
+
+
+def test_scenes_command_lists_every_builtin_scene_on_one_line():
+    out = subprocess.run([CLI, 'scenes'], capture_output=True, text=True, timeout=60)
+    assert out.returncode == 0
+    names = [line.split()[0] for line in out.stdout.splitlines()]
+    assert sorted(names) == sorted(BUILT_IN)
+    assert all(len(line.split()) > 3 for line in out.stdout.splitlines())  # a description each
+    assert {n for n, _, _ in list_scenes()} == set(BUILT_IN)
+
+
+@pytest.mark.parametrize('name', BUILT_IN)
+def test_scene_declares_only_what_it_needs(name):
+    scene = load(name)
+    assert scene.controlled == (name in ('default', 'slew', 'detumble'))
+    uses_dissipation = scene.simulator['dissipation.model'] != 'none'
+    assert uses_dissipation == (name == 'explorer1')
+
+
+@pytest.mark.parametrize('name', TORQUE_FREE)
+def test_auto_picks_exact_for_torque_free_scenes(name):
+    result = simulate(load(name), duration=1.0 if name != 'rigid_earth' else 86164.0905 * 3)
+    assert result.integrator == 'exact'
+    assert 'torque-free' in result.reason
+
+
+# Reference durations: short enough for a DOP853 (rtol 1e-12) reference in seconds.
+BUDGET_DURATION = {'default': 30.0, 'slew': 15.0, 'detumble': 15.0, 'tennis_racket': 10.0,
+                   'symmetric_top': 20.0, 'explorer1': 30.0, 'rigid_earth': 86164.0905 * 30}
+
+
+@pytest.mark.parametrize('name', BUILT_IN)
+def test_auto_meets_the_attitude_budget_against_a_reference(name):
+    """|attitude(auto) − attitude(DOP853 rtol 1e-12)| ≤ the scene's accuracy at every sample."""
+    scene = load(name)
+    duration = BUDGET_DURATION[name]
+    auto = simulate(scene, duration=duration)
+    # atol applies to q and m alike: absolute 1e-14 (rtol governs large momenta, e.g. Earth's)
+    ref = simulate(scene, duration=duration, integrator='dop853', integrator_options={'rtol': 1e-12, 'atol': 1e-14})
+    err = rotation.angle_between(auto.samples['attitude'], ref.samples['attitude'])
+    budget = scene.simulator['accuracy']
+    assert np.max(err) <= budget, f'{name}: {auto.integrator} error {np.max(err):.3g} > budget {budget:g}'
+
+
+def nutation_deg(samples, spin_axis=0):
+    """Angle between the body angular momentum and the symmetry (spin) axis, degrees."""
+    L = samples['angular_momentum_body']
+    return np.degrees(np.arccos(np.abs(L[:, spin_axis]) / np.linalg.norm(L, axis=1)))
+
+
+def test_explorer1_goes_flat_within_one_orbit_keeping_momentum():
+    """Within 115 min the spin is within 1° of the major axis; |L| constant to 1e-10;
+    the nutation follows tan θ = tan θ0·exp(c t), c = α|L|²(1/I_s − 1/I_t), to 0.1°."""
+    scene = load('explorer1')
+    result = simulate(scene)
+    s = result.samples
+    theta = nutation_deg(s)
+    flat = np.nonzero(theta >= 89.0)[0]
+    assert flat.size and s['t'][flat[0]] <= 115 * 60, 'not flat within one orbit'
+    assert np.all(theta[flat[0]:] >= 89.0)  # and it stays flat
+    L = np.linalg.norm(s['angular_momentum'], axis=1)
+    assert np.max(np.abs(L / L[0] - 1)) < 1e-10
+    I_s, I_t = scene.simulator['inertia'][0], scene.simulator['inertia'][1]
+    c = scene.simulator['dissipation.coefficient'] * L[0] ** 2 * (1 / I_s - 1 / I_t)
+    predicted = np.degrees(np.arctan(np.tan(np.radians(theta[0])) * np.exp(c * s['t'])))
+    assert np.max(np.abs(theta - predicted)) < 0.1
+    # the flat spin: ω about a transverse axis at |L|/I_t (≈ 2 rev/s from 10 rev/s)
+    assert np.linalg.norm(s['angular_velocity'][-1]) == pytest.approx(L[0] / I_t, rel=1e-3)
+
+
+def test_rigid_earth_free_wobble_period():
+    """ω⊥ turns about the figure axis once per A/(C − A) = 304.46 sidereal days (±0.1 %)."""
+    scene = load('rigid_earth')
+    s = simulate(scene).samples
+    A, C = scene.simulator['inertia'][0], scene.simulator['inertia'][2]
+    phase = np.unwrap(np.arctan2(s['angular_velocity'][:, 1], s['angular_velocity'][:, 0]))
+    rate = np.polyfit(s['t'], phase, 1)[0]
+    period_days = 2 * np.pi / abs(rate) / 86164.0905
+    assert period_days == pytest.approx(A / (C - A), rel=1e-3)
+    assert period_days == pytest.approx(304.46, rel=1e-3)
+
+
+def test_tennis_racket_flips_at_the_elliptic_interval():
+    scene = load('tennis_racket')
+    s = simulate(scene).samples
+    w2 = s['angular_velocity'][:, 1]
+    idx = np.nonzero(np.sign(w2[1:]) != np.sign(w2[:-1]))[0]
+    assert len(idx) >= 4, 'the racket should flip several times in the scene'
+    t = s['t']
+    crossings = t[idx] - w2[idx] * (t[idx + 1] - t[idx]) / (w2[idx + 1] - w2[idx])  # linear interpolation
+    I = np.asarray(scene.simulator['inertia'])
+    m0 = I * np.asarray(scene.simulator['initial_angular_velocity'])
+    expected = float(TorqueFreeSolution(I, scene.simulator['initial_attitude'], m0).flip_interval)
+    assert np.diff(crossings) == pytest.approx(expected, rel=5e-3)
+
+
+def test_slew_settles_without_overshoot():
+    """90° about z, ζ = 1: no overshoot (< 1 %); within 2 % by the linear settling time + 20 %."""
+    from rigid_body_sim.control import critical_settling_time
+    scene = load('slew')
+    s = simulate(scene).samples
+    yaw = np.degrees(2 * np.arctan2(s['attitude'][:, 2], s['attitude'][:, 3]))
+    assert np.max(yaw) < 90.0 * 1.01
+    settle = 1.2 * critical_settling_time(scene.controller['natural_frequency'][0])
+    after = s['t'] >= settle
+    assert np.all(np.abs(yaw[after] - 90.0) <= 0.02 * 90.0)
+
+
+def test_default_scene_free_phase_detumble_slew_and_hold():
+    scene = load('default')
+    s = simulate(scene).samples
+    free = s['t'] < scene.controller['mission.free_time'] - 1e-9
+    assert np.all(s['torque'][free] == 0) and np.any(s['torque'][~free] != 0)
+    T, L = s['kinetic_energy'][free], np.linalg.norm(s['angular_momentum'][free], axis=1)
+    assert np.max(np.abs(T / T[0] - 1)) < 1e-12 and np.max(np.abs(L / L[0] - 1)) < 1e-12
+    target = scene.controller['target_attitude']
+    assert math.degrees(rotation.angle_between(s['attitude'][-1], target)) < 0.5
+    assert np.linalg.norm(s['angular_velocity'][-1]) < 1e-3
+
+
+BAD_FILES = {
+    'unknown key': ('/**/attitude_simulator:\n  ros__parameters:\n    inertia: [1.0, 2.0, 3.0]\n    warp_drive: 1.0\n',
+                    'warp_drive'),
+    'wrong type': ('/**/attitude_simulator:\n  ros__parameters:\n    step: fast\n', 'step'),
+    'wrong length': ('/**/attitude_simulator:\n  ros__parameters:\n    initial_attitude: [0.0, 1.0]\n',
+                     'initial_attitude'),
+    'impossible inertia': ('/**:\n  ros__parameters:\n    inertia: [1.0, 1.0, 5.0]\n', 'triangle'),
+    'unknown section': ('attitude_simulatr:\n  ros__parameters:\n    step: 0.1\n', 'attitude_simulatr'),
+    'not yaml': ('/**: [unclosed\n', 'not valid YAML'),
+    'zero duration': ('/**/attitude_simulator:\n  ros__parameters:\n    duration: 0.0\n', 'duration'),
+    'bad controller gain': ('/**/attitude_controller:\n  ros__parameters:\n    damping_ratio: -1.0\n', 'damping_ratio'),
+}
+
+
+@pytest.mark.parametrize('case', sorted(BAD_FILES))
+def test_bad_scene_files_fail_with_file_key_and_reason(case, tmp_path):
+    text, key = BAD_FILES[case]
+    path = tmp_path / f'{case.replace(" ", "_")}.yaml'
+    path.write_text(text)
+    out = subprocess.run([CLI, 'run', str(path), '--out', str(tmp_path / 'out')], capture_output=True,
+                         text=True, timeout=60)
+    assert out.returncode == 2
+    assert 'Traceback' not in out.stderr + out.stdout
+    lines = out.stderr.strip().splitlines()
+    assert len(lines) == 1 and str(path) in lines[0] and key in lines[0], out.stderr
+
+
+def test_offline_run_json_and_outputs(tmp_path):
+    """`run --json` prints one object with the documented keys; the bag opens in rosbags."""
+    out = subprocess.run([CLI, 'run', 'symmetric_top', '--duration', '2', '--out', str(tmp_path), '--json'],
+                         capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0, out.stderr
+    summary = json.loads(out.stdout)
+    for key in ('scene', 'integrator', 'reason', 'duration', 'steps', 'cpu_seconds', 'initial', 'final', 'bag',
+                'plots'):
+        assert key in summary
+    for key in ('attitude', 'angular_velocity', 'angular_momentum', 'kinetic_energy'):
+        assert key in summary['final']
+    assert summary['integrator'] == 'exact' and summary['duration'] == 2.0
+    assert all(os.path.getsize(p) > 10_000 for p in summary['plots'])
+    from pathlib import Path
+    from rosbags.highlevel import AnyReader
+    from rosbags.typesys import Stores, get_typestore
+    with AnyReader([Path(summary['bag'])], default_typestore=get_typestore(Stores.ROS2_JAZZY)) as reader:
+        topics = {c.topic: c.msgtype for c in reader.connections}
+        assert topics['/attitude'] == 'geometry_msgs/msg/QuaternionStamped'
+        assert topics['/odometry'] == 'nav_msgs/msg/Odometry'
+        counts = {}
+        last = None
+        for conn, _, raw in reader.messages(connections=reader.connections):
+            counts[conn.topic] = counts.get(conn.topic, 0) + 1
+            if conn.topic == '/kinetic_energy':
+                last = reader.deserialize(raw, conn.msgtype).data
+    assert counts['/attitude'] == 2 * 100 + 1  # publish_rate 100 Hz over 2 s, both ends
+    assert last == pytest.approx(summary['final']['kinetic_energy'], rel=1e-15)
+
+
+def test_scene_error_for_unknown_name():
+    with pytest.raises(SceneError, match='unknown scene'):
+        load('no_such_scene')
