@@ -28,7 +28,7 @@ def _nodes(context):
         Node(package='rigid_body_sim', executable='controller', name='attitude_controller',
              parameters=[params], output='screen', condition=IfCondition(LaunchConfiguration('controller'))),
         Node(package='rigid_body_sim', executable='recorder', name='mcap_recorder',
-             parameters=[{'output': output}], output='screen',
+             parameters=[{'output': output, 'scene': os.path.basename(scene)}], output='screen',
              condition=IfCondition(LaunchConfiguration('record'))),
     ]
 

@@ -403,7 +403,11 @@ def test_clock_follows_real_time_factor(ros_process, namespace, rclpy_node, rtf)
     sim = samples[-1][1] - samples[0][1]
     stamps = {stamp_s(m) for _, m in probe.msgs['attitude']}
     clock = [m.clock.sec + 1e-9 * m.clock.nanosec for _, m in probe.msgs['clock']]
-    assert sum(1 for c in clock if c in stamps) >= 0.8 * len(stamps)  # header stamps == /clock
+    # header stamps == /clock: every /clock value inside our window is one of our stamps
+    in_window = [c for c in clock if min(stamps) <= c <= max(stamps)]
+    assert len(in_window) >= 50 and sum(c in stamps for c in in_window) >= 0.99 * len(in_window)
+    if rtf:  # at RTF 0 (~1.5k ticks/s on two topics) this probe's spin loop can't take every /clock
+        assert len(in_window) >= 0.8 * len(stamps)  # /clock at every publish instant
     if rtf:
         assert sim / wall == pytest.approx(rtf, rel=0.05)
     else:

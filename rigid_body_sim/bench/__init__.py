@@ -18,7 +18,7 @@ import sys
 import time
 
 from . import batch as batch_mod
-from . import charts, live, longhorizon, peers, stability, targets, workprecision
+from . import charts, live, longhorizon, peers, selection, stability, targets, workprecision
 from .common import reference
 from .scenes import SCENES, SCENE_BY_NAME
 
@@ -199,9 +199,14 @@ def _run(args) -> int:
     with open(os.path.join(out, 'live.json'), 'w') as f:
         json.dump(live_res, f, indent=1)
 
+    # 6. model selection on the built-in scenes
+    log('\n== 6. model selection (integrator: auto) ==')
+    sel_rows, sel_targets = selection.run(quick, log)
+    _write_csv(os.path.join(out, 'selection.csv'), selection.FIELDS, sel_rows)
+
     # targets
     log('\n== targets ==')
-    t_rows = targets.work_precision(wp_rows, scenes)
+    t_rows = targets.work_precision(wp_rows, scenes) + sel_targets
     if any(s.name == 'intermediate_axis' for s in scenes):
         t_rows += _exact_floor(log)
     split = [r for r in st_rows if r['method'].startswith('splitting') and r['status'] == 'ok']

@@ -21,12 +21,20 @@ def _module_missing(name):
         return True
 
 
-def simulator(quick, log=print):
-    mod = 'rigid_body_sim.nodes.simulator_bench'
+def _not_measured(mod, quick):
+    """The result dict when a live measurement can't run here, else None."""
     if quick:
         return {'status': 'not measured (skipped in --quick: starts ROS processes; run without --quick)'}
     if _module_missing(mod):
         return {'status': f'not measured ({mod} not found)'}
+    return None
+
+
+def simulator(quick, log=print):
+    mod = 'rigid_body_sim.nodes.simulator_bench'
+    skipped = _not_measured(mod, quick)
+    if skipped:
+        return skipped
     try:
         proc = subprocess.run([sys.executable, '-m', mod], capture_output=True, text=True, timeout=600)
     except subprocess.TimeoutExpired:
@@ -56,10 +64,9 @@ def simulator(quick, log=print):
 
 def recorder(quick, log=print):
     mod = 'rigid_body_sim.bag.loadtest'
-    if quick:
-        return {'status': 'not measured (skipped in --quick: starts ROS processes; run without --quick)'}
-    if _module_missing(mod):
-        return {'status': f'not measured ({mod} not found)'}
+    skipped = _not_measured(mod, quick)
+    if skipped:
+        return skipped
     cmd = [sys.executable, '-m', mod, '--rate', str(RECORDER_RATE_HZ), '--duration', '10']
     try:
         proc = subprocess.run(cmd, capture_output=True, text=True, timeout=300)

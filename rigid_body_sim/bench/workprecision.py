@@ -42,6 +42,17 @@ def _n_steps(scene, h):
     return int(round(scene.t_end / h))
 
 
+def _over_budget(last, steps, kind, spent, budget, label, log):
+    """True (and logged) when the next run, predicted from the last one's cost, would pass the budget."""
+    if last is None:
+        return False
+    predicted = last[0] * (steps / last[1] if kind == 'h' and last[1] else 1.5)
+    if spent + predicted <= budget:
+        return False
+    log(f'  {label} skipped (predicted {predicted:.2g} s CPU > budget)')
+    return True
+
+
 def sweep_ours(scene, ref, budget, quick, log=print):
     rows = []
     q_ref, m_ref = ref[0], ref[1]
@@ -52,11 +63,8 @@ def sweep_ours(scene, ref, budget, quick, log=print):
         stale = 0
         for p in params:
             steps = _n_steps(scene, p) if kind == 'h' else 0
-            if last is not None:
-                predicted = last[0] * (steps / last[1] if kind == 'h' and last[1] else 1.5)
-                if spent + predicted > budget:
-                    log(f'  {scene.name}/{name}: {kind}={p:.3g} skipped (predicted {predicted:.2g} s CPU > budget)')
-                    break
+            if _over_budget(last, steps, kind, spent, budget, f'{scene.name}/{name}: {kind}={p:.3g}', log):
+                break
             opts = {'rtol': p, 'atol': p * 1e-3} if kind == 'rtol' else {}
             box = {}
 
@@ -99,11 +107,8 @@ def sweep_peers(scene, peers, ref, budget, quick, log=print):
         best_err, stale = math.inf, 0
         for p in params:
             steps = _n_steps(scene, p) if kind == 'h' else 0
-            if last is not None:
-                predicted = last[0] * (steps / last[1] if kind == 'h' and last[1] else 1.5)
-                if spent + predicted > budget:
-                    log(f'  {scene.name}/{name}: {kind}={p:.3g} skipped (predicted {predicted:.2g} s CPU > budget)')
-                    break
+            if _over_budget(last, steps, kind, spent, budget, f'{scene.name}/{name}: {kind}={p:.3g}', log):
+                break
             try:
                 if name.startswith('scipy'):
                     cost, (q, m, nfev) = timed(lambda: peer.run(scene, p))

@@ -204,6 +204,26 @@ def coerce_parameters(specs: Iterable[ParamSpec], parameters: Iterable[Parameter
     return out
 
 
+def validate_update(specs: Sequence[ParamSpec], current: Mapping[str, Any], parameters: Iterable[Parameter],
+                    check) -> 'SetParametersResult':
+    """The on-set-parameters answer: coerce, merge into ``current``, cross-check with ``check(merged)``.
+
+    Any ValueError becomes ``successful=False`` with its message as the reason.
+    """
+    from rcl_interfaces.msg import SetParametersResult
+    try:
+        check(dict(current, **coerce_parameters(specs, parameters)))
+    except ValueError as exc:
+        return SetParametersResult(successful=False, reason=str(exc))
+    return SetParametersResult(successful=True)
+
+
+def changed_values(specs: Sequence[ParamSpec], current: Mapping[str, Any],
+                   parameters: Iterable[Parameter]) -> Dict[str, Any]:
+    """{name: new value} for the parameters whose coerced value differs from ``current``."""
+    return {k: v for k, v in coerce_parameters(specs, parameters).items() if current.get(k) != v}
+
+
 # --- physics inputs given as parameters -------------------------------------------------
 
 def rigid_body_from_parameter(values):

@@ -37,8 +37,8 @@ from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import QuaternionStamped, Vector3Stamped
 
 from .. import control
-from .common import (QOS_CHOICES, ParamSpec, coerce_parameters, declare_parameters, diagnostic_status,
-                     frame_id_problem, qos_profile)
+from .common import (QOS_CHOICES, ParamSpec, changed_values, coerce_parameters, declare_parameters,
+                     diagnostic_status, frame_id_problem, qos_profile, validate_update)
 
 NODE_NAME = 'attitude_controller'
 DIAGNOSTICS_PERIOD_S = 1.0  # wall clock
@@ -283,18 +283,12 @@ class Controller(Node):
 
     # ------------------------------------------------------------------ parameters
     def _validate_parameters(self, params) -> SetParametersResult:
-        try:
-            merged = dict(self._p, **coerce_parameters(SPECS, params))
-            check_parameters(merged)
-        except ValueError as exc:
-            return SetParametersResult(successful=False, reason=str(exc))
-        return SetParametersResult(successful=True)
+        return validate_update(SPECS, self._p, params, check_parameters)
 
     def _apply_parameters(self, params):
-        new = coerce_parameters(SPECS, params)
-        changed = {k: v for k, v in new.items() if self._p.get(k) != v}
-        if 'target_attitude' in new:  # setting it (even to the same value) re-asserts it over messages
-            changed['target_attitude'] = new['target_attitude']
+        changed = changed_values(SPECS, self._p, params)
+        if any(p.name == 'target_attitude' for p in params):  # setting it (even to the same value)
+            changed['target_attitude'] = coerce_parameters(SPECS, params)['target_attitude']  # re-asserts it
         if not changed:
             return
         self._p.update(changed)

@@ -41,9 +41,9 @@ from std_srvs.srv import Trigger
 from ..physics import DISSIPATION_MODELS, INTEGRATORS, Dissipation, IntegrationError, Propagator
 from ..physics.selection import select
 from .state_messages import StateMessages
-from .common import (QOS_CHOICES, ParamSpec, coerce_parameters, declare_parameters, diagnostic_status,
+from .common import (QOS_CHOICES, ParamSpec, changed_values, declare_parameters, diagnostic_status,
                      frame_id_problem, qos_profile, quaternion_from_parameter, rigid_body_from_parameter,
-                     set_stamp)
+                     set_stamp, validate_update)
 
 try:  # /tf only where tf2_msgs exists (a full ROS install); the PyPI venv has none
     from tf2_msgs.msg import TFMessage
@@ -588,17 +588,10 @@ class Simulator(Node):
 
     # ======================================================================== parameters
     def _validate_parameters(self, params) -> SetParametersResult:
-        try:
-            new = coerce_parameters(SPECS, params)
-            merged = dict(self._p, **new)
-            check_parameters(merged)
-        except ValueError as exc:
-            return SetParametersResult(successful=False, reason=str(exc))
-        return SetParametersResult(successful=True)
+        return validate_update(SPECS, self._p, params, check_parameters)
 
     def _apply_parameters(self, params):
-        new = coerce_parameters(SPECS, params)
-        changed = {k: v for k, v in new.items() if self._p.get(k) != v}
+        changed = changed_values(SPECS, self._p, params)
         if not changed:
             return
         self._catch_up()  # what was due runs under the old values
