@@ -26,7 +26,8 @@ from typing import Callable, Dict
 
 import numpy as np
 
-INSTALL_HINT = "pip install 'mujoco==4.0.0' 'bsk==2.12.1'"
+# bsk 2.12.1 caps matplotlib below our pin: install it without its dependencies.
+INSTALL_HINT = ".venv/bin/pip install mujoco==4.0.0 && .venv/bin/pip install --no-deps bsk==2.12.1"
 
 
 class PeerMethod:
