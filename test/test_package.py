@@ -115,3 +115,19 @@ def test_replay_help_and_bad_path_are_clean():
     out = _run([venv_exe('replay'), '/nonexistent/bag'])
     assert out.returncode != 0 and 'Traceback' not in out.stderr + out.stdout
     assert textwrap.shorten(out.stderr, 200)  # one clear line
+
+
+def test_launch_file_compiles_and_starts_installed_executables():
+    """launch/ can't run here (no `launch` on PyPI): check its syntax and that every node it
+    starts is an entry point of this package and each scene it can name exists."""
+    import ast
+    path = os.path.join(REPO, 'launch', 'sim.launch.py')
+    tree = ast.parse(open(path).read(), path)
+    executables = {kw.value.value for node in ast.walk(tree) if isinstance(node, ast.Call)
+                   for kw in node.keywords if kw.arg == 'executable'}
+    setup_text = open(os.path.join(REPO, 'setup.py')).read()
+    assert executables == {'simulator', 'controller', 'recorder'}
+    for exe in executables:
+        assert f"'{exe} = rigid_body_sim.nodes.{exe}:main'" in setup_text
+    assert "default_value='default'" in open(path).read()
+    assert os.path.isfile(os.path.join(REPO, 'config', 'default.yaml'))
