@@ -138,9 +138,14 @@ def _plots_from_bag(bag, scene, out_dir):
     from .plots import write_plots
     from .nodes.simulator import build_scene
     series = {'/attitude': [], '/angular_velocity': [], '/angular_momentum': [], '/kinetic_energy': []}
-    for m in iter_messages(bag, topics=list(series)):
+    first_torque = None  # log time of the first nonzero command: the end of the free phase
+    for m in iter_messages(bag, topics=list(series) + ['/torque_command']):
         msg = deserialize_message(m.data, message_class(m.type))
-        if m.topic == '/attitude':
+        if m.topic == '/torque_command':
+            v = msg.vector
+            if first_torque is None and (v.x or v.y or v.z):
+                first_torque = m.log_time_ns
+        elif m.topic == '/attitude':
             o = msg.quaternion
             series[m.topic].append((m.log_time_ns, (o.x, o.y, o.z, o.w)))
         elif m.topic == '/kinetic_energy':
@@ -157,7 +162,8 @@ def _plots_from_bag(bag, scene, out_dir):
                'angular_velocity': np.array([v for _, v in series['/angular_velocity'][:n]]),
                'angular_momentum': np.array([v for _, v in series['/angular_momentum'][:n]]),
                'kinetic_energy': np.array([v for _, v in series['/kinetic_energy'][:n]])}
-    return write_plots(samples, build_scene(scene.simulator).body, out_dir, f'{scene.name} (live)')
+    free_end = np.inf if first_torque is None else (first_torque - t0) * 1e-9
+    return write_plots(samples, build_scene(scene.simulator).body, out_dir, f'{scene.name} (live)', free_end)
 
 
 def add_arguments(parser):

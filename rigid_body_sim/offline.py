@@ -216,8 +216,10 @@ def run(args) -> int:
                 shutil.rmtree(bag_dir)  # a rerun replaces its own previous output
             result.bag = write_bag(result, scene, bag_dir)
         if not args.no_plots:
-            from .plots import write_plots
-            result.plots = [os.path.abspath(pth) for pth in write_plots(result.samples, result.body, out, scene.name)]
+            from .plots import free_until, write_plots
+            free_end = free_until(result.samples['t'], result.samples['torque'])
+            result.plots = [os.path.abspath(pth) for pth in
+                            write_plots(result.samples, result.body, out, scene.name, free_end)]
     except (SceneError, ValueError, IntegrationError, BagError) as exc:
         print(f'error: {exc}', file=sys.stderr)
         return 2

@@ -16,11 +16,18 @@ def _pyplot():
     return plt
 
 
-def write_plots(samples, body, out_dir, title):
+def free_until(t, torque):
+    """Time of the first nonzero torque sample (inf when the run is torque-free)."""
+    applied = np.nonzero(np.any(np.asarray(torque) != 0.0, axis=1))[0]
+    return float(t[applied[0]]) if applied.size else np.inf
+
+
+def write_plots(samples, body, out_dir, title, free_end=np.inf):
     """Write omega.png, invariants.png and poinsot.png into ``out_dir``; returns their paths.
 
     samples: dict of arrays — t (N,), attitude (N, 4) body→inertial, angular_velocity (N, 3)
-    body frame, angular_momentum (N, 3) inertial, kinetic_energy (N,).
+    body frame, angular_momentum (N, 3) inertial, kinetic_energy (N,). Poinsot's picture
+    holds only without torque: it shows the samples before ``free_end`` (s).
     """
     plt = _pyplot()
     from .physics import rotation
@@ -56,6 +63,13 @@ def write_plots(samples, body, out_dir, title):
     fig = plt.figure(figsize=(11, 5))
     ax3 = fig.add_subplot(1, 2, 1, projection='3d')
     moments = body.principal_moments
+    free = t < free_end
+    phase = '' if np.all(free) else f' — free phase, t < {free_end / scale:.4g} {unit}'
+    if np.count_nonzero(free) >= 2:  # torque from the start: show the whole run, labelled
+        t, w, L, T, q = t[free], w[free], L[free], T[free], q[free]
+        Ln = np.linalg.norm(L, axis=1)
+    else:
+        phase = ' — torque applied throughout: not a free (Poinsot) motion'
     w_p = body.to_principal(w)
     k0 = int(np.argmax(T > 0)) if np.any(T > 0) else 0  # a body at rest has no ellipsoid yet
     radii = np.sqrt(2 * max(T[k0], 1e-300) / moments)
@@ -79,7 +93,7 @@ def write_plots(samples, body, out_dir, title):
     ax2.set(xlabel='ω·e₁ [rad/s]', ylabel='ω·e₂ [rad/s]',
             title=f'herpolhode on the invariable plane (at 2T/|L| = {2 * T[k0] / max(Ln[k0], 1e-300):.4g})')
     ax2.grid(alpha=0.3)
-    fig.suptitle(f'{title}: Poinsot\'s construction')
+    fig.suptitle(f'{title}: Poinsot\'s construction{phase}')
     paths.append(_save(fig, out_dir, 'poinsot.png', plt))
     return paths
 

@@ -357,11 +357,17 @@ def test_reset_restores_initial_state_and_clears_fault(ros_process, namespace, r
                    np.linalg.norm(vec(probe.msgs['angular_momentum'][-1][1].vector) - L0) > 0.05, 5.0,
                    'the torque to change L')
     assert probe.reset().success
+    T0 = 0.5 * np.dot(inertia, np.square(w0))
+    # Each topic is delivered on its own: wait until both show the reset state (samples from
+    # before the reset may still be in flight under load), then check it holds.
+    probe.wait_for(lambda: np.linalg.norm(vec(probe.msgs['angular_momentum'][-1][1].vector) - L0)
+                   < 1e-6 * np.linalg.norm(L0), 5.0, 'L back to its initial value')
+    probe.wait_for(lambda: probe.msgs['kinetic_energy'][-1][1].data == pytest.approx(T0, rel=1e-6), 5.0,
+                   'T back to its initial value')
     n = len(probe.msgs['angular_momentum'])
     probe.wait_for(lambda: len(probe.msgs['angular_momentum']) >= n + 3, 5.0, 'samples after reset')
     L = vec(probe.msgs['angular_momentum'][-1][1].vector)
-    assert np.linalg.norm(L - L0) < 1e-6 * np.linalg.norm(L0)
-    T0 = 0.5 * np.dot(inertia, np.square(w0))
+    assert np.linalg.norm(L - L0) < 1e-6 * np.linalg.norm(L0)  # and stays (the held torque was cleared)
     assert probe.msgs['kinetic_energy'][-1][1].data == pytest.approx(T0, rel=1e-6)
     # drive it into a fault: stiff double-bracket dissipation with explicit RK4 diverges
     [result] = probe.set_parameters(dissipation__model='double_bracket')
