@@ -1,7 +1,6 @@
 """The package as users install it: the venv as an ament prefix, colcon build, executables."""
 import os
 import shutil
-import signal
 import subprocess
 import sys
 import textwrap

@@ -229,7 +229,7 @@ def test_topics_types_frames_rates(ros_process, namespace, rclpy_node):
 @pytest.mark.parametrize('integrator', ['auto', 'splitting2'])
 def test_torque_free_invariants(ros_process, namespace, rclpy_node, integrator):
     inertia, q0, w0 = [1.0, 2.0, 3.0], [0.1, 0.2, 0.3, 0.927361849549570], [0.3, 0.8, -0.4]
-    sim = start_simulator(ros_process, namespace, integrator=integrator, inertia=inertia, initial_attitude=q0,
+    start_simulator(ros_process, namespace, integrator=integrator, inertia=inertia, initial_attitude=q0,
                     initial_angular_velocity=w0, step=0.01, publish_rate=20.0, real_time_factor=4.0,
                     publish_clock=True)
     probe = Probe(rclpy_node, namespace, topics=('angular_momentum', 'kinetic_energy'))

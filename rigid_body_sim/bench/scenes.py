@@ -3,7 +3,7 @@
 All states are principal-frame, as in :mod:`rigid_body_sim.physics.dynamics`: q (x, y, z, w)
 maps principal-frame vectors to the inertial frame, m = I ω is the body angular momentum.
 """
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Optional, Tuple
 
 import numpy as np

@@ -30,7 +30,8 @@ from typing import Any, Dict, Iterable, Mapping, Optional, Sequence, Tuple
 
 from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
-from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor, ParameterType
+from rcl_interfaces.msg import (FloatingPointRange, IntegerRange, ParameterDescriptor, ParameterType,
+                                 SetParametersResult)
 from rclpy.parameter import Parameter
 from rclpy.qos import (DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy,
                        qos_profile_sensor_data)
@@ -205,12 +206,11 @@ def coerce_parameters(specs: Iterable[ParamSpec], parameters: Iterable[Parameter
 
 
 def validate_update(specs: Sequence[ParamSpec], current: Mapping[str, Any], parameters: Iterable[Parameter],
-                    check) -> 'SetParametersResult':
+                    check) -> SetParametersResult:
     """The on-set-parameters answer: coerce, merge into ``current``, cross-check with ``check(merged)``.
 
     Any ValueError becomes ``successful=False`` with its message as the reason.
     """
-    from rcl_interfaces.msg import SetParametersResult
     try:
         check(dict(current, **coerce_parameters(specs, parameters)))
     except ValueError as exc:

@@ -74,7 +74,6 @@ def run(integrator='auto', subscribe=False, seconds=6.0) -> dict:
                 lambda a: diags.extend(s for s in a.status if s.hardware_id == f'{ns}/{NODE_NAME}'), 10)
             subs = []
             if subscribe:
-                from .simulator import Simulator  # noqa: F401  (topic types below)
                 from geometry_msgs.msg import (PoseStamped, QuaternionStamped, TransformStamped,
                                                Vector3Stamped)
                 from nav_msgs.msg import Odometry

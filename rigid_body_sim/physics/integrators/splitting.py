@@ -26,7 +26,6 @@ import math
 
 import numpy as np
 
-from .. import rotation
 from .base import Integrator
 
 # Outer, middle, inner axis of the symmetric composition  a(h/2) b(h/2) c(h) b(h/2) a(h/2)
