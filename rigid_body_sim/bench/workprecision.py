@@ -7,7 +7,6 @@ attitude error is at the float64 floor (≤ 1e-13 rad) or stops improving.
 """
 import math
 
-import numpy as np
 
 from ..physics import INTEGRATORS, IntegrationError, create
 from .common import metrics, simulate, timed
@@ -136,9 +135,3 @@ def sweep_peers(scene, peers, ref, budget, quick, log=print):
             if stale >= 2 and e < 1e-6:
                 break
     return rows
-
-
-def finite_row(row):
-    return row['status'] == 'ok' and all(
-        isinstance(row[k], (int, float)) and np.isfinite(row[k])
-        for k in ('cpu_s', 'attitude_error', 'omega_error', 'energy_drift', 'momentum_drift'))

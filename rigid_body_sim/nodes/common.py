@@ -282,8 +282,3 @@ def diagnostic_status(name: str, hardware_id: str, level: str, message: str,
     """A DiagnosticStatus with ``level`` 'OK' | 'WARN' | 'ERROR' | 'STALE' and key-values."""
     return DiagnosticStatus(level=LEVELS[level], name=name, hardware_id=hardware_id, message=message,
                             values=[KeyValue(key=k, value=format_value(v)) for k, v in values.items()])
-
-
-def diagnostic_values(status: DiagnosticStatus) -> Dict[str, str]:
-    """{key: value} of a DiagnosticStatus (for consumers and tests)."""
-    return {kv.key: kv.value for kv in status.values}

@@ -38,7 +38,8 @@ from geometry_msgs.msg import QuaternionStamped, Vector3Stamped
 
 from .. import control
 from .common import (QOS_CHOICES, ParamSpec, changed_values, coerce_parameters, declare_parameters,
-                     diagnostic_status, frame_id_problem, qos_profile, validate_update)
+                     diagnostic_status, frame_id_problem, qos_profile, stamp_to_seconds,
+                     validate_update)
 
 NODE_NAME = 'attitude_controller'
 DIAGNOSTICS_PERIOD_S = 1.0  # wall clock
@@ -130,10 +131,6 @@ def check_parameters(p):
     return build_config(p), target
 
 
-def _stamp_seconds(stamp) -> float:
-    return stamp.sec + 1e-9 * stamp.nanosec
-
-
 class Controller(Node):
     """The ``attitude_controller`` node."""
 
@@ -196,7 +193,7 @@ class Controller(Node):
         return self.get_clock().now().nanoseconds * 1e-9
 
     def _stamp_or_now(self, header) -> float:
-        s = _stamp_seconds(header.stamp)
+        s = stamp_to_seconds(header.stamp)
         return s if s != 0.0 else self._now()
 
     # ------------------------------------------------------------------ inputs

@@ -66,11 +66,6 @@ class RigidBody:
             arr.setflags(write=False)
         return cls(tensor, moments, axes, quat)
 
-    @property
-    def is_principal(self) -> bool:
-        """True when the body frame is already a principal frame."""
-        return bool(np.array_equal(self.principal_axes, np.eye(3)))
-
     def to_principal(self, v_body):
         """Vectors (..., 3) from the body frame to the principal frame."""
         return np.asarray(v_body, float) @ self.principal_axes
