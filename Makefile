@@ -1,5 +1,6 @@
 # Two commands for users:  make demo   (set up, then run the live demo)
 #                          make test   (set up, then run the whole test suite)
+# For developers:          make check  (physics, engine and lint only: under a minute)
 # Setup is a .venv in the repo that is also an ament prefix for this package,
 # so `ros2 run`-style lookups (lib/rigid_body_sim/<exe>, ament index) work in it.
 
@@ -11,14 +12,18 @@ DEMO_OUT    ?= out/demo
 PYTEST_ARGS ?=
 NODES       := simulator controller recorder replay
 
-.PHONY: demo test venv bench clean
+.PHONY: demo test check venv bench clean
 .DEFAULT_GOAL := demo
 
 demo: venv
 	$(VENV)/bin/rigid-body-sim demo --duration $(DEMO_DURATION) --out $(DEMO_OUT)
 
+# -v names each test as it starts, so a long one (the benchmark) shows where the run is.
 test: venv
-	$(PY) -m pytest $(PYTEST_ARGS)
+	$(PY) -m pytest -v $(PYTEST_ARGS)
+
+check: venv
+	$(PY) -m pytest -q -m fast $(PYTEST_ARGS)
 
 bench: venv
 	$(VENV)/bin/rigid-body-sim bench --out out/bench

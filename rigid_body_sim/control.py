@@ -265,12 +265,14 @@ class ControlOutput:
 class AttitudeController:
     """The law with its mode and target. Stateless between calls apart from those two.
 
-    Example (offline, zero-order hold at 50 Hz)::
+    Example::
 
         ctl = AttitudeController(ControlConfig(inertia=[1, 2, 3], natural_frequency=1.0),
                                  mode='slew', target=rotation.axis_rotation(2, np.pi / 2))
-        for _ in range(500):
-            prop.advance(0.02, step=0.005, torque_body=ctl.torque(prop.attitude, prop.angular_velocity))
+        tau = ctl.torque(attitude, angular_velocity)   # body frame, N·m
+
+    In closed loop it runs inside the simulation engine as a torque source
+    (``engine.sources.ControlLaw``), in the controller node and offline alike.
     """
 
     def __init__(self, config: Optional[ControlConfig] = None, mode: str = 'detumble',
@@ -327,36 +329,6 @@ class AttitudeController:
     def torque(self, attitude, angular_velocity) -> np.ndarray:
         """Shortcut for ``compute(...).torque``."""
         return self.compute(attitude, angular_velocity).torque
-
-
-def simulate(controller: AttitudeController, propagator, duration: float, control_period: float,
-             step: Optional[float] = None, events=None):
-    """Closed loop offline: the law sampled every ``control_period`` s, torque held (ZOH).
-
-    ``propagator`` is a :class:`rigid_body_sim.physics.Propagator`, advanced in sub-steps of
-    at most ``step`` (default ``control_period``). ``events``: optional {time: callable(controller)}
-    run before the first control sample at or after that time (e.g. a new target).
-    Returns a dict of arrays: t, attitude (N, 4), angular_velocity (N, 3), torque (N, 3),
-    saturated (N,), error_angle (N,) — sample k is the state at t_k and the torque applied
-    from t_k to t_{k+1}.
-    """
-    step = control_period if step is None else step
-    pending = sorted((events or {}).items())
-    n = int(round(duration / control_period))
-    out = {k: [] for k in ('t', 'attitude', 'angular_velocity', 'torque', 'saturated', 'error_angle')}
-    t0 = propagator.t
-    for k in range(n + 1):
-        t = t0 + k * control_period
-        while pending and pending[0][0] <= t - t0 + 1e-12:
-            pending.pop(0)[1](controller)
-        q, w = propagator.attitude, propagator.angular_velocity
-        result = controller.compute(q, w)
-        for key, value in (('t', t), ('attitude', q), ('angular_velocity', w), ('torque', result.torque),
-                           ('saturated', result.saturated), ('error_angle', result.error_angle)):
-            out[key].append(value)
-        if k < n:
-            propagator.advance(control_period, step, result.torque)
-    return {k: np.asarray(v) for k, v in out.items()}
 
 
 # Defaults of the controller node's parameters that concern the law (the node's SPECS use

@@ -131,39 +131,45 @@ def _drift(values):
 
 
 def _plots_from_bag(bag, scene, out_dir):
-    """The recorded state → the offline plots (same figures as `rigid-body-sim run`)."""
+    """The recorded state → the offline plots (same figures as `rigid-body-sim run`).
+
+    Topics are joined by their header stamps (every topic of one sample carries the same
+    stamp), and time is sim time: stamps advance by sim time / real_time_factor."""
     from rclpy.serialization import deserialize_message
     from .bag.reader import iter_messages
     from .bag.schema import message_class
+    from .engine import EngineConfig
     from .plots import write_plots
-    from .nodes.simulator import build_scene
-    series = {'/attitude': [], '/angular_velocity': [], '/angular_momentum': [], '/kinetic_energy': []}
-    first_torque = None  # log time of the first nonzero command: the end of the free phase
+    body = EngineConfig.from_parameters(scene.simulator).body
+    p = scene.simulator
+    rtf = 1.0 if p['publish_clock'] else (p['real_time_factor'] or 1.0)
+    series = {'/attitude': {}, '/angular_velocity': {}, '/angular_momentum': {}}
+    first_torque = None  # stamp of the first nonzero command: the end of the free phase
     for m in iter_messages(bag, topics=list(series) + ['/torque_command']):
         msg = deserialize_message(m.data, message_class(m.type))
+        stamp = msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
         if m.topic == '/torque_command':
             v = msg.vector
             if first_torque is None and (v.x or v.y or v.z):
-                first_torque = m.log_time_ns
+                first_torque = stamp
         elif m.topic == '/attitude':
             o = msg.quaternion
-            series[m.topic].append((m.log_time_ns, (o.x, o.y, o.z, o.w)))
-        elif m.topic == '/kinetic_energy':
-            series[m.topic].append((m.log_time_ns, msg.data))
+            series[m.topic][stamp] = (o.x, o.y, o.z, o.w)
         else:
             v = msg.vector
-            series[m.topic].append((m.log_time_ns, (v.x, v.y, v.z)))
-    n = min(len(v) for v in series.values())
-    if n < 2:
+            series[m.topic][stamp] = (v.x, v.y, v.z)
+    stamps = sorted(set.intersection(*(set(v) for v in series.values())))
+    if len(stamps) < 2:
         return []
-    t0 = series['/attitude'][0][0]
-    samples = {'t': np.array([(ts - t0) * 1e-9 for ts, _ in series['/attitude'][:n]]),
-               'attitude': np.array([v for _, v in series['/attitude'][:n]]),
-               'angular_velocity': np.array([v for _, v in series['/angular_velocity'][:n]]),
-               'angular_momentum': np.array([v for _, v in series['/angular_momentum'][:n]]),
-               'kinetic_energy': np.array([v for _, v in series['/kinetic_energy'][:n]])}
-    free_end = np.inf if first_torque is None else (first_torque - t0) * 1e-9
-    return write_plots(samples, build_scene(scene.simulator).body, out_dir, f'{scene.name} (live)', free_end)
+    t0 = stamps[0]
+    w = np.array([series['/angular_velocity'][s] for s in stamps])
+    samples = {'t': (np.array(stamps) - t0) * 1e-9 * rtf,
+               'attitude': np.array([series['/attitude'][s] for s in stamps]),
+               'angular_velocity': w,
+               'angular_momentum': np.array([series['/angular_momentum'][s] for s in stamps]),
+               'kinetic_energy': 0.5 * np.einsum('ni,ij,nj->n', w, body.inertia, w)}
+    free_end = np.inf if first_torque is None else (first_torque - t0) * 1e-9 * rtf
+    return write_plots(samples, body, out_dir, f'{scene.name} (live)', free_end)
 
 
 def add_arguments(parser):

@@ -1,12 +1,12 @@
 """``rigid-body-sim run SCENE``: a scene offline, as fast as the machine allows.
 
-Same physics as the live simulator node (Propagator, auto selection, per-axis torque
-saturation) and, for controlled scenes, the controller node's law in-process with the
-torque zero-order held over each control period. Writes a bag in the recorder's format
-(same topics and types as the live simulator), PNG plots, and optionally one JSON object.
+The same engine as the live simulator node (``rigid_body_sim.engine``): same events, same
+steps, same samples. For controlled scenes the controller node's law runs in-process as a
+torque source, held over each control period. The samples stream into a bag in the
+recorder's format (same topics, types and stamps as live) and into the plots, so memory
+does not grow with the length of the run.
 """
 import json
-import math
 import os
 import sys
 import time
@@ -15,13 +15,17 @@ from typing import Optional
 
 import numpy as np
 
-from .physics import Propagator
-from .physics.selection import select
+from .engine import Engine, EngineConfig, SampleBlock
+from .physics import IntegrationError
 from .scene import SceneError, SceneFile, load
+
+PLOT_POINTS = 20_000  # samples kept for the plots (a long run is decimated evenly)
 
 
 @dataclass
 class RunResult:
+    """An offline run: what ran, what it cost, and the samples (``samples`` is a
+    SampleBlock with every sample, or the decimated plot series for a streamed run)."""
     scene: str
     integrator: str
     reason: str
@@ -29,22 +33,23 @@ class RunResult:
     step: float
     steps: int
     cpu_seconds: float
-    samples: dict
+    selection_cpu_seconds: float
+    samples: SampleBlock
+    initial: dict
+    final: dict
+    sample_count: int
     body: object = None
     bag: Optional[str] = None
     plots: list = field(default_factory=list)
 
-    def state(self, k):
-        s = self.samples
-        return {'attitude': s['attitude'][k].tolist(), 'angular_velocity': s['angular_velocity'][k].tolist(),
-                'angular_momentum': s['angular_momentum'][k].tolist(),
-                'kinetic_energy': float(s['kinetic_energy'][k])}
-
     def summary(self) -> dict:
+        keep = ('attitude', 'angular_velocity', 'angular_momentum', 'kinetic_energy')
         return {'scene': self.scene, 'integrator': self.integrator, 'reason': self.reason,
                 'duration': self.duration, 'step': self.step, 'steps': self.steps,
-                'cpu_seconds': round(self.cpu_seconds, 6), 'initial': self.state(0), 'final': self.state(-1),
-                'bag': self.bag, 'plots': self.plots}
+                'samples': self.sample_count, 'cpu_seconds': round(self.cpu_seconds, 6),
+                'selection_cpu_seconds': round(self.selection_cpu_seconds, 6),
+                'initial': {k: self.initial[k] for k in keep},
+                'final': {k: self.final[k] for k in keep}, 'bag': self.bag, 'plots': self.plots}
 
 
 class _Progress:
@@ -66,131 +71,125 @@ class _Progress:
         sys.stderr.flush()
 
 
-def simulate(scene: SceneFile, duration=None, integrator=None, step=None, accuracy=None,
-             progress=False, integrator_options=None) -> RunResult:
-    """Run ``scene``; CLI overrides replace the scene's values when given.
+class Decimated:
+    """At most ~``limit`` samples of a stream, evenly spaced: when full, every other one is
+    dropped and the stride doubles. Memory stays bounded however long the run."""
 
-    ``integrator_options`` go to a fixed integrator (e.g. dop853 rtol/atol for a reference).
-    """
-    from .nodes.simulator import build_scene
+    def __init__(self, limit=PLOT_POINTS):
+        self.limit, self.stride, self.seen = limit, 1, 0
+        self.blocks = []
+        self.count = 0
+
+    def add(self, block: SampleBlock):
+        idx = np.flatnonzero((self.seen + np.arange(len(block))) % self.stride == 0)
+        self.seen += len(block)
+        if idx.size:
+            self.blocks.append(SampleBlock(*(getattr(block, k)[idx] for k in _FIELDS)))
+            self.count += idx.size
+        if self.count > self.limit:
+            whole = SampleBlock.concatenate(self.blocks)
+            keep = np.arange(0, len(whole), 2)
+            self.blocks = [SampleBlock(*(getattr(whole, k)[keep] for k in _FIELDS))]
+            self.count, self.stride = len(keep), self.stride * 2
+
+    def block(self) -> SampleBlock:
+        return SampleBlock.concatenate(self.blocks)
+
+
+_FIELDS = ('t_ns', 'attitude', 'angular_velocity', 'angular_momentum', 'angular_momentum_body',
+           'kinetic_energy', 'torque')
+
+
+def engine_for(scene: SceneFile, duration=None, integrator=None, step=None, accuracy=None,
+               integrator_options=None) -> Engine:
+    """The engine for ``scene`` with CLI overrides; SceneError naming the problem."""
     p = dict(scene.simulator)
-    for key, value in (('duration', duration), ('integrator', integrator), ('step', step), ('accuracy', accuracy)):
+    for key, value in (('duration', duration), ('integrator', integrator), ('step', step),
+                       ('accuracy', accuracy)):
         if value is not None:
             p[key] = value
-    model = build_scene(p)
-    horizon = float(p['duration'])
-    if not horizon > 0:
-        raise SceneError(f'{scene.path}: an offline run needs duration > 0 (scene has {horizon:g}); use --duration')
-    sample_period = 1.0 / p['publish_rate']
-    controller = mission = None
-    control_period = math.inf
-    if scene.controlled:
-        from .control import mission_from_parameters
-        controller, mission, control_period = mission_from_parameters(scene.controller)
-    max_step = min(p['step'], sample_period, control_period)
-    name = p['integrator']
-    if name == 'auto':
-        choice = select(model.body, model.dissipation, model.attitude, model.angular_velocity,
-                        torque=scene.controlled, accuracy=p['accuracy'], duration=horizon, max_step=max_step)
-        name, h, reason = choice.name, min(choice.step, max_step), choice.reason
-        if name == 'exact':  # no stepping error: one evaluation per sample
-            h, reason = sample_period, reason + '; evaluated once per sample'
-    else:
-        h, reason = max_step, f'set by the scene or --integrator ({name})'
-    # Like the live node under auto: until the first torque the motion is free, so the exact
-    # flow runs (no stepping error); the selected method takes over at the first torque.
-    free_first = p['integrator'] == 'auto' and controller is not None and not model.dissipation.active
-    prop = Propagator(model.body, model.attitude, model.angular_velocity, model.dissipation,
-                      integrator='exact' if free_first else name, **(integrator_options or {}))
-    if free_first:
-        reason += '; exact flow until the first torque'
-    limit = p['max_torque']
-
-    n_samples = int(math.floor(horizon / sample_period + 1e-9)) + 1
-    keys = ('t', 'attitude', 'angular_velocity', 'angular_momentum', 'angular_momentum_body', 'kinetic_energy',
-            'torque')
-    out = {k: [] for k in keys}
-    torque = np.zeros(3)
-    bar = _Progress(horizon, progress)
-    steps = 0
-    next_control = 0.0
-    cpu0 = time.process_time()
-    for k in range(n_samples):
-        t_sample = min(k * sample_period, horizon)
-        # advance to the sample, stopping at control instants to update the held torque
-        while True:
-            if controller is not None and next_control <= prop.t + 1e-12:
-                free, _ = mission.update(controller, prop.t, prop.angular_velocity)
-                torque = np.zeros(3) if free else \
-                    np.clip(controller.torque(prop.attitude, prop.angular_velocity), -limit, limit)
-                if free_first and np.any(torque != 0.0):
-                    prop.set_integrator(name)
-                    free_first = False
-                next_control += control_period
-            target = min(t_sample, next_control) if controller is not None else t_sample
-            if target - prop.t <= 1e-12:
-                if t_sample - prop.t <= 1e-12:
-                    break
-                continue
-            span = target - prop.t
-            n = 1 if free_first else max(1, int(math.ceil(span / h - 1e-9)))
-            prop.advance(span, span / n, torque if controller is not None and not free_first else None)
-            prop.t = target  # land exactly on the event (no accumulated rounding in t)
-            steps += n
-        out['t'].append(prop.t)
-        out['attitude'].append(prop.attitude)
-        out['angular_velocity'].append(prop.angular_velocity)
-        out['angular_momentum'].append(prop.angular_momentum_inertial)
-        out['angular_momentum_body'].append(prop.angular_momentum_body)
-        out['kinetic_energy'].append(float(prop.kinetic_energy))
-        out['torque'].append(torque.copy())
-        bar.update(prop.t)
-    cpu = time.process_time() - cpu0
-    bar.update(horizon, force=True)
-    samples = {k: np.asarray(v) for k, v in out.items()}
-    return RunResult(scene.name, name, reason, horizon, float(h), steps, cpu, samples, model.body)
-
-
-def write_bag(result: RunResult, scene: SceneFile, directory: str) -> str:
-    """The run as a bag in the recorder's format: same topics, types and frames as live."""
-    from rclpy.serialization import serialize_message
-    from geometry_msgs.msg import Vector3Stamped
-    from .bag.writer import BagWriter
-    from .nodes.state_messages import StateMessages, type_name
-    p = scene.simulator
-    msgs = StateMessages(p['frame_id'], p['child_frame_id'])
-    topics = [(f'/{name}', msg) for name, msg in msgs.topics()]
-    torque_msg = Vector3Stamped()
-    torque_msg.header.frame_id = p['child_frame_id']
-    if scene.controlled:
-        topics.append(('/torque_command', torque_msg))
-    writer = BagWriter(directory, name=os.path.basename(os.path.normpath(directory)))
+    if not p['duration'] > 0:
+        raise SceneError(f'{scene.path}: an offline run needs duration > 0 (scene has '
+                         f'{p["duration"]:g}); use --duration')
     try:
-        for topic, msg in topics:
-            writer.add_topic(topic, type_name(msg))
-        writer.add_run_configuration({
+        config = EngineConfig.from_parameters(p, scene.controller if scene.controlled else None)
+    except ValueError as exc:
+        raise SceneError(f'{scene.path}: {exc}') from None
+    if integrator_options:
+        config = config.replace(integrator_options=dict(integrator_options))
+    return Engine(config)
+
+
+def simulate(scene: SceneFile, duration=None, integrator=None, step=None, accuracy=None,
+             progress=False, integrator_options=None, sinks=(), keep='all') -> RunResult:
+    """Run ``scene`` to its end; CLI overrides replace the scene's values when given.
+
+    Every block of samples goes to each callable in ``sinks`` as it is produced.
+    ``keep``: 'all' keeps every sample in the result, 'plot' a decimated series, 'none'
+    nothing but the first and last sample (memory then does not grow with the run).
+    ``integrator_options`` go to a fixed integrator (e.g. dop853 rtol/atol for a reference).
+    """
+    cpu0 = time.process_time()
+    engine = engine_for(scene, duration, integrator, step, accuracy, integrator_options)
+    kept = [] if keep == 'all' else Decimated() if keep == 'plot' else None
+    bar = _Progress(engine.config.duration, progress)
+    first = last = None
+    count = 0
+    for block in engine.run():
+        if first is None:
+            first = block.row(0)
+        last = block.row(len(block) - 1)
+        count += len(block)
+        for sink in sinks:
+            sink(block)
+        if kept is not None:
+            (kept.append if keep == 'all' else kept.add)(block)
+        bar.update(engine.t)
+    cpu = time.process_time() - cpu0
+    bar.update(engine.config.duration, force=True)
+    samples = SampleBlock.concatenate(kept) if keep == 'all' else \
+        kept.block() if kept is not None else SampleBlock.concatenate([])
+    return RunResult(scene.name, engine.method, engine.reason, engine.config.duration,
+                     engine.step_max, engine.steps + engine.evaluations,
+                     cpu - engine.selection_cpu, engine.selection_cpu, samples, first, last,
+                     count, engine.body)
+
+
+class BagSink:
+    """Samples → the recorder's bag format: same topics, types, frames and stamps as live."""
+
+    def __init__(self, scene: SceneFile, directory: str, extra: dict):
+        from .bag.writer import BagWriter
+        from .nodes.state_messages import StateMessages
+        p = scene.simulator
+        self.msgs = StateMessages(p['frame_id'], p['child_frame_id'], torque=scene.controlled)
+        self.writer = BagWriter(directory, name=os.path.basename(os.path.normpath(directory)))
+        self.path = os.path.abspath(directory)
+        for topic, type_name in self.msgs.topic_types():
+            self.writer.add_topic(f'/{topic}', type_name)
+        self.writer.add_run_configuration({
             'scene': scene.name, 'scene_file': os.path.abspath(scene.path), 'mode': 'offline',
-            'integrator': result.integrator, 'integrator_reason': result.reason, 'step': result.step,
-            'simulator_parameters': scene.simulator, 'controller_parameters': scene.controller})
-        s = result.samples
-        for k in range(len(s['t'])):
-            ns = int(round(s['t'][k] * 1e9))
-            msgs.fill(ns, s['attitude'][k], s['angular_velocity'][k], s['angular_momentum'][k],
-                      s['angular_momentum_body'][k], s['kinetic_energy'][k])
-            torque_msg.header.stamp = msgs.stamp
-            v = torque_msg.vector
-            v.x, v.y, v.z = (float(x) for x in s['torque'][k])
-            for topic, msg in topics:
-                writer.write(topic, serialize_message(msg), ns, ns)
-    finally:
-        writer.close()
-    return os.path.abspath(directory)
+            'simulator_parameters': scene.simulator, 'controller_parameters': scene.controller,
+            **extra})
+
+    def __call__(self, block: SampleBlock):
+        write = self.writer.write
+        for i in range(len(block)):
+            ns = int(block.t_ns[i])
+            for topic, data in self.msgs.serialized(block, i, ns):
+                write(f'/{topic}', data, ns, ns)
+
+    def close(self):
+        self.writer.close()
 
 
 def add_arguments(parser):
-    parser.add_argument('scene', help='built-in scene name (see `rigid-body-sim scenes`) or a params file')
+    from .physics import INTEGRATORS
+    parser.add_argument('scene', help='built-in scene name (see `rigid-body-sim scenes`) or a '
+                        'params file')
     parser.add_argument('--duration', type=float, help='simulated seconds (default: the scene\'s)')
-    parser.add_argument('--integrator', help='integrator name or auto (default: the scene\'s)')
+    parser.add_argument('--integrator', choices=('auto',) + tuple(INTEGRATORS),
+                        help='integrator (default: the scene\'s)')
     parser.add_argument('--step', type=float, help='largest physics step, s')
     parser.add_argument('--accuracy', type=float, help='attitude-error budget for auto, rad')
     parser.add_argument('--out', help='output directory (default: out/<scene>)')
@@ -200,41 +199,48 @@ def add_arguments(parser):
 
 
 def run(args) -> int:
-    from .physics import IntegrationError
     from .bag.errors import BagError
+    bag = None
     try:
         scene = load(args.scene)
-        if args.integrator is not None and args.integrator != 'auto':
-            from .physics import get_integrator
-            get_integrator(args.integrator)
-        result = simulate(scene, args.duration, args.integrator, args.step, args.accuracy, progress=not args.json)
         out = args.out or os.path.join('out', scene.name)
         if not args.no_bag:
             bag_dir = os.path.join(out, 'bag')
             if os.path.isdir(bag_dir):
                 import shutil
                 shutil.rmtree(bag_dir)  # a rerun replaces its own previous output
-            result.bag = write_bag(result, scene, bag_dir)
+            bag = BagSink(scene, bag_dir, {'integrator_requested': args.integrator or
+                                           scene.simulator['integrator']})
+        try:
+            result = simulate(scene, args.duration, args.integrator, args.step, args.accuracy,
+                              progress=not args.json, sinks=[bag] if bag else [],
+                              keep='none' if args.no_plots else 'plot')
+        finally:
+            if bag is not None:
+                bag.close()
+        result.bag = bag.path if bag else None
         if not args.no_plots:
             from .plots import free_until, write_plots
-            free_end = free_until(result.samples['t'], result.samples['torque'])
-            result.plots = [os.path.abspath(pth) for pth in
-                            write_plots(result.samples, result.body, out, scene.name, free_end)]
+            s = result.samples
+            result.plots = [os.path.abspath(pth) for pth in write_plots(
+                s, result.body, out, scene.name, free_until(s.t, s.torque))]
     except (SceneError, ValueError, IntegrationError, BagError) as exc:
         print(f'error: {exc}', file=sys.stderr)
         return 2
     summary = result.summary()
     if args.json:
         print(json.dumps(summary))
-    else:
-        f = summary['final']
-        print(f'{scene.name}: {result.integrator} (step {result.step:.3g} s), {result.steps} steps, '
-              f'{result.cpu_seconds:.3g} CPU s for {result.duration:g} simulated s')
-        print(f'  why: {result.reason}')
-        print(f'  final: T = {f["kinetic_energy"]:.9g} J, |L| = {np.linalg.norm(f["angular_momentum"]):.9g} '
-              f'kg·m²/s, ω = {np.round(f["angular_velocity"], 6).tolist()} rad/s')
-        if result.bag:
-            print(f'  bag: {result.bag}')
-        for pth in result.plots:
-            print(f'  plot: {pth}')
+        return 0
+    f = summary['final']
+    print(f'{scene.name}: {result.integrator} (step {result.step:.3g} s), {result.steps} steps, '
+          f'{result.cpu_seconds:.3g} CPU s for {result.duration:g} simulated s '
+          f'(+ {result.selection_cpu_seconds:.3g} CPU s choosing the method)')
+    print(f'  why: {result.reason}')
+    print(f'  final: T = {f["kinetic_energy"]:.9g} J, |L| = '
+          f'{np.linalg.norm(f["angular_momentum"]):.9g} kg·m²/s, '
+          f'ω = {np.round(f["angular_velocity"], 6).tolist()} rad/s')
+    if result.bag:
+        print(f'  bag: {result.bag}')
+    for pth in result.plots:
+        print(f'  plot: {pth}')
     return 0

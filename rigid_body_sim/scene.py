@@ -97,26 +97,12 @@ def _flatten(d, prefix=''):
     return out
 
 
-def _coerce(path, section, specs, values):
-    from rclpy.parameter import Parameter
-    by_name = {s.name: s for s in specs}
-    out = {}
-    for key, value in values.items():
-        if key in SCENE_KEYS or key == 'use_sim_time':
-            continue
-        spec = by_name.get(key)
-        if spec is None:
-            raise SceneError(f'{path}: {section}: {key}: unknown parameter; known: {", ".join(sorted(by_name))}')
-        try:
-            out[key] = spec.coerce(Parameter(key, value=value))
-        except (ValueError, TypeError) as exc:
-            raise SceneError(f'{path}: {section}: {key}: {exc}') from None
-    return out
-
-
 def load(scene: str) -> SceneFile:
-    """Load and validate a built-in scene (by name) or a params file (by path)."""
-    from .nodes import controller, simulator
+    """Load and validate a built-in scene (by name) or a params file (by path).
+
+    Uses the nodes' parameter specs (``engine.specs``) without importing ROS."""
+    from .engine import EngineConfig, specs
+    from .engine.params import coerce_all
     path = resolve(scene)
     try:
         with open(path) as f:
@@ -139,27 +125,30 @@ def load(scene: str) -> SceneFile:
     shared = sections.get(SHARED_SECTION, {})
     name = str(shared.get('scene.name') or os.path.splitext(os.path.basename(path))[0])
     description = str(shared.get('scene.description', ''))
-    shared_params = {k: v for k, v in shared.items() if k not in SCENE_KEYS}
-    sim_values = {**shared_params, **sections.get(SIMULATOR_SECTION, {})}
+    shared_params = {k: v for k, v in shared.items() if k not in SCENE_KEYS + ('use_sim_time',)}
     # Shared keys must be known to at least one node; each node takes those it declares.
-    sim_names = {s.name for s in simulator.SPECS}
-    ctl_names = {s.name for s in controller.SPECS}
+    sim_names = {s.name for s in specs.SIMULATOR}
+    ctl_names = {s.name for s in specs.CONTROLLER}
     for key in shared_params:
         if key not in sim_names | ctl_names:
             raise SceneError(f'{path}: {SHARED_SECTION}: {key}: unknown parameter for both nodes')
-    sim = _coerce(path, SIMULATOR_SECTION, simulator.SPECS, {k: v for k, v in sim_values.items() if k in sim_names
-                                                            or k in sections.get(SIMULATOR_SECTION, {})})
-    ctl = {}
-    if CONTROLLER_SECTION in sections:
-        ctl_values = {**{k: v for k, v in shared_params.items() if k in ctl_names}, **sections[CONTROLLER_SECTION]}
-        ctl = _coerce(path, CONTROLLER_SECTION, controller.SPECS, ctl_values)
-    full = {s.name: s.default for s in simulator.SPECS}
-    full.update(sim)
+
+    def section(which, names, node_specs):
+        own = {k: v for k, v in sections.get(which, {}).items() if k != 'use_sim_time'}
+        values = {**{k: v for k, v in shared_params.items() if k in names}, **own}
+        try:
+            return coerce_all(node_specs, values, which)
+        except ValueError as exc:
+            raise SceneError(f'{path}: {exc}') from None
+
+    sim = section(SIMULATOR_SECTION, sim_names, specs.SIMULATOR)
+    ctl = section(CONTROLLER_SECTION, ctl_names, specs.CONTROLLER) \
+        if CONTROLLER_SECTION in sections else {}
     try:
-        simulator.check_parameters(full)
+        EngineConfig.from_parameters(sim, ctl or None)
     except ValueError as exc:
-        raise SceneError(f'{path}: {SIMULATOR_SECTION}: {exc}') from None
-    return SceneFile(name, description, path, full, ctl)
+        raise SceneError(f'{path}: {exc}') from None
+    return SceneFile(name, description, path, sim, ctl)
 
 
 def add_arguments(parser):

@@ -18,6 +18,17 @@ sys.path.insert(0, os.path.dirname(__file__))
 from ros_helpers import NodeProcess, unique_namespace  # noqa: E402
 
 
+# `make check`: the physics and the engine, no ROS graph, under a minute.
+FAST_FILES = {'test_body.py', 'test_exact.py', 'test_integrators.py', 'test_control.py',
+              'test_engine.py', 'test_lint.py'}
+
+
+def pytest_collection_modifyitems(config, items):
+    for item in items:
+        if item.path.name in FAST_FILES:
+            item.add_marker(pytest.mark.fast)
+
+
 @pytest.fixture
 def namespace(request):
     """A ROS namespace unique to this test, e.g. /t_test_reset_4821."""

@@ -23,12 +23,16 @@ def _read(path):
 
 
 @pytest.fixture(scope='module')
-def quick_run(tmp_path_factory):
+def quick_run(tmp_path_factory, pytestconfig):
     out = tmp_path_factory.mktemp('bench')
     parser = argparse.ArgumentParser()
     bench.add_arguments(parser)
     args = parser.parse_args(['--quick', '--out', str(out)])
-    assert bench.run(args) == 0
+    # The run takes a minute or more: show its progress lines live, not captured.
+    capture = pytestconfig.pluginmanager.getplugin('capturemanager')
+    with capture.global_and_fixture_disabled():
+        print()
+        assert bench.run(args) == 0
     return out
 
 

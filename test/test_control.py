@@ -1,14 +1,16 @@
 """The control law (rigid_body_sim.control), alone and in closed loop with the physics core.
 
-Offline closed loop = the law sampled at 50 Hz with the torque held over each period
-(zero-order hold, like the node) and the Propagator advancing the body. Deterministic and
-fast; the same claims are checked over real ROS messages in test_controller_node.py.
+Offline closed loop = the simulation engine with the law as its in-process torque source,
+sampled at 50 Hz with the torque held over each period (zero-order hold, like the node).
+Deterministic and fast; the same claims are checked over real ROS messages in
+test_controller_node.py.
 """
 import numpy as np
 import pytest
 
 from rigid_body_sim import control as C
-from rigid_body_sim.physics import Propagator, RigidBody, rotation
+from rigid_body_sim.engine import NS, ControlSettings, Engine, EngineConfig
+from rigid_body_sim.physics import Dissipation, Propagator, RigidBody, rotation
 from rigid_body_sim.physics.dynamics import Dynamics
 
 INERTIA = [1.0, 2.0, 3.0]
@@ -16,11 +18,32 @@ WN = 1.0
 DT = 0.02  # 50 Hz, the node's default control_rate
 
 
-def run(config, mode, target, duration, attitude=(0, 0, 0, 1), angular_velocity=(0, 0, 0), events=None,
-        integrator='splitting2'):
-    ctl = C.AttitudeController(config, mode, target)
-    prop = Propagator(config.body, attitude, angular_velocity, integrator=integrator)
-    return C.simulate(ctl, prop, duration, DT, events=events)
+def run(config, mode, target, duration, attitude=(0, 0, 0, 1), angular_velocity=(0, 0, 0),
+        events=None, integrator='splitting2'):
+    """The engine's closed loop, one sample per control period; ``events``: {time (s):
+    callable(controller)} run at that sample instant, before the law's next update."""
+    period = int(round(DT * NS))
+    settings = ControlSettings(config, mode, C.validated_target(target), period)
+    engine = Engine(EngineConfig(config.body, Dissipation(), rotation.validated(attitude),
+                                 np.asarray(angular_velocity, float), integrator=integrator,
+                                 step=DT, sample_period_ns=period,
+                                 duration_ns=int(round(duration * NS)), max_torque=np.inf,
+                                 control=settings))
+    law = engine.sources[-1]
+    pending = sorted((events or {}).items())
+    out = {k: [] for k in ('t', 'attitude', 'angular_velocity', 'torque', 'saturated',
+                           'error_angle')}
+    for k in range(int(round(duration / DT)) + 1):
+        while pending and pending[0][0] <= k * DT + 1e-12:
+            pending.pop(0)[1](law.controller)
+        block = engine.advance(k * period)
+        assert len(block) == 1 and block.t_ns[0] == k * period
+        for key in ('attitude', 'angular_velocity', 'torque'):
+            out[key].append(block[key][0])
+        out['t'].append(block.t[0])
+        out['saturated'].append(law.last.saturated)
+        out['error_angle'].append(law.last.error_angle)
+    return {k: np.asarray(v) for k, v in out.items()}
 
 
 def signed_error_about(result, target, axis):

@@ -1,8 +1,8 @@
 """Live figures, measured by scripts other modules own (run as subprocesses).
 
-* simulator: ``rigid_body_sim.nodes.simulator_bench`` (real-time factor as fast as possible
+* simulator: ``rigid_body_sim.bench.live_simulator`` (real-time factor as fast as possible
   at 1 kHz physics / 100 Hz publishing, CPU share at real time);
-* recorder: ``rigid_body_sim.bag.loadtest`` (messages/s through a real recorder, loss).
+* recorder: ``rigid_body_sim.bench.recorder_load`` (messages/s through a real recorder, loss).
 Absent modules or failures are reported as 'not measured (<reason>)', never as errors.
 """
 import importlib.util
@@ -31,7 +31,7 @@ def _not_measured(mod, quick):
 
 
 def simulator(quick, log=print):
-    mod = 'rigid_body_sim.nodes.simulator_bench'
+    mod = 'rigid_body_sim.bench.live_simulator'
     skipped = _not_measured(mod, quick)
     if skipped:
         return skipped
@@ -66,7 +66,7 @@ def simulator(quick, log=print):
 
 
 def recorder(quick, log=print):
-    mod = 'rigid_body_sim.bag.loadtest'
+    mod = 'rigid_body_sim.bench.recorder_load'
     skipped = _not_measured(mod, quick)
     if skipped:
         return skipped

@@ -9,7 +9,7 @@ import math
 
 
 from ..physics import INTEGRATORS, IntegrationError, create
-from .common import metrics, simulate, timed
+from .common import metrics, propagate, timed
 
 FIELDS = ('scene', 'method', 'family', 'kind', 'param', 'steps', 'cpu_s', 'nfev', 'attitude_error',
           'omega_error', 'energy_drift', 'momentum_drift', 'status')
@@ -68,19 +68,20 @@ def sweep_ours(scene, ref, budget, quick, log=print):
             box = {}
 
             def run():
-                integ = create(name, scene.dynamics, **opts)
-                box['integ'] = integ
-                return simulate(scene, integ, None if kind == 'rtol' else p)
+                q, m, engine = propagate(scene, name, None if kind == 'rtol' else p, **opts)
+                box['engine'] = engine
+                return q, m
             try:
                 cost, (q, m) = timed(run)
             except IntegrationError as exc:
-                rows.append(_row(scene, name, 'ours', kind, p, steps, float('nan'), box['integ'].nfev, None,
+                rows.append(_row(scene, name, 'ours', kind, p, steps, float('nan'), 0, None,
                                  f'blown up at h={p:.3g}: {exc.reason}'))
                 continue
             spent += cost
             last = (cost, steps)
             err = metrics(scene, q, m, q_ref, m_ref)
-            rows.append(_row(scene, name, 'ours', kind, p, steps, cost, box['integ'].nfev, err))
+            rows.append(_row(scene, name, 'ours', kind, p, steps, cost, box['engine'].integrator.nfev
+                             + box['engine'].evaluations, err))
             e = err['attitude_error']
             if e <= FLOOR:
                 break

@@ -37,81 +37,16 @@ from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import QuaternionStamped, Vector3Stamped
 
 from .. import control
-from .common import (QOS_CHOICES, ParamSpec, changed_values, coerce_parameters, declare_parameters,
-                     diagnostic_status, frame_id_problem, qos_profile, stamp_to_seconds,
-                     validate_update)
+from ..engine import specs
+from .common import (changed_values, coerce_parameters, declare_parameters, diagnostic_status,
+                     frame_id_problem, qos_profile, stamp_to_seconds, validate_update)
 
 NODE_NAME = 'attitude_controller'
 DIAGNOSTICS_PERIOD_S = 1.0  # wall clock
 WARN_THROTTLE_S = 2.0       # wall clock
 
 
-class _ScalarOrArraySpec(ParamSpec):
-    """A float_array parameter that also accepts a single number (``natural_frequency:=1.0``)."""
-
-    def coerce(self, parameter):
-        if parameter.type_ in (Parameter.Type.DOUBLE, Parameter.Type.INTEGER):
-            parameter = Parameter(parameter.name, Parameter.Type.DOUBLE_ARRAY, [float(parameter.value)])
-        return super().coerce(parameter)
-
-
-class _ModeSpec(ParamSpec):
-    """The mode string; also takes ``false``, which is what YAML makes of an unquoted ``off``
-    (``-p mode:=off``)."""
-
-    def descriptor(self):
-        d = super().descriptor()
-        d.type = 0  # PARAMETER_NOT_SET: dynamic typing so that a bool can arrive and be coerced
-        d.dynamic_typing = True
-        return d
-
-    def coerce(self, parameter):
-        if parameter.type_ == Parameter.Type.BOOL and parameter.value is False:
-            parameter = Parameter(parameter.name, Parameter.Type.STRING, 'off')
-        return super().coerce(parameter)
-
-
-D = control.PARAMETER_DEFAULTS
-SPECS = (
-    _ModeSpec('mode', D['mode'], 'detumble: tau = -K_w w; slew: go to the target and hold; off: zero torque',
-              kind='string', choices=control.MODES, note='switchable at runtime'),
-    ParamSpec('inertia', D['inertia'], 'inertia of the controlled body: 3 principal moments or 9 values '
-              'row-major, body frame (same format as the simulator\'s)', kind='float_array', unit='kg*m^2',
-              sizes=(3, 9), note='positive definite, symmetric, triangle inequalities'),
-    ParamSpec('control_rate', D['control_rate'], 'rate of torque_command (node clock)', kind='float', unit='Hz',
-              low=0.0, high=10000.0, low_open=True),
-    _ScalarOrArraySpec('natural_frequency', D['natural_frequency'], 'slew natural frequency w_n, one value or one per principal '
-                       'axis: kp = 2 I w_n^2, kd = 2 zeta w_n I', kind='float_array', unit='rad/s', sizes=(1, 3),
-                       low=0.0, low_open=True, note='ignored when kp and kd are set'),
-    _ScalarOrArraySpec('damping_ratio', D['damping_ratio'], 'slew damping ratio zeta (1 = critical), one value or one per '
-                       'principal axis', kind='float_array', sizes=(1, 3), low=0.0, low_open=True),
-    ParamSpec('kp', D['kp'], 'direct proportional gains per principal axis on the error '
-              'quaternion vector part; all zero = from natural_frequency/damping_ratio', kind='float_array',
-              unit='N*m', sizes=(3,), low=0.0, note='set both kp and kd (they then win), or neither'),
-    ParamSpec('kd', D['kd'], 'direct rate gains per principal axis; all zero = from '
-              'natural_frequency/damping_ratio', kind='float_array', unit='N*m*s', sizes=(3,), low=0.0),
-    _ScalarOrArraySpec('rate_gain', D['rate_gain'], 'detumble gain K_w: 0 = kd (proportional to inertia, |L| decays '
-                       'as exp(-2 zeta w_n t)); one value = isotropic; three = per principal axis',
-                       kind='float_array', unit='N*m*s', sizes=(1, 3), low=0.0),
-    ParamSpec('gyroscopic_compensation', D['gyroscopic_compensation'], 'add w x Iw to the slew torque', kind='bool'),
-    ParamSpec('max_torque', D['max_torque'], 'bound on the Euclidean norm of the commanded torque (vector scaled, '
-              'direction kept; the slew rate is limited to match); 0 = unlimited', kind='float', unit='N*m',
-              low=0.0, high=1e9),
-    ParamSpec('max_rate', D['max_rate'], 'bound on the commanded slew rate; 0 = from max_torque only', kind='float',
-              unit='rad/s', low=0.0, high=1e9),
-    ParamSpec('state_timeout', 0.5, 'state older than this (node clock vs. message stamps) gives zero torque',
-              kind='float', unit='s', low=0.0, high=1e6, low_open=True),
-    ParamSpec('target_attitude', D['target_attitude'], 'slew target (x, y, z, w) in the attitude\'s frame_id; '
-              'attitude_target messages replace it until this is set again', kind='float_array', sizes=(4,),
-              note='unit quaternion (|norm - 1| <= 1e-3)'),
-    ParamSpec('mission.free_time', D['mission.free_time'], 'free phase: no torque for this long after the '
-              'first state received (state time)', kind='float', unit='s', low=0.0, high=1e9),
-    ParamSpec('mission.detumble_exit_rate', D['mission.detumble_exit_rate'], 'in detumble, switch to slew '
-              'once |w| falls below this; 0 = never', kind='float', unit='rad/s', low=0.0, high=1e6),
-    ParamSpec('child_frame_id', 'base_link', 'body frame: frame_id of torque_command', kind='string'),
-    ParamSpec('qos', 'reliable', 'QoS of state subscriptions and torque_command', kind='string',
-              choices=QOS_CHOICES, read_only=True),
-)
+SPECS = specs.CONTROLLER  # ROS-free specs, shared with scene files and offline runs
 
 
 def build_config(p) -> control.ControlConfig:

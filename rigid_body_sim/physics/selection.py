@@ -42,21 +42,30 @@ def _is_symmetric(moments, rtol=1e-12):
     return abs(b - a) <= rtol * c or abs(c - b) <= rtol * c
 
 
+YIELD_EVERY = 64  # pilot steps between yields: a caller can interleave its own work
+
+
 def _pilot(name, dyn, q, m, h, horizon):
-    """Attitude at ``horizon`` with step h, CPU seconds per step; None if the method fails."""
+    """Generator: attitude at ``horizon`` with step h and CPU seconds per step (its return
+    value); None if the method fails. Yields every YIELD_EVERY steps."""
     integ = create(name, dyn)
     n = max(1, int(round(horizon / h)))
     h = horizon / n
+    spent = 0.0
     t0 = time.thread_time()
     try:
         for k in range(n):
             q, m = integ.step(q, m, h, None, k * h)
+            if k % YIELD_EVERY == YIELD_EVERY - 1:
+                spent += time.thread_time() - t0
+                yield
+                t0 = time.thread_time()
     except IntegrationError:
         return None
-    return q, (time.thread_time() - t0) / n
+    return q, (spent + time.thread_time() - t0) / n
 
 
-def _largest_step(name, dyn, q, m, accuracy, horizon, pilot, h_max):
+def _largest_step(name, dyn, q, m, accuracy, horizon, pilot, h_max):  # generator
     """(h, CPU s per step, predicted error) — the largest h ≤ h_max meeting ``accuracy``, or None.
 
     Starts at h_max and refines (≤ 3 rounds, 10 % margin) only while the error predicted
@@ -66,7 +75,8 @@ def _largest_step(name, dyn, q, m, accuracy, horizon, pilot, h_max):
     order = create(name, dyn).order
     h = h_max
     for _ in range(3):
-        coarse, fine = _pilot(name, dyn, q, m, h, pilot), _pilot(name, dyn, q, m, h / 2, pilot)
+        coarse = yield from _pilot(name, dyn, q, m, h, pilot)
+        fine = yield from _pilot(name, dyn, q, m, h / 2, pilot)
         if coarse is None or fine is None:
             return None
         err = rotation.angle_between(coarse[0], fine[0]) * 2 ** order / (2 ** order - 1)
@@ -79,7 +89,20 @@ def _largest_step(name, dyn, q, m, accuracy, horizon, pilot, h_max):
 
 def select(body: RigidBody, dissipation: Dissipation, attitude, angular_velocity, *, torque: bool,
            accuracy: float, duration: float, max_step: float) -> Selection:
-    """Pick integrator and step for a scene (see module docstring).
+    """Pick integrator and step for a scene (see module docstring and :func:`selecting`)."""
+    work = selecting(body, dissipation, attitude, angular_velocity, torque=torque,
+                     accuracy=accuracy, duration=duration, max_step=max_step)
+    while True:
+        try:
+            next(work)
+        except StopIteration as done:
+            return done.value
+
+
+def selecting(body: RigidBody, dissipation: Dissipation, attitude, angular_velocity, *,
+              torque: bool, accuracy: float, duration: float, max_step: float):
+    """Generator form of :func:`select`: yields often (every few ms of pilot work) so that a
+    caller can interleave the selection with its own work; its return value is the Selection.
 
     Args:
         body, dissipation: the model.
@@ -118,7 +141,8 @@ def select(body: RigidBody, dissipation: Dissipation, attitude, angular_velocity
             continue  # A-stability only pays off when dissipation is stiff at the step we need
         if best is not None and best[1] >= max_step and name != 'implicit_midpoint':
             break  # a higher order cannot take a larger step and costs more per step
-        found = _largest_step(name, dyn, q, m, accuracy, horizon, pilot, min(max_step, pilot / 8))
+        found = yield from _largest_step(name, dyn, q, m, accuracy, horizon, pilot,
+                                         min(max_step, pilot / 8))
         if found is None:
             why.append(f'{name}: failed in the pilot')
             continue

@@ -1,6 +1,6 @@
 """Recorder load test: N topics at R Hz for T s through a real recorder process.
 
-    python -m rigid_body_sim.bag.loadtest [--rate 1000] [--duration 60] [--kill]
+    python -m rigid_body_sim.bench.recorder_load [--rate 1000] [--duration 60] [--kill]
 
 starts ``recorder`` and a publisher process (3 topics of the simulator's types:
 ``attitude`` QuaternionStamped, ``odometry`` Odometry, ``kinetic_energy`` Float64), then
@@ -100,7 +100,7 @@ def benchmark(args: argparse.Namespace) -> int:
                             '-p', f'flush_period:={args.flush_period}'],
                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
                            env=env, start_new_session=True)
-    cmd = [sys.executable, '-m', 'rigid_body_sim.bag.loadtest', 'publish', '--namespace', ns,
+    cmd = [sys.executable, '-m', 'rigid_body_sim.bench.recorder_load', 'publish', '--namespace', ns,
            '--rate', str(args.rate), '--duration', str(args.duration),
            '--topics', ','.join(topics), '--linger', '1', '--depth', str(args.pub_depth)]
     if args.kill_after:

@@ -1,6 +1,6 @@
 """Benchmark of the ``attitude_simulator`` node (real process, real DDS).
 
-``python -m rigid_body_sim.nodes.simulator_bench [--integrator auto] [--subscribe] [--seconds 6]``
+``python -m rigid_body_sim.bench.live_simulator [--integrator auto] [--subscribe] [--seconds 6]``
 
 Prints, for 1 kHz physics (step 1 ms) and 100 Hz publishing:
 * µs per physics step of ``Propagator.step`` in-process (no ROS), torque-free and torqued;
@@ -58,7 +58,7 @@ def run(integrator='auto', subscribe=False, seconds=6.0) -> dict:
     import rclpy
     from rclpy.node import Node
     from diagnostic_msgs.msg import DiagnosticArray
-    from .simulator import NODE_NAME
+    from ..nodes.simulator import NODE_NAME
     os.environ.setdefault('ROS_DOMAIN_ID', str(random.randint(101, 200)))
     os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
     result = {'integrator': integrator, 'step_s': STEP, 'publish_rate_hz': PUBLISH_RATE,

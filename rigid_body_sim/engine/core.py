@@ -1,0 +1,362 @@
+"""The engine: one closed loop for every front end (live node, offline run, demo, bench).
+
+It owns the state, sim time, the integrator (and ``auto``'s selection), the torque
+sources, the schedule of events and faults, and produces blocks of samples.
+
+Time is an integer count of nanoseconds, never a float summed step by step. The engine
+advances from event to event — sample instants (multiples of the sample period), source
+events (control updates, command expiry), the end of the run — splitting each interval
+into equal steps no longer than the method's step. Its state is always at an event
+instant, so where a front end stops it (a wall-clock deadline, a command arriving) never
+changes the trajectory. Without torque or dissipation, ``exact`` is not stepped at all:
+the closed form is evaluated at each event from an anchor, at the exact elapsed time.
+
+Front ends differ only in how they pace :meth:`Engine.advance` and where the samples go.
+"""
+import math
+import time
+from typing import Iterator, Optional
+
+import numpy as np
+
+from ..physics import Dynamics, IntegrationError, create, rotation
+from ..physics.exact import TorqueFreeSolution
+from ..physics.selection import select, selecting
+from .config import NS, EngineConfig
+from .samples import BlockBuilder, SampleBlock
+from .sources import NEVER, CommandHold, ControlLaw
+from .specs import AUTO
+
+__all__ = ['Engine', 'IntegrationError', 'NEVER']
+
+
+class Engine:
+    """Advance a rigid body through its events; see the module docstring.
+
+    ``blocking_selection``: run ``auto``'s pilot to completion when a choice is needed
+    (offline; its CPU is counted in ``selection_cpu``). Otherwise the engine runs
+    ``splitting2`` meanwhile and the caller feeds the pilot with :meth:`work`.
+    """
+
+    def __init__(self, config: EngineConfig, blocking_selection: bool = True,
+                 block_size: int = 1024):
+        self.config = config
+        self.blocking_selection = blocking_selection
+        self.command = CommandHold(config.max_torque, config.command_timeout_ns)
+        self.sources = [self.command]
+        if config.control is not None:
+            self.sources.append(ControlLaw(config.control, clip=config.max_torque))
+        self._builder = BlockBuilder(config.body, block_size)
+        self.steps = 0
+        self.evaluations = 0   # closed-form evaluations (exact, torque-free)
+        self.selection_cpu = 0.0
+        self._next_sample = 0
+        self._start(0)
+
+    # ------------------------------------------------------------------ state
+    def _start(self, t_ns: int):
+        c = self.config
+        self.body = self._builder.body = c.body
+        self.dynamics = Dynamics(self.body.principal_moments, c.dissipation)
+        self._q = self.body.attitude_to_principal(c.attitude)
+        self._m = self.body.principal_moments * self.body.to_principal(c.angular_velocity)
+        self.t_ns = t_ns
+        self.start_ns = t_ns
+        self.fault: Optional[str] = None
+        self.finished = False
+        self._anchor = None
+        for s in self.sources:
+            s.reset(t_ns)
+        self._torque_seen = False
+        self._tau_body = self._tau_p = None
+        self.method = None
+        self._choose()
+        self._set_baseline()
+
+    def reset(self):
+        """Back to the configured initial state (inertia and initial state as configured
+        now); sim time keeps running, so stamps and /clock stay monotonic."""
+        self._start(self.t_ns)
+
+    @property
+    def t(self) -> float:
+        return self.t_ns / NS
+
+    @property
+    def end_ns(self) -> int:
+        d = self.config.duration_ns
+        return self.start_ns + d if d > 0 else NEVER
+
+    @property
+    def attitude(self):
+        """Quaternion (x, y, z, w), body → inertial."""
+        return self.body.attitude_to_body(self._q)
+
+    @property
+    def angular_velocity(self):
+        """ω, body frame, rad/s."""
+        return self.body.to_body(self._m / self.body.principal_moments)
+
+    @property
+    def angular_momentum(self):
+        """L, inertial frame, kg·m²/s."""
+        return rotation.rotate(self._q, self._m)
+
+    @property
+    def kinetic_energy(self) -> float:
+        return float(self.dynamics.kinetic_energy(self._m))
+
+    @property
+    def principal_state(self):
+        """(q principal → inertial, m principal frame): what the integrators advance."""
+        return self._q.copy(), self._m.copy()
+
+    @property
+    def integrator(self):
+        """The integrator instance in use (its ``nfev`` counts evaluations)."""
+        return self._integ
+
+    @property
+    def torque(self):
+        """Total held torque now (body frame, N·m), None if none."""
+        return self._tau_body
+
+    # ------------------------------------------------------------------ methods
+    def _max_step(self) -> float:
+        c = self.config
+        h = min(c.step, c.sample_period)
+        if c.control is not None:
+            h = min(h, c.control.period_ns / NS)
+        return h
+
+    def _use(self, name, h_max, reason, **options):
+        if name != self.method or options:
+            self._integ = create(name, self.dynamics, **options)
+        self.method, self.reason = name, reason
+        self.step_max = float(h_max)
+        self._anchor = None
+
+    def _choose(self):
+        """Pick the method for the current state (``auto``) or take the configured one."""
+        c = self.config
+        self._selection = None
+        if c.integrator != AUTO:
+            self._use(c.integrator, self._max_step(),
+                      f'set by the scene or parameter ({c.integrator})',
+                      **dict(c.integrator_options))
+            return
+        torque = self._torque_seen
+        kw = dict(torque=torque, accuracy=c.accuracy, duration=c.duration,
+                  max_step=self._max_step())
+        if not torque and not c.dissipation.active:
+            sel = select(self.body, c.dissipation, self.attitude, self.angular_velocity, **kw)
+            self._use(sel.name, kw['max_step'],
+                      f'auto: {sel.reason}; evaluated at sample and event instants only')
+            return
+        work = selecting(self.body, c.dissipation, self.attitude, self.angular_velocity, **kw)
+        if self.blocking_selection:
+            self._selection = work
+            self.work()
+        else:
+            self._use('splitting2', kw['max_step'],
+                      'auto: provisional splitting2 while the selection pilot runs')
+            self._selection = work
+
+    @property
+    def selection_pending(self) -> bool:
+        return self._selection is not None
+
+    def work(self, deadline: Optional[float] = None) -> bool:
+        """Feed ``auto``'s pilot until done or ``deadline`` (time.monotonic()); True while
+        it is still pending. The choice applies at the current instant."""
+        work = self._selection
+        if work is None:
+            return False
+        cpu0 = time.process_time()
+        try:
+            while deadline is None or time.monotonic() < deadline:
+                next(work)
+        except StopIteration as done:
+            sel = done.value
+            self._selection = None
+            self._use(sel.name, min(sel.step, self._max_step()) if sel.step > 0
+                      else self._max_step(), f'auto: {sel.reason}')
+        except (ValueError, IntegrationError) as exc:
+            self._selection = None
+            self._use('splitting2', self._max_step(),
+                      f'auto: selection failed ({exc}); splitting2 as the safe default')
+        finally:
+            self.selection_cpu += time.process_time() - cpu0
+        return self._selection is not None
+
+    def reconfigure(self, config: EngineConfig):
+        """Apply new settings now, state and time continuous. Inertia and the initial state
+        take effect on :meth:`reset`; dissipation, numerics and limits at once."""
+        old, self.config = self.config, config
+        if config.dissipation != old.dissipation:
+            self.dynamics = Dynamics(self.body.principal_moments, config.dissipation)
+            self.method = None  # rebuild the integrator on the new dynamics
+            self._set_baseline()
+        if config.sample_period_ns != old.sample_period_ns:
+            p = config.sample_period_ns
+            self._next_sample = (self.t_ns // p + 1) * p
+        self.command.set_limits(config.max_torque, config.command_timeout_ns, self.t_ns)
+        for s in self.sources:
+            if isinstance(s, ControlLaw):
+                s.clip = config.max_torque
+        numerics = ('integrator', 'step', 'accuracy', 'sample_period_ns', 'duration_ns',
+                    'integrator_options')
+        if self.method is None or any(getattr(config, k) != getattr(old, k) for k in numerics):
+            self._choose()
+
+    # ------------------------------------------------------------------ torque
+    def apply_command(self, torque_body):
+        """Hold a commanded body-frame torque (N·m, finite) from now for the timeout."""
+        self.command.set(torque_body, self.t_ns)
+        self._update_torque()
+
+    def _update_torque(self):
+        active = [s.torque for s in self.sources if s.torque is not None]
+        before = self._tau_body
+        self._tau_body = None if not active else np.sum(active, axis=0)
+        self._tau_p = None if self._tau_body is None else self.body.to_principal(self._tau_body)
+        if self._tau_body is not None:
+            self._anchor = None
+            if not self._torque_seen:
+                self._torque_seen = True
+                if self.config.integrator == AUTO:
+                    self._choose()
+        elif before is not None:
+            self._set_baseline()  # drift is measured over torque-free stretches
+
+    # ------------------------------------------------------------------ stepping
+    def _free_exact(self) -> bool:
+        return self.method == 'exact' and self._tau_p is None and not self.dynamics.dissipation.active
+
+    def _anchored(self):
+        if self._anchor is None:
+            self._anchor = (self.t_ns, TorqueFreeSolution(self.dynamics.moments, self._q, self._m))
+        return self._anchor
+
+    def _integrate(self, t_end: int):
+        span = t_end - self.t_ns
+        if span <= 0:
+            return
+        if self._free_exact():
+            t0, solution = self._anchored()
+            self._q, self._m = solution.at((t_end - t0) / NS)
+            self.evaluations += 1
+            return
+        # equal steps no longer than step_max (to 1 ppb: a step given as span/n stays n steps)
+        n = max(1, math.ceil(span / (self.step_max * NS) - 1e-9))
+        h = span / (n * NS)
+        t0 = self.t_ns / NS
+        step, q, m, tau = self._integ.step, self._q, self._m, self._tau_p
+        for k in range(n):
+            q, m = step(q, m, h, tau, t0 + k * h)
+        self._q, self._m = q, m
+        self.steps += n
+
+    def _free_samples(self, limit: int, room: int) -> int:
+        """Exact flow at many sample instants < ``limit`` at once (vectorised); count added."""
+        p = self.config.sample_period_ns
+        k = min(room, (limit - 1 - self._next_sample) // p + 1)
+        if k < 2:
+            return 0
+        times = self._next_sample + p * np.arange(k, dtype=np.int64)
+        t0, solution = self._anchored()
+        q, m = solution.at((times - t0) / NS)
+        self._builder.add_many(times, q, m)
+        self._q, self._m = q[-1].copy(), m[-1].copy()
+        self.t_ns = int(times[-1])
+        self._next_sample = self.t_ns + p
+        self.evaluations += k
+        return k
+
+    def advance(self, until_ns: int, deadline: Optional[float] = None,
+                max_samples: Optional[int] = None) -> SampleBlock:
+        """Process every event at or before ``until_ns`` (stopping early at ``deadline``,
+        time.monotonic(), or after ``max_samples``); returns the samples produced.
+
+        Raises IntegrationError (and sets ``fault``) if the method fails."""
+        b = self._builder
+        cap = min(b.capacity, max_samples or b.capacity)
+        p = self.config.sample_period_ns
+        while not (self.finished or self.fault) and b.n < cap:
+            t_src = min(s.next_event() for s in self.sources)
+            end = self.end_ns
+            t_event = min(self._next_sample, t_src, end)
+            if t_event > until_ns:
+                break
+            if self._free_exact() and t_event == self._next_sample:
+                if self._free_samples(min(t_src, end, until_ns + 1), cap - b.n):
+                    continue
+            try:
+                self._integrate(t_event)
+            except IntegrationError as exc:
+                self.fault = str(exc)
+                raise
+            self.t_ns = t_event
+            if t_src == t_event:
+                att, w = self.attitude, self.angular_velocity
+                for s in self.sources:
+                    if s.next_event() == t_event:
+                        s.on_event(t_event, att, w)
+                self._update_torque()
+            if t_event == self._next_sample:
+                if not (np.all(np.isfinite(self._q)) and np.all(np.isfinite(self._m))):
+                    self.fault = f'state became non-finite at t = {self.t:.9g} s'
+                    raise IntegrationError(self.method, self.step_max, self.t, self.fault)
+                b.add(t_event, self._q, self._m, self._tau_body)
+                self._next_sample += p
+            if t_event >= end:
+                self.finished = True
+            if deadline is not None and time.monotonic() > deadline:
+                break
+        return b.block()
+
+    def run(self, until_ns: Optional[int] = None) -> Iterator[SampleBlock]:
+        """Blocks of samples up to ``until_ns`` (default: the end of the run), as a stream:
+        memory does not grow with the length of the run."""
+        until = self.end_ns if until_ns is None else until_ns
+        if until >= NEVER:
+            raise ValueError('an open-ended run (duration 0) needs an end time')
+        while not (self.finished or self.fault) and self.t_ns <= until:
+            block = self.advance(until)
+            if len(block):
+                yield block
+            elif not self.finished:
+                break
+
+    # ------------------------------------------------------------------ diagnostics
+    def _set_baseline(self):
+        self._base = (self.kinetic_energy, self.angular_momentum.copy(), self.t_ns)
+
+    def diagnostics(self) -> dict:
+        """The physics' health: method, step, invariants and their drift over the current
+        torque-free stretch, quaternion norm error, dissipated energy, command counters."""
+        T, L = self.kinetic_energy, self.angular_momentum
+        T0, L0, t0 = self._base
+        n0, n = float(np.linalg.norm(L0)), float(np.linalg.norm(L))
+        torque_on = self._tau_body is not None
+        na = 'n/a (torque applied)'
+        rel = (lambda a, b: (a - b) / b if b > 0 else 0.0)
+        c = self.command
+        return {
+            'integrator': self.method, 'integrator_reason': self.reason,
+            'step': self.step_max, 'publish_rate': NS / self.config.sample_period_ns,
+            'sim_time': self.t, 'kinetic_energy': T, 'angular_momentum_norm': n,
+            'drift_since': t0 / NS,
+            'kinetic_energy_drift': na if torque_on else rel(T, T0),
+            'angular_momentum_norm_drift': na if torque_on else rel(n, n0),
+            'angular_momentum_inertial_drift': na if torque_on else
+            (float(np.linalg.norm(L - L0)) / n0 if n0 > 0 else 0.0),
+            'quaternion_norm_error': abs(float(np.linalg.norm(self._q)) - 1.0),
+            'energy_dissipated': max(0.0, T0 - T)
+            if self.dynamics.dissipation.active and not torque_on else 0.0,
+            'torque_applied': torque_on,
+            'commands_accepted': c.accepted, 'commands_saturated': c.saturated,
+            'commands_timed_out': c.timed_out,
+            'selection_pending': self.selection_pending,
+        }
+

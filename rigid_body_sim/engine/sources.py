@@ -1,0 +1,122 @@
+"""Torque sources: each holds a body-frame torque between its own events (zero-order hold).
+
+The engine sums the torques of its sources and hands the sum to the integrator as a
+constant over each step; it stops at every source's next event, so no step straddles a
+change. State-dependent dissipation is not here: it is part of the dynamics that every
+integrator integrates (``physics.dynamics``).
+
+A new source (an actuator, an environment torque) is a subclass with its own parameters;
+the engine and the integrators need no change.
+"""
+import math
+from typing import Optional
+
+import numpy as np
+
+from .. import control
+from .config import ControlSettings
+
+NEVER = 1 << 62  # ns: no event scheduled
+
+
+class TorqueSource:
+    """Base: ``torque`` is the held body-frame torque (N·m), None when it adds nothing."""
+    name = ''
+
+    def __init__(self):
+        self.torque: Optional[np.ndarray] = None
+
+    def next_event(self) -> int:
+        """Sim time (ns) of this source's next event, NEVER if none."""
+        return NEVER
+
+    def on_event(self, t_ns: int, attitude, angular_velocity) -> None:
+        """Called at ``next_event()`` with the body state (attitude body→inertial, ω body)."""
+
+    def reset(self, t_ns: int) -> None:
+        """Start over at ``t_ns`` (the scene was reset)."""
+        self.torque = None
+
+
+class CommandHold(TorqueSource):
+    """Commanded torque from outside (ROS messages): clipped per axis to ``max_torque``,
+    applied from the instant it is set, held for ``timeout_ns``, then zero."""
+    name = 'command'
+
+    def __init__(self, max_torque: float, timeout_ns: int):
+        super().__init__()
+        self.max_torque, self.timeout_ns = float(max_torque), int(timeout_ns)
+        self.expiry = NEVER
+        self.accepted = self.saturated = self.timed_out = 0
+
+    def set(self, torque, t_ns: int) -> None:
+        """Hold ``torque`` (body frame, finite) from ``t_ns``; a zero torque ends the hold."""
+        tau = np.array(torque, dtype=float).reshape(3)
+        if np.any(np.abs(tau) > self.max_torque):
+            np.clip(tau, -self.max_torque, self.max_torque, out=tau)
+            self.saturated += 1
+        self.accepted += 1
+        if not tau.any():
+            self.torque, self.expiry = None, NEVER
+            return
+        self.torque, self.expiry = tau, t_ns + self.timeout_ns
+
+    def set_limits(self, max_torque: float, timeout_ns: int, t_ns: int) -> None:
+        self.max_torque, self.timeout_ns = float(max_torque), int(timeout_ns)
+        if self.torque is not None:
+            np.clip(self.torque, -self.max_torque, self.max_torque, out=self.torque)
+            self.expiry = t_ns + self.timeout_ns
+
+    def next_event(self) -> int:
+        return self.expiry
+
+    def on_event(self, t_ns, attitude, angular_velocity):
+        self.torque, self.expiry = None, NEVER
+        self.timed_out += 1
+
+    def reset(self, t_ns):
+        super().reset(t_ns)
+        self.expiry = NEVER
+
+
+class ControlLaw(TorqueSource):
+    """The attitude control law with its scene schedule, sampled every control period.
+
+    The same object serves the offline engine (as a torque source) and the controller
+    node (through :meth:`evaluate`), so both run one law. ``clip``: the simulator's
+    per-axis saturation (N·m), as applied to every command it receives.
+    """
+    name = 'control'
+
+    def __init__(self, settings: ControlSettings, clip: float = math.inf):
+        super().__init__()
+        self.settings, self.clip = settings, float(clip)
+        self.reset(0)
+
+    def reset(self, t_ns):
+        super().reset(t_ns)
+        s = self.settings
+        self.controller = control.AttitudeController(s.config, s.mode, s.target)
+        self.mission = control.Mission(s.free_time, s.detumble_exit_rate)
+        self.next_t = t_ns
+        self.last: Optional[control.ControlOutput] = None
+        self.free = False
+
+    def evaluate(self, t: float, attitude, angular_velocity):
+        """(torque body frame, free, switched_to): the law at state time ``t`` (s)."""
+        free, switched = self.mission.update(self.controller, t, angular_velocity)
+        self.free = free
+        if free:
+            self.last = None
+            return np.zeros(3), True, switched
+        self.last = self.controller.compute(attitude, angular_velocity)
+        return self.last.torque, False, switched
+
+    def next_event(self):
+        return self.next_t
+
+    def on_event(self, t_ns, attitude, angular_velocity):
+        tau, _, _ = self.evaluate(t_ns / 1e9, attitude, angular_velocity)
+        tau = np.clip(tau, -self.clip, self.clip)
+        self.torque = tau if tau.any() else None
+        self.next_t = t_ns + self.settings.period_ns

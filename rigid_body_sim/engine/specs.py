@@ -1,0 +1,136 @@
+"""The parameters of the simulator and the controller: one spec list each, free of ROS.
+
+Scene files, the offline run and the nodes all read these. A new parameter is one line
+here; the node declares it from this line and the engine reads it from the typed config.
+"""
+from typing import Optional
+
+from .. import control
+from ..physics import DISSIPATION_MODELS, INTEGRATORS
+from .params import ParamSpec
+
+AUTO = 'auto'
+QOS_CHOICES = ('reliable', 'sensor_data')
+
+SIMULATOR = (
+    ParamSpec('inertia', [1.0, 2.0, 3.0],
+              'inertia: 3 principal moments or 9 values row-major (body frame)',
+              kind='float_array', unit='kg*m^2', sizes=(3, 9),
+              note='positive definite, symmetric, triangle inequalities; takes effect on ~/reset'),
+    ParamSpec('initial_attitude', [0.0, 0.0, 0.0, 1.0],
+              'initial attitude quaternion (x, y, z, w), rotation child_frame_id -> frame_id',
+              kind='float_array', sizes=(4,),
+              note='non-zero, normalised on use; takes effect on ~/reset'),
+    ParamSpec('initial_angular_velocity', [0.05, 1.0, 0.0], 'initial angular velocity, body frame',
+              kind='float_array', unit='rad/s', sizes=(3,), note='takes effect on ~/reset'),
+    ParamSpec('dissipation.model', 'none', 'internal/external dissipation model', kind='string',
+              choices=DISSIPATION_MODELS, note='applies at once, state continuous'),
+    ParamSpec('dissipation.coefficient', 0.0,
+              'dissipation coefficient: double_bracket alpha [s/(kg*m^2)], viscous c [N*m*s]',
+              kind='float', low=0.0, note='applies at once, state continuous'),
+    ParamSpec('integrator', AUTO,
+              'integration method, or auto (chosen from the scene and accuracy)',
+              kind='string', choices=(AUTO,) + tuple(INTEGRATORS), note='may change while running'),
+    ParamSpec('step', 0.001, 'largest physics step (each interval between events is split '
+              'into equal steps no longer than this; auto may choose a smaller one)',
+              kind='float', unit='s', low=1e-9, high=1e7),
+    ParamSpec('accuracy', 1e-6, 'attitude-error budget used by integrator auto', kind='float',
+              unit='rad', low=1e-15, high=1.0),
+    ParamSpec('publish_rate', 100.0, 'state sample rate in simulated time (period rounded to '
+              'whole nanoseconds)', kind='float', unit='Hz', low=1e-9, high=10000.0),
+    ParamSpec('real_time_factor', 1.0, 'simulated seconds per wall second; 0 = as fast as '
+              'possible', kind='float', low=0.0, high=1e9),
+    ParamSpec('publish_clock', False, 'publish /clock (sim time) and stamp messages with it',
+              kind='bool'),
+    ParamSpec('duration', 0.0, 'simulated time to run from start (or last ~/reset), then exit; '
+              '0 = until stopped', kind='float', unit='s', low=0.0, high=1e12),
+    ParamSpec('frame_id', 'world', 'inertial frame (REP-105)', kind='string'),
+    ParamSpec('child_frame_id', 'base_link', 'body frame (REP-103); commands must use it or '
+              'empty', kind='string'),
+    ParamSpec('max_torque', 1.0, 'per-axis saturation of commanded torque', kind='float',
+              unit='N*m', low=0.0, high=1e9),
+    ParamSpec('command_timeout', 0.5, 'a command held longer than this (sim time) drops to '
+              'zero torque', kind='float', unit='s', low=1e-6, high=1e6, low_open=True),
+    ParamSpec('command_stamp_tolerance', 0.5,
+              'commands stamped further than this in the future (vs. the stamps this node '
+              'publishes) are rejected; a zero stamp is accepted', kind='float', unit='s',
+              low=0.0, high=1e6),
+    ParamSpec('qos', 'reliable', 'QoS of state topics and command subscriptions',
+              kind='string', choices=QOS_CHOICES, read_only=True),
+)
+
+D = control.PARAMETER_DEFAULTS
+CONTROLLER = (
+    ParamSpec('mode', D['mode'], 'detumble: tau = -K_w w; slew: go to the target and hold; '
+              'off: zero torque', kind='string', choices=control.MODES, false_is='off',
+              note='switchable at runtime'),
+    ParamSpec('inertia', D['inertia'], 'inertia of the controlled body: 3 principal moments or '
+              '9 values row-major, body frame (same format as the simulator\'s)',
+              kind='float_array', unit='kg*m^2', sizes=(3, 9),
+              note='positive definite, symmetric, triangle inequalities'),
+    ParamSpec('control_rate', D['control_rate'], 'rate of torque_command (node clock)',
+              kind='float', unit='Hz', low=0.0, high=10000.0, low_open=True),
+    ParamSpec('natural_frequency', D['natural_frequency'], 'slew natural frequency w_n, one '
+              'value or one per principal axis: kp = 2 I w_n^2, kd = 2 zeta w_n I',
+              kind='float_array', unit='rad/s', sizes=(1, 3), low=0.0, low_open=True,
+              scalar_ok=True, note='ignored when kp and kd are set'),
+    ParamSpec('damping_ratio', D['damping_ratio'], 'slew damping ratio zeta (1 = critical), '
+              'one value or one per principal axis', kind='float_array', sizes=(1, 3), low=0.0,
+              low_open=True, scalar_ok=True),
+    ParamSpec('kp', D['kp'], 'direct proportional gains per principal axis on the error '
+              'quaternion vector part; all zero = from natural_frequency/damping_ratio',
+              kind='float_array', unit='N*m', sizes=(3,), low=0.0,
+              note='set both kp and kd (they then win), or neither'),
+    ParamSpec('kd', D['kd'], 'direct rate gains per principal axis; all zero = from '
+              'natural_frequency/damping_ratio', kind='float_array', unit='N*m*s', sizes=(3,),
+              low=0.0),
+    ParamSpec('rate_gain', D['rate_gain'], 'detumble gain K_w: 0 = kd (proportional to '
+              'inertia, |L| decays as exp(-2 zeta w_n t)); one value = isotropic; three = per '
+              'principal axis', kind='float_array', unit='N*m*s', sizes=(1, 3), low=0.0,
+              scalar_ok=True),
+    ParamSpec('gyroscopic_compensation', D['gyroscopic_compensation'],
+              'add w x Iw to the slew torque', kind='bool'),
+    ParamSpec('max_torque', D['max_torque'], 'bound on the Euclidean norm of the commanded '
+              'torque (vector scaled, direction kept; the slew rate is limited to match); '
+              '0 = unlimited', kind='float', unit='N*m', low=0.0, high=1e9),
+    ParamSpec('max_rate', D['max_rate'], 'bound on the commanded slew rate; 0 = from '
+              'max_torque only', kind='float', unit='rad/s', low=0.0, high=1e9),
+    ParamSpec('state_timeout', 0.5, 'state older than this (node clock vs. message stamps) '
+              'gives zero torque', kind='float', unit='s', low=0.0, high=1e6, low_open=True),
+    ParamSpec('target_attitude', D['target_attitude'], 'slew target (x, y, z, w) in the '
+              'attitude\'s frame_id; attitude_target messages replace it until this is set '
+              'again', kind='float_array', sizes=(4,),
+              note='unit quaternion (|norm - 1| <= 1e-3)'),
+    ParamSpec('mission.free_time', D['mission.free_time'], 'free phase: no torque for this '
+              'long after the first state received (state time)', kind='float', unit='s',
+              low=0.0, high=1e9),
+    ParamSpec('mission.detumble_exit_rate', D['mission.detumble_exit_rate'], 'in detumble, '
+              'switch to slew once |w| falls below this; 0 = never', kind='float',
+              unit='rad/s', low=0.0, high=1e6),
+    ParamSpec('child_frame_id', 'base_link', 'body frame: frame_id of torque_command',
+              kind='string'),
+    ParamSpec('qos', 'reliable', 'QoS of state subscriptions and torque_command',
+              kind='string', choices=QOS_CHOICES, read_only=True),
+)
+
+
+def frame_id_problem(frame: str) -> Optional[str]:
+    """Why ``frame`` is not a usable tf2 frame id (None if fine): empty, leading '/', spaces."""
+    if not frame:
+        return 'must not be empty'
+    if frame.startswith('/'):
+        return 'must not start with "/" (tf2 frame ids are relative)'
+    if any(c.isspace() for c in frame):
+        return 'must not contain whitespace'
+    return None
+
+
+def check_frames(p, keys=('frame_id', 'child_frame_id')):
+    """ValueError(reason) if a frame id in ``p`` is unusable or the two coincide."""
+    for name in keys:
+        if name in p:
+            problem = frame_id_problem(p[name])
+            if problem:
+                raise ValueError(f'{name} {p[name]!r} {problem}')
+    if 'frame_id' in p and p.get('frame_id') == p.get('child_frame_id'):
+        raise ValueError(f'frame_id and child_frame_id must differ (both {p["frame_id"]!r})')

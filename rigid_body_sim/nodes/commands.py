@@ -1,0 +1,57 @@
+"""Incoming torque commands: checked, counted and warned about before the engine sees them.
+
+A command with NaN/Inf, a frame other than the body frame, or a stamp too far in the
+future or older than ``command_timeout`` is rejected, counted by reason (reported in
+diagnostics) and warned about (throttled per reason); it is never applied.
+"""
+import math
+import time
+
+REJECT_REASONS = ('non_finite', 'wrong_frame', 'future_stamp', 'stale_stamp')
+WARN_THROTTLE_S = 2.0
+
+
+class CommandFilter:
+    """Validates commands against the simulator's parameters ``params`` (a live dict)."""
+
+    def __init__(self, node, params):
+        self._log = node.get_logger()
+        self.params = params
+        self.rejected = dict.fromkeys(REJECT_REASONS, 0)
+        self._next_warn = {}
+
+    def counts(self) -> dict:
+        return {f'commands_rejected.{r}': n for r, n in self.rejected.items()}
+
+    def _reject(self, reason: str, source: str, detail: str) -> bool:
+        self.rejected[reason] += 1
+        now = time.monotonic()
+        if now >= self._next_warn.get(reason, 0.0):
+            self._next_warn[reason] = now + WARN_THROTTLE_S
+            self._log.warn(f'{source} rejected ({reason}): {detail}; torque not applied '
+                           f'({self.rejected[reason]} {reason} rejections so far)')
+        return False
+
+    def accept(self, header, vector, source: str, now_stamp_ns: int) -> bool:
+        """True if the command may be applied; ``now_stamp_ns``: this node's current stamp."""
+        p = self.params
+        x, y, z = vector.x, vector.y, vector.z
+        if not (math.isfinite(x) and math.isfinite(y) and math.isfinite(z)):
+            return self._reject('non_finite', source, f'torque ({x}, {y}, {z}) is not finite')
+        frame = header.frame_id.lstrip('/')
+        if frame not in ('', p['child_frame_id']):
+            return self._reject('wrong_frame', source, f'frame_id {header.frame_id!r}: torque '
+                                f'must be in the body frame {p["child_frame_id"]!r} (or frame_id '
+                                'empty)')
+        stamp = header.stamp.sec + 1e-9 * header.stamp.nanosec
+        if stamp != 0.0:
+            now = now_stamp_ns * 1e-9
+            if stamp - now > p['command_stamp_tolerance']:
+                hint = ' (does the sender use_sim_time? this node publishes /clock)' \
+                    if p['publish_clock'] else ''
+                return self._reject('future_stamp', source, f'stamp {stamp:.6f} is '
+                                    f'{stamp - now:.3g} s ahead of this node\'s stamps{hint}')
+            if now - stamp > p['command_timeout']:
+                return self._reject('stale_stamp', source, f'stamp {stamp:.6f} is '
+                                    f'{now - stamp:.3g} s old, more than command_timeout')
+        return True

@@ -1,0 +1,138 @@
+"""The simulation engine (rigid_body_sim.engine): ROS-free, exact time, one trajectory.
+
+Physics oracles: the closed-form torque-free solution at the exact elapsed time, and the
+same engine driven by the offline run and by the benchmark harness.
+"""
+import os
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from rigid_body_sim.engine import NS, Engine, EngineConfig
+from rigid_body_sim.physics import rotation
+from rigid_body_sim.physics.exact import TorqueFreeSolution
+
+CLI = os.path.join(os.path.dirname(sys.executable), 'rigid-body-sim')
+ROS_MODULES = ('rclpy', 'builtin_interfaces', 'geometry_msgs', 'std_msgs', 'nav_msgs',
+               'diagnostic_msgs', 'rosgraph_msgs', 'std_srvs', 'rcl_interfaces')
+
+
+def test_scene_engine_and_offline_run_need_no_ros():
+    """With rclpy and every message package made unimportable, every scene loads and runs
+    offline (no bag, no plots)."""
+    block = '; '.join(f'sys.modules[{m!r}] = None' for m in ROS_MODULES)
+    code = (f'import sys; {block}\n'
+            'import rigid_body_sim.scene as S, rigid_body_sim.engine, rigid_body_sim.offline as O\n'
+            'for name, _, _ in S.list_scenes():\n'
+            '    scene = S.load(name)\n'
+            '    r = O.simulate(scene, duration=2 / scene.simulator["publish_rate"], keep="none")\n'
+            '    assert r.sample_count == 3, name\n'
+            'print("ok", len(S.list_scenes()))\n')
+    out = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True,
+                         timeout=300)
+    assert out.returncode == 0, out.stderr[-2000:]
+    assert out.stdout.startswith('ok ') and int(out.stdout.split()[1]) >= 7
+
+
+def test_stepped_exact_stays_exact_over_a_million_samples():
+    """`exact` named explicitly with a step 10x smaller than the sample period: 1e6 samples
+    of 0.01 s; every sample time is an exact multiple of the period and the attitude at
+    N·h equals the closed form evaluated at N·h to 1e-12 rad."""
+    config = EngineConfig.from_parameters({
+        'inertia': [1.0, 2.0, 3.0], 'initial_angular_velocity': [0.05, 1.0, 0.02],
+        'initial_attitude': [0.1, -0.2, 0.3, 0.9], 'integrator': 'exact', 'step': 0.001,
+        'publish_rate': 100.0, 'duration': 1e4})
+    engine = Engine(config)
+    period = config.sample_period_ns
+    assert period == 10_000_000
+    count, last = 0, None
+    for block in engine.run():
+        assert np.all(block.t_ns == (count + np.arange(len(block))) * period)
+        count += len(block)
+        last = block
+    assert count == 1_000_001
+    body = config.body
+    solution = TorqueFreeSolution(body.principal_moments, body.attitude_to_principal(
+        config.attitude), body.principal_moments * body.to_principal(config.angular_velocity))
+    q, m = solution.at(1e6 * 0.01)
+    q_body = body.attitude_to_body(q)
+    assert rotation.angle_between(q_body, last.attitude[-1]) <= 1e-12
+    np.testing.assert_allclose(last.angular_velocity[-1], body.to_body(m / body.principal_moments),
+                               rtol=0, atol=1e-12)
+    assert engine.steps == 0  # evaluated, never stepped
+
+
+def test_sim_time_is_integer_nanoseconds_and_events_split_steps():
+    """A 30 Hz sample rate (period 33,333,333 ns) with a 20 Hz control law: samples land on
+    multiples of the period, control updates on multiples of 50 ms, steps never straddle
+    either, and the torque column changes only at control instants."""
+    sim = {'inertia': [1.0, 2.0, 3.0], 'initial_angular_velocity': [0.3, 0.1, 0.2],
+           'integrator': 'rk4', 'step': 0.01, 'publish_rate': 30.0, 'duration': 3.0}
+    ctl = {'mode': 'detumble', 'control_rate': 20.0, 'inertia': [1.0, 2.0, 3.0]}
+    engine = Engine(EngineConfig.from_parameters(sim, ctl))
+    blocks = list(engine.run())
+    t = np.concatenate([b.t_ns for b in blocks])
+    tau = np.concatenate([b.torque for b in blocks])
+    assert np.all(t % 33_333_333 == 0) and t[-1] == 90 * 33_333_333
+    changes = t[1:][np.any(np.diff(tau, axis=0) != 0.0, axis=1)]
+    # a sample shows the torque held since the latest control instant at or before it
+    held_since = (t // 50_000_000) * 50_000_000
+    assert len(changes) > 10 and np.all(np.diff(held_since[np.isin(t, changes)]) > 0)
+    # control instants (60) + samples (100) + end, each span split into <= 10 ms steps
+    assert engine.steps >= 160
+
+
+def test_offline_run_and_benchmark_give_the_same_trajectory():
+    """One engine behind both: the bench harness on a bench scene and the offline run on a
+    params file with the same body, state, dissipation, method and step agree to 1e-12."""
+    from rigid_body_sim.bench.common import propagate
+    from rigid_body_sim.bench.scenes import SCENE_BY_NAME
+    from rigid_body_sim.offline import simulate
+    from rigid_body_sim.scene import SceneFile
+    from rigid_body_sim.engine.params import coerce_all
+    from rigid_body_sim.engine import specs
+    bench = SCENE_BY_NAME['dissipation']
+    params = coerce_all(specs.SIMULATOR, {
+        'inertia': list(bench.moments), 'initial_attitude': list(bench.q0),
+        'initial_angular_velocity': list(bench.omega0), 'dissipation.model': 'double_bracket',
+        'dissipation.coefficient': bench.dissipation.coefficient, 'integrator': 'splitting4',
+        'step': 0.005, 'publish_rate': 20.0, 'duration': bench.t_end})
+    offline = simulate(SceneFile('x', '', 'inline', params))
+    q, m, engine = propagate(bench, 'splitting4', 0.005)
+    assert offline.steps == engine.steps == int(bench.t_end / 0.005)
+    np.testing.assert_allclose(offline.samples.attitude[-1], q / np.linalg.norm(q), rtol=0,
+                               atol=1e-12)
+    np.testing.assert_allclose(offline.samples.angular_momentum_body[-1], m, rtol=0, atol=1e-12)
+
+
+def _peak_rss_kb(duration):
+    code = ('import resource, rigid_body_sim.offline as O, rigid_body_sim.scene as S\n'
+            f'r = O.simulate(S.load("tennis_racket"), duration={duration}, keep="plot")\n'
+            'print(r.sample_count, resource.getrusage(resource.RUSAGE_SELF).ru_maxrss)\n')
+    out = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True,
+                         timeout=600)
+    assert out.returncode == 0, out.stderr[-2000:]
+    n, kb = map(int, out.stdout.split())
+    return n, kb
+
+
+def test_offline_memory_does_not_grow_with_the_run():
+    """Peak RSS of an offline run is the same (within 8 MB) for 1e4 and 1e6 samples: the
+    samples stream through, only a bounded plot series is kept."""
+    n_small, small = _peak_rss_kb(100.0)
+    n_large, large = _peak_rss_kb(1e4)
+    assert n_small == 10_001 and n_large == 1_000_001
+    assert large - small < 8 * 1024, (small, large)
+
+
+def test_run_json_reports_selection_cpu_and_sample_count(tmp_path):
+    import json
+    out = subprocess.run([CLI, 'run', 'explorer1', '--duration', '20', '--json', '--no-plots',
+                          '--out', str(tmp_path)], capture_output=True, text=True, timeout=300)
+    assert out.returncode == 0, out.stderr
+    summary = json.loads(out.stdout)
+    assert summary['samples'] == 21 and summary['selection_cpu_seconds'] > 0.0
+    assert summary['integrator'] in ('splitting2', 'splitting4', 'splitting6',
+                                     'implicit_midpoint')
