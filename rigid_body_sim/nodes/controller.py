@@ -37,7 +37,7 @@ from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import QuaternionStamped, Vector3Stamped
 
 from .. import control
-from ..engine import specs
+from ..engine import ControlLaw, ControlSettings, specs
 from .common import (changed_values, coerce_parameters, declare_parameters, diagnostic_status,
                      frame_id_problem, qos_profile, stamp_to_seconds, validate_update)
 
@@ -74,11 +74,11 @@ class Controller(Node):
         self._p = declare_parameters(self, SPECS)  # ValueError on bad overrides
         if self.get_parameter('mode').type_ != Parameter.Type.STRING:  # `mode:=off` arrived as false
             self.set_parameters([Parameter('mode', Parameter.Type.STRING, self._p['mode'])])
-        config, target = check_parameters(self._p)
+        check_parameters(self._p)
         self._log = self.get_logger()
-        self._ctl = control.AttitudeController(config, self._p['mode'], target)
-        self._mission = control.Mission(self._p['mission.free_time'], self._p['mission.detumble_exit_rate'])
-        self._in_free_phase = False
+        # The law and its scene schedule: the object the offline engine runs as a torque source.
+        self._law = ControlLaw(ControlSettings.from_parameters(self._p))
+        self._ctl = self._law.controller
 
         # latest state: value, stamp (s, node clock), frame of the attitude
         self._q = None
@@ -186,13 +186,17 @@ class Controller(Node):
             if self._ctl.mode != 'off':
                 self._warn('no_state' if self._q is None or self._w is None else 'stale',
                            f'{self._stale_reason}: commanding zero torque')
-        elif self._mission_free():
-            pass  # the scene's free phase: zero torque
-        elif self._ctl.mode != 'off':
-            self._last = self._ctl.compute(self._q, self._w)
-            torque = tuple(float(x) for x in self._last.torque)
-            self._saturated_ticks += self._last.saturated
-            self._rate_limited_ticks += self._last.rate_limited
+        elif self._ctl.mode != 'off' or self._law.mission.active:
+            tau, free, switched = self._law.evaluate(self._w_stamp, self._q, self._w)
+            if switched:
+                self._log.info(f'|w| = {np.linalg.norm(self._w):.3g} rad/s < '
+                               f'mission.detumble_exit_rate: switching to {switched}')
+                self.set_parameters([Parameter('mode', value=switched)])
+            if not free and self._ctl.mode != 'off':
+                self._last = self._law.last
+                torque = tuple(float(x) for x in tau)
+                self._saturated_ticks += self._last.saturated
+                self._rate_limited_ticks += self._last.rate_limited
         self._ticks += 1
         msg = Vector3Stamped()
         msg.header.stamp = self.get_clock().now().to_msg()
@@ -200,18 +204,6 @@ class Controller(Node):
         msg.vector.x, msg.vector.y, msg.vector.z = torque
         self._pub.publish(msg)
         self._published += 1
-
-    def _mission_free(self) -> bool:
-        """Advance the scene's schedule on the state time; True during the free phase."""
-        if not self._mission.active:
-            return False
-        free, switched = self._mission.update(self._ctl, self._w_stamp, self._w)
-        if switched:
-            self._log.info(f'|w| = {np.linalg.norm(self._w):.3g} rad/s < mission.detumble_exit_rate: '
-                           f'switching to {switched}')
-            self.set_parameters([Parameter('mode', value=switched)])
-        self._in_free_phase = free
-        return free
 
     # ------------------------------------------------------------------ parameters
     def _validate_parameters(self, params) -> SetParametersResult:
@@ -231,9 +223,10 @@ class Controller(Node):
         if 'mode' in changed:
             self._ctl.set_mode(self._p['mode'])
         if 'mission.free_time' in changed or 'mission.detumble_exit_rate' in changed:
-            start = self._mission.start  # keep the schedule's time origin
-            self._mission = control.Mission(self._p['mission.free_time'], self._p['mission.detumble_exit_rate'])
-            self._mission.start = start
+            start = self._law.mission.start  # keep the schedule's time origin
+            self._law.mission = control.Mission(self._p['mission.free_time'],
+                                                self._p['mission.detumble_exit_rate'])
+            self._law.mission.start = start
         if 'control_rate' in changed:
             self.destroy_timer(self._timer)
             self._timer = self.create_timer(1.0 / self._p['control_rate'], self._tick)
@@ -250,7 +243,7 @@ class Controller(Node):
         c = self._ctl.config
         values = {
             'mode': self._ctl.mode,
-            'mission_phase': 'free' if self._in_free_phase else self._ctl.mode,
+            'mission_phase': 'free' if self._law.free else self._ctl.mode,
             'attitude_error_angle': angle,
             'attitude_error_angle_deg': math.degrees(angle),
             'rate_norm': rate,
