@@ -42,6 +42,8 @@ $(STAMP): requirements.txt setup.py setup.cfg package.xml .ci/make_venv.sh
 	ln -sfn $(CURDIR)/config $(VENV)/share/rigid_body_sim/config
 	ln -sfn $(CURDIR)/launch $(VENV)/share/rigid_body_sim/launch
 	for exe in $(NODES); do ln -sfn ../../bin/$$exe $(VENV)/lib/rigid_body_sim/$$exe; done
+	@echo "compiling the step kernels (numba, cached on disk; once)"
+	$(PY) -c "from rigid_body_sim.physics import kernels; kernels.warm()"
 	touch $@
 
 clean:

@@ -1,4 +1,6 @@
-"""Simulator + controller + recorder on a scene: ros2 launch rigid_body_sim sim.launch.py scene:=default
+"""Simulator + controller + recorder on a scene:
+
+    ros2 launch rigid_body_sim sim.launch.py scene:=default
 
 Arguments:
   scene       built-in scene name (config/<scene>.yaml) or an absolute params-file path
@@ -21,12 +23,14 @@ def _nodes(context):
     scene = LaunchConfiguration('scene').perform(context)
     params = scene if os.path.isabs(scene) else os.path.join(
         get_package_share_directory('rigid_body_sim'), 'config', f'{scene}.yaml')
-    output = LaunchConfiguration('output').perform(context) or f'rigid_body_sim_{os.path.basename(scene)}'
+    output = (LaunchConfiguration('output').perform(context)
+              or f'rigid_body_sim_{os.path.basename(scene)}')
     return [
         Node(package='rigid_body_sim', executable='simulator', name='attitude_simulator',
              parameters=[params], output='screen'),
         Node(package='rigid_body_sim', executable='controller', name='attitude_controller',
-             parameters=[params], output='screen', condition=IfCondition(LaunchConfiguration('controller'))),
+             parameters=[params], output='screen',
+             condition=IfCondition(LaunchConfiguration('controller'))),
         Node(package='rigid_body_sim', executable='recorder', name='mcap_recorder',
              parameters=[{'output': output, 'scene': os.path.basename(scene)}], output='screen',
              condition=IfCondition(LaunchConfiguration('record'))),
@@ -35,9 +39,12 @@ def _nodes(context):
 
 def generate_launch_description():
     return LaunchDescription([
-        DeclareLaunchArgument('scene', default_value='default', description='scene name or params file'),
-        DeclareLaunchArgument('record', default_value='true', description='start the MCAP recorder'),
+        DeclareLaunchArgument('scene', default_value='default',
+                              description='scene name or params file'),
+        DeclareLaunchArgument('record', default_value='true',
+                              description='start the MCAP recorder'),
         DeclareLaunchArgument('output', default_value='', description='recorder bag directory'),
-        DeclareLaunchArgument('controller', default_value='true', description='start the controller'),
+        DeclareLaunchArgument('controller', default_value='true',
+                              description='start the controller'),
         OpaqueFunction(function=_nodes),
     ])

@@ -11,12 +11,14 @@ import time
 def unique_namespace(test_name: str) -> str:
     """A valid ROS namespace derived from the test name plus the pid and a counter."""
     unique_namespace.counter = getattr(unique_namespace, 'counter', 0) + 1
-    base = re.sub(r"_+", "_", re.sub(r"[^A-Za-z0-9_]", "_", test_name)).strip("_")[:40]  # ROS names forbid "__"
+    # ROS names forbid "__"
+    base = re.sub(r"_+", "_", re.sub(r"[^A-Za-z0-9_]", "_", test_name)).strip("_")[:40]
     return f'/t_{base}_{os.getpid()}_{unique_namespace.counter}'
 
 
 def venv_exe(name: str) -> str:
-    """Path of an installed executable of this package (node or CLI) in this interpreter's prefix."""
+    """Path of an installed executable of this package (node or CLI) in this interpreter's
+    prefix."""
     for candidate in (os.path.join(sys.prefix, 'lib', 'rigid_body_sim', name),
                       os.path.join(os.path.dirname(sys.executable), name)):
         if os.path.exists(candidate):

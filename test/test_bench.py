@@ -44,8 +44,9 @@ def test_cli_exposes_the_subcommand():
 
 
 def test_outputs_written(quick_run):
-    for name in ('work_precision.csv', 'stability.csv', 'long_horizon.csv', 'batch.csv', 'targets.csv',
-                 'targets.md', 'stability.png', 'work_precision_intermediate_axis.png'):
+    for name in ('work_precision.csv', 'stability.csv', 'long_horizon.csv', 'batch.csv',
+                 'targets.csv', 'targets.md', 'stability.png',
+                 'work_precision_intermediate_axis.png'):
         assert os.path.getsize(quick_run / name) > 0, name
 
 
@@ -54,7 +55,8 @@ def test_every_method_and_scene_has_finite_figures(quick_run):
     methods = list(INTEGRATORS) + ['scipy_rk45', 'scipy_dop853']
     for scene in SCENES:
         for method in methods:
-            ok = [r for r in rows if r['scene'] == scene.name and r['method'] == method and r['status'] == 'ok']
+            ok = [r for r in rows
+                  if r['scene'] == scene.name and r['method'] == method and r['status'] == 'ok']
             assert ok, f'{scene.name}/{method}: no successful run'
             for r in ok:
                 for key in NUMERIC:

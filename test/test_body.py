@@ -36,19 +36,23 @@ def test_full_tensor_is_diagonalised_into_a_proper_rotation():
 
 @pytest.mark.parametrize('integrator', ['splitting4', 'exact', 'rk4'])
 def test_rotated_body_moves_like_its_principal_twin(integrator):
-    """A body given by a non-diagonal tensor = its principal twin seen through the fixed rotation R."""
+    """A body given by a non-diagonal tensor = its principal twin seen through the fixed
+    rotation R."""
     r = Rotation.from_euler('zyx', [0.4, 0.2, -0.9])
     R = r.as_matrix()
     tensor = R @ np.diag([1.0, 2.0, 3.0]) @ R.T  # body frame b = R · principal frame
     w_principal = np.array([0.2, 1.0, 0.3])
     q_principal = Rotation.from_euler('x', 0.3).as_quat()
-    twin = Propagator(RigidBody.from_inertia([1.0, 2.0, 3.0]), q_principal, w_principal, integrator=integrator)
-    rotated = Propagator(RigidBody.from_inertia(tensor), (Rotation.from_quat(q_principal) * r.inv()).as_quat(),
+    twin = Propagator(RigidBody.from_inertia([1.0, 2.0, 3.0]), q_principal, w_principal,
+                      integrator=integrator)
+    rotated = Propagator(RigidBody.from_inertia(tensor),
+                         (Rotation.from_quat(q_principal) * r.inv()).as_quat(),
                          R @ w_principal, integrator=integrator)
     twin.advance(5.0, 0.01)
     rotated.advance(5.0, 0.01)
     assert np.allclose(rotated.angular_velocity, R @ twin.angular_velocity, atol=1e-10)
-    assert np.allclose(rotated.angular_momentum_inertial, twin.angular_momentum_inertial, atol=1e-10)
+    assert np.allclose(rotated.angular_momentum_inertial, twin.angular_momentum_inertial,
+                       atol=1e-10)
     assert np.allclose(rotated.kinetic_energy, twin.kinetic_energy, rtol=1e-12)
     expected = Rotation.from_quat(twin.attitude) * r.inv()
     assert rotation.angle_between(rotated.attitude, expected.as_quat()) < 1e-9
@@ -71,7 +75,8 @@ def test_bad_state_and_dissipation_inputs_are_clear_errors():
 
 
 def test_poinsot_quantities():
-    """L·ω = 2T; the invariable plane lies at 2T/|L|; the polhode point is on the energy ellipsoid."""
+    """L·ω = 2T; the invariable plane lies at 2T/|L|; the polhode point is on the energy
+    ellipsoid."""
     moments = np.array([1.0, 2.0, 3.0])
     m = np.array([0.3, -1.2, 0.8])
     p = poinsot(moments, m)

@@ -1,4 +1,5 @@
-"""`make demo` (the README's first command) completes with a short DEMO_DURATION and leaves a readable bag."""
+"""`make demo` (the README's first command) completes with a short DEMO_DURATION and leaves a
+readable bag."""
 import os
 import re
 import subprocess
@@ -8,13 +9,15 @@ REPO = Path(__file__).resolve().parent.parent
 
 
 def test_make_demo_runs_the_live_graph_and_records_a_bag(tmp_path):
-    out = subprocess.run(['make', '-C', str(REPO), 'demo', 'DEMO_DURATION=14', f'DEMO_OUT={tmp_path}'],
+    out = subprocess.run(['make', '-C', str(REPO), 'demo', 'DEMO_DURATION=14',
+                          f'DEMO_OUT={tmp_path}'],
                          capture_output=True, text=True, timeout=240)
     assert out.returncode == 0, out.stdout[-3000:] + out.stderr[-3000:]
     text = out.stdout
     assert 'Traceback' not in text + out.stderr
     assert re.search(r'final pointing error: [0-9.]+°', text), text
-    drift = re.search(r'free phase: (\d+) samples, relative drift T ([0-9.e+-]+), \|L\| ([0-9.e+-]+)', text)
+    drift = re.search(r'free phase: (\d+) samples, relative drift T ([0-9.e+-]+), '
+                      r'\|L\| ([0-9.e+-]+)', text)
     assert drift and int(drift.group(1)) > 50, text
     assert float(drift.group(2)) < 1e-10 and float(drift.group(3)) < 1e-10  # exact flow while free
     assert re.search(r'messages recorded: \d+ on \d+ topics', text), text
@@ -23,7 +26,8 @@ def test_make_demo_runs_the_live_graph_and_records_a_bag(tmp_path):
 
     from rosbags.highlevel import AnyReader
     from rosbags.typesys import Stores, get_typestore
-    with AnyReader([tmp_path / 'bag'], default_typestore=get_typestore(Stores.ROS2_JAZZY)) as reader:
+    with AnyReader([tmp_path / 'bag'],
+                   default_typestore=get_typestore(Stores.ROS2_JAZZY)) as reader:
         counts = {}
         torques = []
         for conn, _, raw in reader.messages(connections=reader.connections):

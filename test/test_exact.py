@@ -17,7 +17,8 @@ def dop853(moments, q0, m0, ts):
 
     def rhs(_, y):
         om = y[4:] / moments
-        return np.concatenate((0.5 * rotation.multiply(y[:4], np.append(om, 0.0)), np.cross(y[4:], om)))
+        return np.concatenate((0.5 * rotation.multiply(y[:4], np.append(om, 0.0)),
+                               np.cross(y[4:], om)))
 
     sol = solve_ivp(rhs, (0.0, ts[-1]), np.concatenate((q0, m0)), method='DOP853',
                     rtol=1e-12, atol=1e-14, t_eval=ts)
@@ -65,9 +66,11 @@ def test_batch_equals_single_bodies():
     and matches DOP853 (1e-10) body by body."""
     moments = (1.0, 2.0, 3.0)
     m0 = np.array([c[1] for c in CASES if c[0] == moments])
-    q0 = np.array([Q0, [0, 0, 0, 1.0], [1.0, 0, 0, 0], Q0[::-1], [0.5, 0.5, 0.5, 0.5], Q0])[:len(m0)]
+    q0 = np.array([Q0, [0, 0, 0, 1.0], [1.0, 0, 0, 0], Q0[::-1], [0.5, 0.5, 0.5, 0.5],
+                   Q0])[:len(m0)]
     batch = TorqueFreeSolution(moments, q0, m0)
-    assert list(batch.regime) == ['A', 'B', 'separatrix', 'steady_spin', 'steady_spin', 'steady_spin']
+    assert list(batch.regime) == ['A', 'B', 'separatrix', 'steady_spin', 'steady_spin',
+                                  'steady_spin']
     ts = np.array([0.0, 0.7, 13.0, 55.5])
     qb, mb = batch.at(ts[:, None])                      # (T, N)
     assert qb.shape == (4, len(m0), 4) and mb.shape == (4, len(m0), 3)
@@ -94,7 +97,8 @@ def test_initial_state_and_relabelling():
     perm = (2, 0, 1)
     r = np.array([0.5, 0.5, 0.5, 0.5])                   # rotation x→y→z
     moved = TorqueFreeSolution(np.array((1.0, 2.0, 3.0))[list(perm)],
-                               rotation.multiply(Q0, rotation.conjugate(r)), rotation.rotate(r, (0.3, 0.5, 0.9)))
+                               rotation.multiply(Q0, rotation.conjugate(r)),
+                               rotation.rotate(r, (0.3, 0.5, 0.9)))
     for t in (3.0, 41.0):
         qa, ma = base.at(t)
         qb, mb = moved.at(t)
@@ -109,11 +113,15 @@ def test_intermediate_axis_flip_interval_and_growth_rate():
     sol = TorqueFreeSolution(moments, Q0, moments * (1e-6, 1.0, 0.0))
     flip = sol.flip_interval
     assert np.isclose(sol.omega_period, 2 * flip, rtol=1e-15)
-    omega2 = lambda t: sol.at(t)[1][1] / moments[1]
+
+    def omega2(t):
+        return sol.at(t)[1][1] / moments[1]
+
     grid = np.linspace(0.0, 3.2 * flip, 4001)
     w2 = sol.at(grid)[1][:, 1]
     brackets = np.flatnonzero(np.sign(w2[:-1]) != np.sign(w2[1:]))
-    zeros = np.array([brentq(omega2, grid[i], grid[i + 1], xtol=1e-14, rtol=1e-15) for i in brackets])
+    zeros = np.array([brentq(omega2, grid[i], grid[i + 1], xtol=1e-14, rtol=1e-15)
+                      for i in brackets])
     assert len(zeros) == 3
     assert np.allclose(np.diff(zeros), flip, rtol=1e-10, atol=0)
     sigma = 1.0 * np.sqrt((2 - 1) * (3 - 2) / (1 * 3))
@@ -143,7 +151,8 @@ def test_symmetric_top(moments):
     w = m / moments
     w3 = m0[ax] / i_s
     angle = np.unwrap(np.arctan2(w[:, b], w[:, a]))
-    assert np.max(np.abs(angle - angle[0] - (i_s - i_t) * w3 / i_t * t)) < 1e-12 * max(1, abs(angle[-1]))
+    assert (np.max(np.abs(angle - angle[0] - (i_s - i_t) * w3 / i_t * t))
+            < 1e-12 * max(1, abs(angle[-1])))
     G = np.linalg.norm(m0)
     lhat = rotation.rotate(Q0, m0 / G)
     e = np.zeros(3)
@@ -190,13 +199,17 @@ def test_rigid_earth_free_wobble():
         ang = np.unwrap(wperp_angle(t))
         i = np.flatnonzero(np.abs(ang - ang[0]) >= 2 * np.pi)[0]
         target = ang[0] + np.sign(ang[i] - ang[0]) * 2 * np.pi
-        wrap = lambda d: (d + np.pi) % (2 * np.pi) - np.pi
+
+        def wrap(d):
+            return (d + np.pi) % (2 * np.pi) - np.pi
+
         period = brentq(lambda x: ang[i - 1] + wrap(wperp_angle(x) - ang[i - 1]) - target,
                         t[i - 1], t[i], xtol=1e-6, rtol=1e-15) / day
         a, b, c = moments
         expect = 1 / np.sqrt((c - a) * (c - b) / (a * b))
         if a == b:
-            assert np.isclose(expect, 304.46, rtol=2e-5) and np.isclose(expect, (1 - H) / H, rtol=1e-14)
+            assert (np.isclose(expect, 304.46, rtol=2e-5)
+                    and np.isclose(expect, (1 - H) / H, rtol=1e-14))
         assert abs(period / expect - 1) < 1e-6
         assert np.isclose(sol.omega_period / day, expect, rtol=1e-6)
 

@@ -28,12 +28,14 @@ def run(name, dyn, q, m, h, n, torque=None, every=None, **opts):
 def reference(dyn, q0, m0, t_end, torque=None):
     def f(_, y):
         return np.concatenate((dyn.attitude_rate(y[:4], y[4:]), dyn.momentum_rate(y[4:], torque)))
-    y = solve_ivp(f, (0, t_end), np.concatenate((q0, m0)), method='DOP853', rtol=1e-13, atol=1e-15).y[:, -1]
+    y = solve_ivp(f, (0, t_end), np.concatenate((q0, m0)), method='DOP853', rtol=1e-13,
+                  atol=1e-15).y[:, -1]
     return y[:4] / np.linalg.norm(y[:4]), y[4:]
 
 
 def test_registry_has_required_methods_with_one_interface():
-    required = {'euler', 'rk4', 'dop853', 'implicit_midpoint', 'splitting2', 'splitting4', 'splitting6', 'exact'}
+    required = {'euler', 'rk4', 'dop853', 'implicit_midpoint', 'splitting2', 'splitting4',
+                'splitting6', 'exact'}
     assert required <= set(INTEGRATORS)
     dyn = Dynamics(I_STD)
     for name, cls in INTEGRATORS.items():
@@ -53,7 +55,8 @@ def test_splitting_keeps_momentum_norm_and_bounded_energy(name):
     norms = np.array([np.linalg.norm(s[1]) for s in samples])
     assert np.max(np.abs(norms - 1.0)) < 1e-12
     energy_err = np.array([dyn.kinetic_energy(s[1]) / t0 - 1.0 for s in samples])
-    first, last = np.max(np.abs(energy_err[: len(energy_err) // 10])), np.max(np.abs(energy_err[-len(energy_err) // 10:]))
+    first, last = (np.max(np.abs(energy_err[: len(energy_err) // 10])),
+                   np.max(np.abs(energy_err[-len(energy_err) // 10:])))
     assert last < 1.5 * first + 1e-15, 'energy error must stay bounded, not drift'
     assert abs(np.linalg.norm(q) - 1.0) < 1e-12
 
@@ -104,7 +107,8 @@ def test_euler_increases_momentum_norm_and_energy_at_every_step():
         assert np.linalg.norm(m2) > np.linalg.norm(m)
         assert dyn.kinetic_energy(m2) > dyn.kinetic_energy(m)
         f = dyn.momentum_rate(m)
-        assert np.linalg.norm(m2) ** 2 == pytest.approx(np.linalg.norm(m) ** 2 + 0.05 ** 2 * f @ f, rel=1e-12)
+        assert np.linalg.norm(m2) ** 2 == pytest.approx(
+            np.linalg.norm(m) ** 2 + 0.05 ** 2 * f @ f, rel=1e-12)
         q, m = q2, m2
 
 
@@ -140,7 +144,8 @@ def test_splitting_axis_order_is_the_measured_best_and_matters():
 
 
 def test_intermediate_axis_growth_rate():
-    """I = (1, 2, 3), ω0 = (1e-6, 1, 0): ln|ω1| grows at ω2·√((I2−I1)(I3−I2)/(I1 I3)) within 1 %."""
+    """I = (1, 2, 3), ω0 = (1e-6, 1, 0): ln|ω1| grows at ω2·√((I2−I1)(I3−I2)/(I1 I3))
+    within 1 %."""
     moments = np.array([1.0, 2.0, 3.0])
     dyn = Dynamics(moments)
     sigma = 1.0 * np.sqrt((2 - 1) * (3 - 2) / (1 * 3))
@@ -163,7 +168,8 @@ def test_spins_near_stable_axes_stay_within_small_polhodes(axis):
     w0[axis] = 1.0
     q, m, samples = run('splitting2', Dynamics(moments), Q_ID, moments * w0, 0.01, 5000, every=10)
     off = max(np.max(np.abs(np.delete(s[1] / moments, axis))) for s in samples)
-    assert off < 5e-3  # the polhode stays a small loop around the axis (it would reach ~1 if unstable)
+    # the polhode stays a small loop around the axis (it would reach ~1 if unstable)
+    assert off < 5e-3
 
 
 def test_symmetric_top_body_precession_rate():
@@ -181,7 +187,8 @@ def test_symmetric_top_body_precession_rate():
 def test_double_bracket_goes_to_major_axis_keeping_momentum_norm(name):
     """|L| const (1e-10; explicit rk4 only to its error), T monotone, T → |L|²/(2 I3)."""
     moments = np.array([1.0, 2.0, 3.0])
-    dyn = Dynamics(moments, Dissipation('double_bracket', 2.0))  # slowest rate α|L|²(1/I2 − 1/I3) ≈ 0.33/s
+    # slowest rate α|L|²(1/I2 − 1/I3) ≈ 0.33/s
+    dyn = Dynamics(moments, Dissipation('double_bracket', 2.0))
     m0 = moments * np.array([1.0, 0.02, 0.02])  # near the minor axis
     g = np.linalg.norm(m0)
     integ, q, m = create(name, dyn), Q_ID, m0
@@ -230,13 +237,15 @@ def test_batches_match_single_bodies():
         qb, mb = create(name, dyn).step(q0, m0, 0.05, torque)
         for i in range(5):
             qi, mi = create(name, dyn).step(q0[i], m0[i], 0.05, torque[i])
-            assert np.allclose(qb[i], qi, rtol=0, atol=1e-14) and np.allclose(mb[i], mi, rtol=0, atol=1e-14), name
+            assert (np.allclose(qb[i], qi, rtol=0, atol=1e-14)
+                    and np.allclose(mb[i], mi, rtol=0, atol=1e-14)), name
 
 
 def test_failures_are_reported_with_method_step_and_time():
     dyn = Dynamics(I_STD)
     # One Newton iteration cannot converge; after 4 halvings the failure names h/16.
-    with pytest.raises(IntegrationError, match=r'implicit_midpoint failed at t = 3 s with step h = 6.25 s: Newton'):
+    with pytest.raises(IntegrationError,
+                       match=r'implicit_midpoint failed at t = 3 s with step h = 6.25 s: Newton'):
         create('implicit_midpoint', dyn, max_iterations=1).step(Q_ID, M_STD * 50, 100.0, t=3.0)
     euler = create('euler', dyn)
     q, m = Q_ID, M_STD

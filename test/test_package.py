@@ -20,18 +20,23 @@ def _run(cmd, env=None, timeout=60, **kw):
 
 def test_venv_is_an_ament_prefix_for_this_package():
     prefix = sys.prefix
-    assert os.path.isfile(os.path.join(prefix, 'share/ament_index/resource_index/packages/rigid_body_sim'))
+    assert os.path.isfile(
+        os.path.join(prefix, 'share/ament_index/resource_index/packages/rigid_body_sim'))
     for rel in ('share/rigid_body_sim/package.xml', 'share/rigid_body_sim/config/default.yaml',
                 'share/rigid_body_sim/launch/sim.launch.py'):
         assert os.path.isfile(os.path.join(prefix, rel)), rel
     for exe in NODES:
         path = os.path.join(prefix, 'lib', 'rigid_body_sim', exe)
         assert os.access(path, os.X_OK), path
-    # ament_index resolves without AMENT_PREFIX_PATH exported by hand (importing the package adds it)
+    # ament_index resolves without AMENT_PREFIX_PATH exported by hand
+    # (importing the package adds it)
     env = {k: v for k, v in os.environ.items() if k != 'AMENT_PREFIX_PATH'}
-    code = ('import rigid_body_sim\nfrom ament_index_python import get_package_prefix, get_package_share_directory\n'
-            'print(get_package_prefix("rigid_body_sim")); print(get_package_share_directory("geometry_msgs"))')
-    out = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True, env=env, timeout=60)
+    code = ('import rigid_body_sim\n'
+            'from ament_index_python import get_package_prefix, get_package_share_directory\n'
+            'print(get_package_prefix("rigid_body_sim")); '
+            'print(get_package_share_directory("geometry_msgs"))')
+    out = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True, env=env,
+                         timeout=60)
     assert out.returncode == 0, out.stderr
     lines = out.stdout.split()
     assert os.path.realpath(lines[0]) == os.path.realpath(prefix)
@@ -47,7 +52,8 @@ def test_cli_lists_its_subcommands():
 
 @pytest.fixture(scope='module')
 def colcon_install(tmp_path_factory):
-    """colcon build (colcon from PyPI) of a copy of this repo's tracked files in a temp workspace."""
+    """colcon build (colcon from PyPI) of a copy of this repo's tracked files in a temp
+    workspace."""
     ws = tmp_path_factory.mktemp('ws')
     files = _run(['git', 'ls-files'], cwd=REPO).stdout.split()
     if not files:  # not a git checkout (e.g. an sdist): copy the package sources
@@ -71,16 +77,19 @@ def test_colcon_build_installs_the_ament_layout(colcon_install):
     assert (prefix / 'share/rigid_body_sim/package.xml').is_file()
     assert (prefix / 'share/rigid_body_sim/config/default.yaml').is_file()
     assert (prefix / 'share/rigid_body_sim/launch/sim.launch.py').is_file()
-    # ament_index finds the colcon prefix first when it is on AMENT_PREFIX_PATH (as setup.bash does)
-    code = 'from ament_index_python import get_package_prefix; print(get_package_prefix("rigid_body_sim"))'
-    out = _run([sys.executable, '-c', code], env={'AMENT_PREFIX_PATH': f'{prefix}{os.pathsep}{sys.prefix}'})
+    # ament_index finds the colcon prefix first when it is on AMENT_PREFIX_PATH
+    # (as setup.bash does)
+    code = ('from ament_index_python import get_package_prefix; '
+            'print(get_package_prefix("rigid_body_sim"))')
+    out = _run([sys.executable, '-c', code],
+               env={'AMENT_PREFIX_PATH': f'{prefix}{os.pathsep}{sys.prefix}'})
     assert out.returncode == 0, out.stderr
     assert os.path.realpath(out.stdout.strip()) == os.path.realpath(prefix)
 
 
 @pytest.mark.parametrize('where', ['venv', 'colcon'])
-def test_installed_simulator_starts_publishes_and_stops_on_sigint(where, request, ros_process, namespace,
-                                                                   rclpy_node):
+def test_installed_simulator_starts_publishes_and_stops_on_sigint(where, request, ros_process,
+                                                                   namespace, rclpy_node):
     from geometry_msgs.msg import QuaternionStamped
     from ros_helpers import spin_until
     if where == 'venv':

@@ -28,9 +28,11 @@ BUDGETS = {True: {'ours': 0.2, 'peer': 0.2}, False: {'ours': 4.0, 'peer': 3.0}}
 def add_arguments(parser):
     parser.add_argument('--quick', action='store_true',
                         help='shortened run (< 2 min on 2 cores; used by the test suite)')
-    parser.add_argument('--out', default='out/bench', metavar='DIR', help='output directory (default out/bench)')
+    parser.add_argument('--out', default='out/bench', metavar='DIR',
+                        help='output directory (default out/bench)')
     parser.add_argument('--peers', action='store_true',
-                        help=f'also measure MuJoCo and Basilisk if installed ({peers.INSTALL_HINT})')
+                        help='also measure MuJoCo and Basilisk if installed '
+                             f'({peers.INSTALL_HINT})')
     parser.add_argument('--scenes', default='', metavar='A,B',
                         help='comma-separated subset of scenes for the work-precision section')
 
@@ -49,8 +51,8 @@ def machine():
     import numpy
     import scipy
     return (f'{cpu_name}, {os.cpu_count()} cores, load {load:.1f} at start; {platform.system()} '
-            f'{platform.release()}; Python {platform.python_version()}, numpy {numpy.__version__}, '
-            f'scipy {scipy.__version__}')
+            f'{platform.release()}; Python {platform.python_version()}, '
+            f'numpy {numpy.__version__}, scipy {scipy.__version__}')
 
 
 def _write_csv(path, fields, rows):
@@ -69,14 +71,16 @@ def _fmt(v, spec='.3g'):
 
 def _markdown_targets(rows, machine_text, command):
     lines = [f'Measured on: {machine_text}', '', f'Regenerate: `{command}`', '',
-             '| target | scene | error level (rad) | best ours (CPU s) | best peer (CPU s) | measured | required | verdict |',
+             '| target | scene | error level (rad) | best ours (CPU s) | best peer (CPU s) '
+             '| measured | required | verdict |',
              '|---|---|---|---|---|---|---|---|']
     for r in rows:
         ours = f'{r["ours_method"]} ({_fmt(r["ours_cpu_s"])})' if r['ours_method'] else '—'
         peer = f'{r["peer_method"]} ({_fmt(r["peer_cpu_s"])})' if r['peer_method'] else '—'
         verdict = r['verdict'] + (f' ({r["note"]})' if r['note'] else '')
         level = _fmt(r['level'], '.0e') if r['level'] != '' else ''
-        cells = [r['target'], r['scene'], level, ours, peer, _fmt(r['measured']), _fmt(r['required']), verdict]
+        cells = [r['target'], r['scene'], level, ours, peer, _fmt(r['measured']),
+                 _fmt(r['required']), verdict]
         lines.append('| ' + ' | '.join(str(c).replace('|', '\\|') for c in cells) + ' |')
     return '\n'.join(lines) + '\n'
 
@@ -90,18 +94,22 @@ def _exact_floor(log):
     sol = TorqueFreeSolution(np.asarray(scene.moments, float), scene.q0_array, scene.m0)
     out = []
     q3, _ = sol.at(1e3)
-    d13 = create('dop853', scene.dynamics, rtol=1e-13, atol=1e-15).step(scene.q0_array, scene.m0, 1e3)
-    d12 = create('dop853', scene.dynamics, rtol=1e-12, atol=1e-14).step(scene.q0_array, scene.m0, 1e3)
+    d13 = create('dop853', scene.dynamics, rtol=1e-13, atol=1e-15).step(
+        scene.q0_array, scene.m0, 1e3)
+    d12 = create('dop853', scene.dynamics, rtol=1e-12, atol=1e-14).step(
+        scene.q0_array, scene.m0, 1e3)
     diff = float(rotation.angle_between(q3, d13[0]))
     ref_err = float(rotation.angle_between(d12[0], d13[0]))
     if diff <= 1e-12:
-        out.append(targets.simple('exact attitude error at t = 1e3 s (intermediate axis)', diff, 1e-12, True,
-                                  f'vs dop853 rtol 1e-13 (its own error estimate {ref_err:.2g})'))
+        out.append(targets.simple(
+            'exact attitude error at t = 1e3 s (intermediate axis)', diff, 1e-12, True,
+            f'vs dop853 rtol 1e-13 (its own error estimate {ref_err:.2g})'))
     else:
-        out.append(targets.simple('exact attitude error at t = 1e3 s (intermediate axis)', diff, 1e-12, None,
-                                  f'UNVERIFIED: differs from dop853 rtol 1e-13 by {diff:.2g} rad, but that '
-                                  f'reference is itself only good to ~{ref_err:.2g} (rtol 1e-12 vs 1e-13); '
-                                  'no float64 reference resolves 1e-12 here'))
+        out.append(targets.simple(
+            'exact attitude error at t = 1e3 s (intermediate axis)', diff, 1e-12, None,
+            f'UNVERIFIED: differs from dop853 rtol 1e-13 by {diff:.2g} rad, but that '
+            f'reference is itself only good to ~{ref_err:.2g} (rtol 1e-12 vs 1e-13); '
+            'no float64 reference resolves 1e-12 here'))
     # 1e6 s: no reference can be integrated that far; consistency proxy: direct evaluation vs
     # ten re-anchored hops of 1e5 s (differences come from rounding in the anchors and phase).
     q6, _ = sol.at(1e6)
@@ -110,10 +118,12 @@ def _exact_floor(log):
         q, m = TorqueFreeSolution(np.asarray(scene.moments, float), q, m).at(1e5)
     proxy = float(rotation.angle_between(q6, q))
     floor = np.finfo(float).eps * scene.omega_max * 1e6
-    out.append(targets.simple('exact attitude error at t = 1e6 s (intermediate axis)', proxy, 1e-9, proxy <= 1e-9,
-                              f'PROXY (no reference reaches 1e6 s): direct at(1e6) vs 10 re-anchored hops of '
-                              f'1e5 s; eps*|w|*t = {floor:.2g}'))
-    log(f'  exact floor: t=1e3 diff vs dop853 {diff:.2g} (ref err ~{ref_err:.2g}); t=1e6 proxy {proxy:.2g}')
+    out.append(targets.simple(
+        'exact attitude error at t = 1e6 s (intermediate axis)', proxy, 1e-9, proxy <= 1e-9,
+        f'PROXY (no reference reaches 1e6 s): direct at(1e6) vs 10 re-anchored hops of '
+        f'1e5 s; eps*|w|*t = {floor:.2g}'))
+    log(f'  exact floor: t=1e3 diff vs dop853 {diff:.2g} (ref err ~{ref_err:.2g}); '
+        f't=1e6 proxy {proxy:.2g}')
     return out
 
 
@@ -126,8 +136,8 @@ def run(args) -> int:
 def _run(args) -> int:
     quick = bool(args.quick)
     out = charts.ensure_dir(args.out)
-    command = 'rigid-body-sim bench' + (' --quick' if quick else '') + (' --peers' if args.peers else '') + \
-        f' --out {args.out}'
+    command = 'rigid-body-sim bench' + (' --quick' if quick else '') + \
+        (' --peers' if args.peers else '') + f' --out {args.out}'
     machine_text = machine()
     wall0, cpu0 = time.monotonic(), time.process_time()
 
@@ -135,8 +145,8 @@ def _run(args) -> int:
         print(msg, flush=True)
 
     log(f'rigid-body-sim bench ({"quick" if quick else "full"}) — {machine_text}')
-    log('CPU times are process CPU seconds and include Python overhead (ours and scipy run Python code '
-        'per step or per RHS call; MuJoCo and Basilisk step in C).')
+    log('CPU times are process CPU seconds and include Python overhead (ours and scipy run '
+        'Python code per step or per RHS call; MuJoCo and Basilisk step in C).')
     peer_methods = peers.scipy_methods()
     peer_notes = ['scipy solve_ivp RK45/DOP853']
     if args.peers:
@@ -145,7 +155,8 @@ def _run(args) -> int:
         peer_notes += notes
         missing = [n for n in notes if 'not installed' in n]
         if missing:
-            log(f'peers: {"; ".join(missing)}. Install the optional peers with:  {peers.INSTALL_HINT}')
+            log(f'peers: {"; ".join(missing)}. '
+                f'Install the optional peers with:  {peers.INSTALL_HINT}')
     log('peers: ' + ', '.join(peer_notes))
 
     scenes = SCENES
@@ -153,7 +164,8 @@ def _run(args) -> int:
         wanted = [s.strip() for s in args.scenes.split(',') if s.strip()]
         unknown = [s for s in wanted if s not in SCENE_BY_NAME]
         if unknown:
-            print(f'unknown scene(s) {unknown}; choose from {list(SCENE_BY_NAME)}', file=sys.stderr)
+            print(f'unknown scene(s) {unknown}; choose from {list(SCENE_BY_NAME)}',
+                  file=sys.stderr)
             return 2
         scenes = tuple(SCENE_BY_NAME[s] for s in wanted)
 
@@ -167,7 +179,8 @@ def _run(args) -> int:
         refs[scene.name] = ref
         log(f'{scene.name}: {scene.description}; reference {ref[2]}'
             + (f' (dop853 rtol 1e-13 differs from it by {ref[3]:.2g} rad)' if ref[2] == 'exact'
-               else f' (own error estimate {ref[3]:.2g} rad)') + f' [{time.process_time() - c:.1f} s]')
+               else f' (own error estimate {ref[3]:.2g} rad)')
+            + f' [{time.process_time() - c:.1f} s]')
         wp_rows += workprecision.sweep_ours(scene, ref, budget['ours'], quick, log)
         wp_rows += workprecision.sweep_peers(scene, peer_methods, ref, budget['peer'], quick, log)
     _write_csv(os.path.join(out, 'work_precision.csv'), workprecision.FIELDS, wp_rows)
@@ -212,47 +225,57 @@ def _run(args) -> int:
     split = [r for r in st_rows if r['method'].startswith('splitting') and r['status'] == 'ok']
     if split:
         worst = max(split, key=lambda r: r['max_momentum_drift'])
-        t_rows.append(targets.simple('splitting* |L| drift at any step (stability sweep)',
-                                     worst['max_momentum_drift'], 1e-12, worst['max_momentum_drift'] <= 1e-12,
-                                     f'worst: {worst["method"]} on {worst["scene"]} at x = {worst["x"]:g}'))
+        t_rows.append(targets.simple(
+            'splitting* |L| drift at any step (stability sweep)',
+            worst['max_momentum_drift'], 1e-12, worst['max_momentum_drift'] <= 1e-12,
+            f'worst: {worst["method"]} on {worst["scene"]} at x = {worst["x"]:g}'))
     big = [r for r in b_rows if r['bodies'] == 1_000_000]
     if big:
         best = max(big, key=lambda r: r['body_steps_per_s'])
         ok = best['body_steps_per_s'] >= 1e7
-        t_rows.append(targets.simple('batch body-steps/s at N = 1e6 (one core)', best['body_steps_per_s'], 1e7, ok,
-                                     f'{best["method"]}' + ('' if ok else
-                                                           f'; short by {1e7 / best["body_steps_per_s"]:.3g}x')))
+        t_rows.append(targets.simple(
+            'batch body-steps/s at N = 1e6 (one core)', best['body_steps_per_s'], 1e7, ok,
+            f'{best["method"]}' + ('' if ok else
+                                   f'; short by {1e7 / best["body_steps_per_s"]:.3g}x')))
     else:
-        t_rows.append(targets.simple('batch body-steps/s at N = 1e6 (one core)', math.nan, 1e7, None,
-                                     'not measured in --quick (N ≤ 1e4)'))
+        t_rows.append(targets.simple('batch body-steps/s at N = 1e6 (one core)', math.nan, 1e7,
+                                     None, 'not measured in --quick (N ≤ 1e4)'))
     sim = live_res['simulator']
-    for key, req, better in (('real_time_factor', 20.0, 'ge'), ('cpu_share_at_real_time', 0.10, 'le')):
+    for key, req, better in (('real_time_factor', 20.0, 'ge'),
+                             ('cpu_share_at_real_time', 0.10, 'le')):
         val = sim.get(key)
         if isinstance(val, (int, float)):
             ok = val >= req if better == 'ge' else val <= req
             t_rows.append(targets.simple(f'live simulator {key}', float(val), req, ok))
         else:
-            t_rows.append(targets.simple(f'live simulator {key}', math.nan, req, None, sim['status']))
+            t_rows.append(targets.simple(f'live simulator {key}', math.nan, req, None,
+                                         sim['status']))
     rec = live_res['recorder']
     if rec['status'] == 'ok':
         ok = rec['recorded_msgs_per_s'] >= 10_000 and rec['lost'] == 0
-        t_rows.append(targets.simple('recorder messages/s with zero loss', float(rec['recorded_msgs_per_s']), 1e4, ok,
-                                     f'lost {rec["lost"]}; publisher achieved {rec["published_msgs_per_s"]} msg/s '
-                                     f'of {rec["offered_msgs_per_s"]} offered'))
+        t_rows.append(targets.simple(
+            'recorder messages/s with zero loss', float(rec['recorded_msgs_per_s']), 1e4, ok,
+            f'lost {rec["lost"]}; publisher achieved {rec["published_msgs_per_s"]} msg/s '
+            f'of {rec["offered_msgs_per_s"]} offered'))
     else:
-        t_rows.append(targets.simple('recorder messages/s with zero loss', math.nan, 1e4, None, rec['status']))
+        t_rows.append(targets.simple('recorder messages/s with zero loss', math.nan, 1e4, None,
+                                     rec['status']))
     _write_csv(os.path.join(out, 'targets.csv'), targets.FIELDS, t_rows)
     with open(os.path.join(out, 'targets.md'), 'w') as f:
         f.write(_markdown_targets(t_rows, machine_text, command))
     for r in t_rows:
         lvl = f'{r["level"]:.0e}' if r['level'] != '' else ''
-        log(f'  {r["verdict"]:5s} {r["target"][:48]:48s} {r["scene"]:18s} {lvl:6s} measured {_fmt(r["measured"])}'
-            f' (required {_fmt(r["required"])}) {r["ours_method"]} vs {r["peer_method"]} {r["note"]}')
+        log(f'  {r["verdict"]:5s} {r["target"][:48]:48s} {r["scene"]:18s} {lvl:6s} '
+            f'measured {_fmt(r["measured"])}'
+            f' (required {_fmt(r["required"])}) {r["ours_method"]} vs {r["peer_method"]} '
+            f'{r["note"]}')
 
     # charts
     try:
         for scene in scenes:
-            charts.work_precision(wp_rows, scene, os.path.join(out, f'work_precision_{scene.name}.png'), machine_text)
+            charts.work_precision(wp_rows, scene,
+                                  os.path.join(out, f'work_precision_{scene.name}.png'),
+                                  machine_text)
         charts.stability(st_rows, os.path.join(out, 'stability.png'))
         charts.long_horizon(lh_rows, os.path.join(out, 'long_horizon.png'))
     except Exception as exc:  # noqa: BLE001 - charts are a convenience; the CSVs carry the data
@@ -267,14 +290,18 @@ def _print_wp(rows, scenes, log):
     for scene in scenes:
         log(f'  {scene.name}')
         for method in dict.fromkeys(r['method'] for r in rows if r['scene'] == scene.name):
-            rs = [r for r in rows if r['scene'] == scene.name and r['method'] == method and r['status'] == 'ok']
-            fails = [r for r in rows if r['scene'] == scene.name and r['method'] == method and r['status'] != 'ok']
+            rs = [r for r in rows
+                  if r['scene'] == scene.name and r['method'] == method and r['status'] == 'ok']
+            fails = [r for r in rows
+                     if r['scene'] == scene.name and r['method'] == method and r['status'] != 'ok']
             if not rs:
                 log(f'    {method:20s} no successful run ({fails[0]["status"] if fails else "-"})')
                 continue
             b = min(rs, key=lambda r: (r['attitude_error'], r['cpu_s']))
             cheapest = min(rs, key=lambda r: r['cpu_s'])
-            log(f'    {method:20s} best {b["attitude_error"]:9.2e} rad in {b["cpu_s"]:8.3g} s ({b["kind"]}='
-                f'{b["param"]:.3g}, nfev {b["nfev"]}); cheapest {cheapest["cpu_s"]:.3g} s -> '
-                f'{cheapest["attitude_error"]:.2e} rad; |L| drift {b["momentum_drift"]:.1e}, T {b["energy_drift"]:.1e}'
+            log(f'    {method:20s} best {b["attitude_error"]:9.2e} rad in {b["cpu_s"]:8.3g} s '
+                f'({b["kind"]}={b["param"]:.3g}, nfev {b["nfev"]}); '
+                f'cheapest {cheapest["cpu_s"]:.3g} s -> '
+                f'{cheapest["attitude_error"]:.2e} rad; |L| drift {b["momentum_drift"]:.1e}, '
+                f'T {b["energy_drift"]:.1e}'
                 + (f'; {len(fails)} failed run(s)' if fails else ''))

@@ -30,6 +30,8 @@ def run(quick, log=print):
                 steps += 1
                 best = min(best, dt)
             rate = n * steps / spent
-            rows.append({'method': name, 'bodies': n, 'steps': steps, 'cpu_s': spent, 'body_steps_per_s': rate})
-            log(f'  batch {name} N={n}: {rate:.3g} body-steps/s ({steps} steps, {spent:.2f} s CPU)')
+            rows.append({'method': name, 'bodies': n, 'steps': steps, 'cpu_s': spent,
+                         'body_steps_per_s': rate})
+            log(f'  batch {name} N={n}: {rate:.3g} body-steps/s '
+                f'({steps} steps, {spent:.2f} s CPU)')
     return rows

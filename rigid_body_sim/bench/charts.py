@@ -16,7 +16,8 @@ def work_precision(rows, scene, path, machine=''):
     fig, ax = plt.subplots(figsize=(7.5, 5.2))
     methods = list(dict.fromkeys(r['method'] for r in rows if r['scene'] == scene.name))
     for i, method in enumerate(methods):
-        rs = [r for r in rows if r['scene'] == scene.name and r['method'] == method and r['status'] == 'ok']
+        rs = [r for r in rows
+              if r['scene'] == scene.name and r['method'] == method and r['status'] == 'ok']
         if not rs:
             continue
         rs.sort(key=lambda r: r['cpu_s'])
@@ -49,11 +50,12 @@ def stability(rows, path):
             for i, method in enumerate(dict.fromkeys(r['method'] for r in rs_scene)):
                 rs = [r for r in rs_scene if r['method'] == method]
                 ok = [r for r in rs if r['status'] == 'ok']
-                ax.loglog([r['x'] for r in ok], [max(r[key], 1e-17) for r in ok], 'o-', ms=3, lw=1.2,
-                          color=f'C{i % 10}', label=method)
+                ax.loglog([r['x'] for r in ok], [max(r[key], 1e-17) for r in ok], 'o-', ms=3,
+                          lw=1.2, color=f'C{i % 10}', label=method)
                 bad = [r for r in rs if r['status'] != 'ok']
                 if bad:
-                    ax.loglog([r['x'] for r in bad], [1e3] * len(bad), 'x', ms=8, mew=2, color=f'C{i % 10}')
+                    ax.loglog([r['x'] for r in bad], [1e3] * len(bad), 'x', ms=8, mew=2,
+                              color=f'C{i % 10}')
             ax.axhline(0.01, color='k', lw=0.8, ls=':')
             if 'alpha' in x_name:
                 ax.axvline(2.785, color='r', lw=0.8, ls='--')
@@ -74,8 +76,8 @@ def long_horizon(rows, path):
     for i, method in enumerate(dict.fromkeys(r['method'] for r in rows)):
         rs = [r for r in rows if r['method'] == method and np.isfinite(r['energy_drift'])]
         for ax, key in zip(axes, ('energy_drift', 'momentum_drift')):
-            ax.loglog([r['periods'] for r in rs], [max(r[key], 1e-17) for r in rs], '-', color=f'C{i % 10}',
-                      label=method)
+            ax.loglog([r['periods'] for r in rs], [max(r[key], 1e-17) for r in rs], '-',
+                      color=f'C{i % 10}', label=method)
     for ax, key in zip(axes, ('T drift (relative)', '|L| drift (relative)')):
         ax.set_xlabel('rotation periods')
         ax.set_ylabel(key)

@@ -14,7 +14,8 @@ from ..physics.exact import TorqueFreeSolution
 from .common import cpu
 from .scenes import SCENE_BY_NAME
 
-FIELDS = ('method', 'h', 'period', 't', 'periods', 'energy_drift', 'momentum_drift', 'cpu_s', 'note')
+FIELDS = ('method', 'h', 'period', 't', 'periods', 'energy_drift', 'momentum_drift', 'cpu_s',
+          'note')
 
 
 def run(quick, log=print):
@@ -46,7 +47,8 @@ def run(quick, log=print):
             for k, mk in zip(samples, m):
                 record(name, int(k), mk, spent)
             continue
-        integ = create(name, scene.dynamics, **({'rtol': 1e-10, 'atol': 1e-13} if cls.adaptive else {}))
+        integ = create(name, scene.dynamics,
+                       **({'rtol': 1e-10, 'atol': 1e-13} if cls.adaptive else {}))
         q, m = scene.q0_array, scene.m0
         k = 0
         note = ''
@@ -78,7 +80,9 @@ def run(quick, log=print):
                 rows[-1]['note'] = note
             else:
                 rows.append({'method': name, 'h': h, 'period': period, 't': 0.0, 'periods': 0.0,
-                             'energy_drift': math.nan, 'momentum_drift': math.nan, 'cpu_s': spent, 'note': note})
-        log(f'  long horizon {name}: {rows[-1]["periods"]:.4g} periods, T drift {rows[-1]["energy_drift"]:.2e}, '
+                             'energy_drift': math.nan, 'momentum_drift': math.nan,
+                             'cpu_s': spent, 'note': note})
+        log(f'  long horizon {name}: {rows[-1]["periods"]:.4g} periods, '
+            f'T drift {rows[-1]["energy_drift"]:.2e}, '
             f'|L| drift {rows[-1]["momentum_drift"]:.2e} {note}')
     return rows, periods

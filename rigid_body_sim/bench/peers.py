@@ -32,7 +32,8 @@ INSTALL_HINT = ".venv/bin/pip install mujoco==4.0.0 && .venv/bin/pip install --n
 
 class PeerMethod:
     def __init__(self, name, kind, run: Callable, supports: Callable, stages=None):
-        self.name, self.kind, self.run, self.supports, self.stages = name, kind, run, supports, stages
+        self.name, self.kind, self.run, self.supports, self.stages = (
+            name, kind, run, supports, stages)
 
 
 def _rhs_factory(scene):
@@ -78,7 +79,8 @@ def _scipy(method):
             for k in range(int(round(scene.t_end / period))):
                 q = y[:4] / math.sqrt(float(np.dot(y[:4], y[:4])))
                 tau = tuple(float(v) for v in scene.slew.torque(moments, q, y[4:]))
-                sol = solve_ivp(rhs, (0.0, period), y, method=method, rtol=rtol, atol=rtol * 1e-3, args=(tau,))
+                sol = solve_ivp(rhs, (0.0, period), y, method=method, rtol=rtol,
+                                atol=rtol * 1e-3, args=(tau,))
                 if not sol.success:
                     raise RuntimeError(sol.message)
                 y, nfev = sol.y[:, -1], nfev + sol.nfev
@@ -209,7 +211,8 @@ def optional_methods():
         notes.append(f'mujoco {mujoco.__version__}')
         for name, integ, stages in (('mujoco_euler', 'Euler', 1), ('mujoco_rk4', 'RK4', 4),
                                     ('mujoco_implicitfast', 'implicitfast', 1)):
-            methods[name] = PeerMethod(name, 'fixed', _mujoco(integ, stages), _no_dissipation, stages)
+            methods[name] = PeerMethod(name, 'fixed', _mujoco(integ, stages), _no_dissipation,
+                                       stages)
     else:
         notes.append('mujoco not installed')
     if importlib.util.find_spec('Basilisk') is not None:
@@ -220,10 +223,10 @@ def optional_methods():
             notes.append('bsk (version unknown)')
         methods['bsk_rk4'] = PeerMethod('bsk_rk4', 'fixed', _basilisk('svIntegratorRK4', False, 4),
                                         _no_dissipation, 4)
-        methods['bsk_rkf45'] = PeerMethod('bsk_rkf45', 'adaptive', _basilisk('svIntegratorRKF45', True),
-                                          _no_dissipation)
-        methods['bsk_rkf78'] = PeerMethod('bsk_rkf78', 'adaptive', _basilisk('svIntegratorRKF78', True),
-                                          _no_dissipation)
+        methods['bsk_rkf45'] = PeerMethod('bsk_rkf45', 'adaptive',
+                                          _basilisk('svIntegratorRKF45', True), _no_dissipation)
+        methods['bsk_rkf78'] = PeerMethod('bsk_rkf78', 'adaptive',
+                                          _basilisk('svIntegratorRKF78', True), _no_dissipation)
     else:
         notes.append('Basilisk (bsk) not installed')
     return methods, notes

@@ -44,7 +44,8 @@ class Scene:
     dissipation: Dissipation = Dissipation()
     slew: Optional[Slew] = None
     # fixed-step grid, as h·|ω|max (dimensionless, rad per step); adaptive grid, rtol
-    h_omega: Tuple[float, ...] = (1.0, 0.5, 0.2, 0.1, 0.05, 0.02, 0.01, 0.005, 0.002, 0.001, 5e-4, 2e-4, 1e-4)
+    h_omega: Tuple[float, ...] = (1.0, 0.5, 0.2, 0.1, 0.05, 0.02, 0.01, 0.005, 0.002, 0.001,
+                                  5e-4, 2e-4, 1e-4)
     rtols: Tuple[float, ...] = (1e-3, 1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9, 1e-10, 1e-11, 1e-12)
     description: str = ''
 
@@ -96,11 +97,13 @@ def _unit(v):
     return tuple(v / np.linalg.norm(v))
 
 
-_SLEW_TARGET = tuple(np.r_[np.sin(np.pi / 4) * np.array(_unit((1.0, 1.0, 1.0))), np.cos(np.pi / 4)])
+_SLEW_TARGET = tuple(np.r_[np.sin(np.pi / 4) * np.array(_unit((1.0, 1.0, 1.0))),
+                           np.cos(np.pi / 4)])
 
-# Like the Hairer–Lubich–Wanner test body (GNI §VII.5, I = (2, 1, 2/3), m0 = (cos 1.1, 0, sin 1.1)),
-# but physically realisable: (2, 1, 2/3) violates the triangle inequality I1 ≤ I2 + I3, which
-# MuJoCo rejects. Here I = (2, 1.5, 1) and m0 = (cos 1.1, 0.2, sin 1.1).
+# Like the Hairer–Lubich–Wanner test body (GNI §VII.5, I = (2, 1, 2/3),
+# m0 = (cos 1.1, 0, sin 1.1)), but physically realisable: (2, 1, 2/3) violates the triangle
+# inequality I1 ≤ I2 + I3, which MuJoCo rejects. Here I = (2, 1.5, 1) and
+# m0 = (cos 1.1, 0.2, sin 1.1).
 _GEN_I = (2.0, 1.5, 1.0)
 _GEN_W = tuple(np.array([np.cos(1.1), 0.2, np.sin(1.1)]) / np.array(_GEN_I))
 
@@ -108,12 +111,15 @@ SCENES = (
     Scene('tumble', 'generic torque-free tumble', _GEN_I, _GEN_W, 100.0,
           q0=(0.1, -0.2, 0.3, 0.9),
           description='I = (2, 1.5, 1) kg·m², m0 = (cos 1.1, 0.2, sin 1.1) kg·m²/s, 100 s'),
-    Scene('intermediate_axis', 'tumble near the intermediate axis', (1.0, 2.0, 3.0), (1e-3, 2.0, 1e-3), 1000.0,
-          description='I = (1, 2, 3) kg·m², ω0 = (1e-3, 2, 1e-3) rad/s, 1000 s (Dzhanibekov flips)'),
+    Scene('intermediate_axis', 'tumble near the intermediate axis', (1.0, 2.0, 3.0),
+          (1e-3, 2.0, 1e-3), 1000.0,
+          description='I = (1, 2, 3) kg·m², ω0 = (1e-3, 2, 1e-3) rad/s, 1000 s '
+                      '(Dzhanibekov flips)'),
     Scene('symmetric_top', 'symmetric top', (1.0, 1.0, 2.0), (0.3, 0.1, 1.0), 100.0,
           q0=(0.0, 0.3, 0.0, 0.95),
           description='I = (1, 1, 2) kg·m², ω0 = (0.3, 0.1, 1) rad/s, 100 s'),
-    Scene('dissipation', 'internal (double-bracket) dissipation', (1.0, 2.0, 3.0), _unit((0.3, 0.3, 0.9)), 50.0,
+    Scene('dissipation', 'internal (double-bracket) dissipation', (1.0, 2.0, 3.0),
+          _unit((0.3, 0.3, 0.9)), 50.0,
           dissipation=Dissipation('double_bracket', 0.1),
           description='I = (1, 2, 3), ω0 ∝ (0.3, 0.3, 0.9) rad/s, α = 0.1 s/(kg·m²), 50 s'),
     Scene('stiff_dissipation', 'stiff double-bracket dissipation', (1.0, 2.0, 3.0),
@@ -122,7 +128,8 @@ SCENES = (
           h_omega=(0.02, 0.01, 0.005, 0.002, 0.001, 5e-4, 2e-4, 1e-4, 5e-5, 2e-5),
           description='I = (1, 2, 3), |L| = 1 started 1e-3 off the major axis, α = 1000 '
                       '(stiffness α|L|²(1/I_min − 1/I_max) = 667 /s), 5 s'),
-    Scene('slew', 'controlled slew, zero-order-held torque', (1.0, 2.0, 3.0), (0.01, -0.02, 0.01), 20.0,
+    Scene('slew', 'controlled slew, zero-order-held torque', (1.0, 2.0, 3.0),
+          (0.01, -0.02, 0.01), 20.0,
           slew=Slew(_SLEW_TARGET, natural_frequency=0.5, period=0.1),
           h_omega=(1.0, 0.5, 0.2, 0.1, 0.05, 0.02, 0.01, 0.005, 0.002, 0.001),
           description='I = (1, 2, 3), 90° about (1, 1, 1)/√3, PD ω_n = 0.5 rad/s, ζ = 1, '

@@ -34,10 +34,12 @@ def _sweep(scene, x_name, rate, steps, grid, budget, ref_fn, log):
         for x in grid:
             h = x / rate
             if last is not None:
-                scale = x / last[1] if (scene.dissipation.active and name.startswith(('splitting', 'exact'))) else 1.0
+                scale = (x / last[1] if (scene.dissipation.active
+                                         and name.startswith(('splitting', 'exact'))) else 1.0)
                 predicted = last[0] * max(scale, 1.0)
                 if spent + predicted > budget:
-                    log(f'  stability {scene.name}/{name}: x={x:g} skipped (predicted {predicted:.2g} s CPU > budget)')
+                    log(f'  stability {scene.name}/{name}: x={x:g} skipped '
+                        f'(predicted {predicted:.2g} s CPU > budget)')
                     break
             integ = create(name, dyn)
             q, m = scene.q0_array, scene.m0
@@ -76,8 +78,9 @@ def _sweep(scene, x_name, rate, steps, grid, budget, ref_fn, log):
             failed = status != 'ok' or max_dg > LIMIT or max_dt > LIMIT
             verdict = ('blown up' if status != 'ok' else
                        f'drift > {LIMIT:.0%}' if failed else 'bounded')
-            rows.append({'scene': scene.name, 'method': name, 'x': x, 'x_name': x_name, 'h': h, 'steps': steps,
-                         'steps_done': done, 'momentum_growth_steps': growth, 'max_momentum_drift': max_dg,
+            rows.append({'scene': scene.name, 'method': name, 'x': x, 'x_name': x_name, 'h': h,
+                         'steps': steps, 'steps_done': done, 'momentum_growth_steps': growth,
+                         'max_momentum_drift': max_dg,
                          'max_energy_drift': max_dt, 'attitude_error': att, 'status': status,
                          'verdict': verdict})
     return rows
@@ -89,13 +92,14 @@ def run(quick, log=print):
     budget = 0.8 if quick else 8.0
     rows = []
     tumble = SCENE_BY_NAME['tumble']
-    rows += _sweep(tumble, 'h*|w|max', tumble.omega_max, steps, grid, budget, lambda t, t0: t0, log)
+    rows += _sweep(tumble, 'h*|w|max', tumble.omega_max, steps, grid, budget, lambda t, t0: t0,
+                   log)
     stiff = SCENE_BY_NAME['stiff_dissipation']
     rate = stiff.stiffness
     horizon = steps * max(grid) / rate
     from scipy.integrate import solve_ivp
-    sol = solve_ivp(_rhs_factory(stiff), (0.0, horizon), np.r_[stiff.q0_array, stiff.m0], method='DOP853',
-                    rtol=1e-11, atol=1e-13, dense_output=True)
+    sol = solve_ivp(_rhs_factory(stiff), (0.0, horizon), np.r_[stiff.q0_array, stiff.m0],
+                    method='DOP853', rtol=1e-11, atol=1e-13, dense_output=True)
     moments = np.asarray(stiff.moments, float)
 
     def t_ref(t, _t0):
@@ -116,7 +120,8 @@ def summary(rows):
                 text = f'bounded at every x tested (up to {max(r["x"] for r in rs):g})'
             else:
                 first = min(bad, key=lambda r: r['x'])
-                ok_below = [r['x'] for r in rs if r['verdict'] == 'bounded' and r['x'] < first['x']]
+                ok_below = [r['x'] for r in rs
+                            if r['verdict'] == 'bounded' and r['x'] < first['x']]
                 text = f'fails from x = {first["x"]:g} ({first["verdict"]}; {first["status"]})'
                 if ok_below:
                     text += f', bounded up to {max(ok_below):g}'

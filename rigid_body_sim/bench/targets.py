@@ -4,8 +4,8 @@ import math
 import numpy as np
 
 LEVELS = tuple(10.0 ** -k for k in range(2, 11))
-FIELDS = ('target', 'scene', 'level', 'ours_method', 'ours_cpu_s', 'peer_method', 'peer_cpu_s', 'measured',
-          'required', 'verdict', 'note')
+FIELDS = ('target', 'scene', 'level', 'ours_method', 'ours_cpu_s', 'peer_method', 'peer_cpu_s',
+          'measured', 'required', 'verdict', 'note')
 
 
 def cpu_to_reach(points, level):
@@ -49,16 +49,22 @@ def work_precision(rows, scenes):
         for level in LEVELS:
             ours = _best(rs, 'ours', level)
             peer = _best(rs, 'peer', level)
-            row = {'target': 'cpu ratio best peer / best ours', 'scene': scene.name, 'level': level,
-                   'ours_method': ours[0] if ours else '', 'ours_cpu_s': ours[1] if ours else math.nan,
-                   'peer_method': peer[0] if peer else '', 'peer_cpu_s': peer[1] if peer else math.nan,
+            row = {'target': 'cpu ratio best peer / best ours', 'scene': scene.name,
+                   'level': level,
+                   'ours_method': ours[0] if ours else '',
+                   'ours_cpu_s': ours[1] if ours else math.nan,
+                   'peer_method': peer[0] if peer else '',
+                   'peer_cpu_s': peer[1] if peer else math.nan,
                    'required': required}
             if peer is None and ours is None:
-                row.update(measured=math.nan, verdict='n/a', note='neither ours nor any peer reaches this error')
+                row.update(measured=math.nan, verdict='n/a',
+                           note='neither ours nor any peer reaches this error')
             elif peer is None:
-                row.update(measured=math.nan, verdict='n/a', note='no peer reaches this error (ours does)')
+                row.update(measured=math.nan, verdict='n/a',
+                           note='no peer reaches this error (ours does)')
             elif ours is None:
-                row.update(measured=0.0, verdict='MISS', note='ours does not reach this error; a peer does')
+                row.update(measured=0.0, verdict='MISS',
+                           note='ours does not reach this error; a peer does')
             else:
                 ratio = peer[1] / ours[1]
                 row.update(measured=ratio, verdict='PASS' if ratio >= required else 'MISS',
@@ -68,6 +74,8 @@ def work_precision(rows, scenes):
 
 
 def simple(target, measured, required, passed, note='', scene=''):
-    return {'target': target, 'scene': scene, 'level': '', 'ours_method': '', 'ours_cpu_s': math.nan,
-            'peer_method': '', 'peer_cpu_s': math.nan, 'measured': measured, 'required': required,
-            'verdict': ('PASS' if passed else 'MISS') if passed is not None else 'n/a', 'note': note}
+    return {'target': target, 'scene': scene, 'level': '', 'ours_method': '',
+            'ours_cpu_s': math.nan, 'peer_method': '', 'peer_cpu_s': math.nan,
+            'measured': measured, 'required': required,
+            'verdict': ('PASS' if passed else 'MISS') if passed is not None else 'n/a',
+            'note': note}

@@ -8,7 +8,7 @@ attitude error is at the float64 floor (≤ 1e-13 rad) or stops improving.
 import math
 
 
-from ..physics import INTEGRATORS, IntegrationError, create
+from ..physics import INTEGRATORS, IntegrationError
 from .common import metrics, propagate, timed
 
 FIELDS = ('scene', 'method', 'family', 'kind', 'param', 'steps', 'cpu_s', 'nfev', 'attitude_error',
@@ -42,7 +42,8 @@ def _n_steps(scene, h):
 
 
 def _over_budget(last, steps, kind, spent, budget, label, log):
-    """True (and logged) when the next run, predicted from the last one's cost, would pass the budget."""
+    """True (and logged) when the next run, predicted from the last one's cost, would pass the
+    budget."""
     if last is None:
         return False
     predicted = last[0] * (steps / last[1] if kind == 'h' and last[1] else 1.5)
@@ -62,7 +63,8 @@ def sweep_ours(scene, ref, budget, quick, log=print):
         stale = 0
         for p in params:
             steps = _n_steps(scene, p) if kind == 'h' else 0
-            if _over_budget(last, steps, kind, spent, budget, f'{scene.name}/{name}: {kind}={p:.3g}', log):
+            if _over_budget(last, steps, kind, spent, budget,
+                            f'{scene.name}/{name}: {kind}={p:.3g}', log):
                 break
             opts = {'rtol': p, 'atol': p * 1e-3} if kind == 'rtol' else {}
             box = {}
@@ -80,8 +82,8 @@ def sweep_ours(scene, ref, budget, quick, log=print):
             spent += cost
             last = (cost, steps)
             err = metrics(scene, q, m, q_ref, m_ref)
-            rows.append(_row(scene, name, 'ours', kind, p, steps, cost, box['engine'].integrator.nfev
-                             + box['engine'].evaluations, err))
+            rows.append(_row(scene, name, 'ours', kind, p, steps, cost,
+                             box['engine'].integrator.nfev + box['engine'].evaluations, err))
             e = err['attitude_error']
             if e <= FLOOR:
                 break
@@ -97,7 +99,8 @@ def sweep_peers(scene, peers, ref, budget, quick, log=print):
     q_ref, m_ref = ref[0], ref[1]
     for name, peer in peers.items():
         if not peer.supports(scene):
-            log(f'  {scene.name}/{name}: n/a (the double-bracket dissipation model is not built into it)')
+            log(f'  {scene.name}/{name}: n/a '
+                '(the double-bracket dissipation model is not built into it)')
             continue
         if peer.kind == 'adaptive':
             kind, params = 'rtol', list(scene.rtols if not quick else scene.rtols[::2])
@@ -107,7 +110,8 @@ def sweep_peers(scene, peers, ref, budget, quick, log=print):
         best_err, stale = math.inf, 0
         for p in params:
             steps = _n_steps(scene, p) if kind == 'h' else 0
-            if _over_budget(last, steps, kind, spent, budget, f'{scene.name}/{name}: {kind}={p:.3g}', log):
+            if _over_budget(last, steps, kind, spent, budget,
+                            f'{scene.name}/{name}: {kind}={p:.3g}', log):
                 break
             try:
                 if name.startswith('scipy'):
@@ -121,7 +125,8 @@ def sweep_peers(scene, peers, ref, budget, quick, log=print):
                             break
                     cost = best
             except Exception as exc:  # noqa: BLE001 - a peer's failure is a data point
-                rows.append(_row(scene, name, 'peer', kind, p, steps, float('nan'), float('nan'), None,
+                rows.append(_row(scene, name, 'peer', kind, p, steps, float('nan'), float('nan'),
+                                 None,
                                  f'blown up at {kind}={p:.3g}: {type(exc).__name__}: {exc}'[:200]))
                 continue
             spent += cost

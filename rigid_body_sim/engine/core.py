@@ -250,11 +250,7 @@ class Engine:
         # equal steps no longer than step_max (to 1 ppb: a step given as span/n stays n steps)
         n = max(1, math.ceil(span / (self.step_max * NS) - 1e-9))
         h = span / (n * NS)
-        t0 = self.t_ns / NS
-        step, q, m, tau = self._integ.step, self._q, self._m, self._tau_p
-        for k in range(n):
-            q, m = step(q, m, h, tau, t0 + k * h)
-        self._q, self._m = q, m
+        self._q, self._m = self._integ.run(self._q, self._m, h, n, self._tau_p, self.t_ns / NS)
         self.steps += n
 
     def _free_samples(self, limit: int, room: int) -> int:

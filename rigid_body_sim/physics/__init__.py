@@ -11,5 +11,6 @@ from .dynamics import DISSIPATION_MODELS, Dissipation, Dynamics
 from .integrators import INTEGRATORS, IntegrationError, Integrator, create, get_integrator
 from .propagator import Propagator, State, poinsot
 
-__all__ = ['RigidBody', 'Dissipation', 'Dynamics', 'DISSIPATION_MODELS', 'INTEGRATORS', 'Integrator',
-           'IntegrationError', 'create', 'get_integrator', 'Propagator', 'State', 'poinsot']
+__all__ = ['RigidBody', 'Dissipation', 'Dynamics', 'DISSIPATION_MODELS', 'INTEGRATORS',
+           'Integrator', 'IntegrationError', 'create', 'get_integrator', 'Propagator', 'State',
+           'poinsot']

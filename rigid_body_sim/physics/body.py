@@ -37,7 +37,8 @@ class RigidBody:
         elif values.size == 9:
             tensor = values.reshape(3, 3)
         else:
-            raise ValueError(f'inertia needs 3 principal moments or 9 tensor values, got {values.size}')
+            raise ValueError('inertia needs 3 principal moments or 9 tensor values, '
+                             f'got {values.size}')
         if not np.all(np.isfinite(tensor)):
             raise ValueError(f'inertia is not finite: {tensor.tolist()}')
         scale = np.max(np.abs(tensor))
@@ -54,7 +55,8 @@ class RigidBody:
             if np.linalg.det(axes) < 0:  # make the principal frame right-handed
                 axes[:, 2] *= -1.0
         if np.any(moments <= 0.0):
-            raise ValueError(f'inertia is not positive definite: principal moments {moments.tolist()}')
+            raise ValueError('inertia is not positive definite: '
+                             f'principal moments {moments.tolist()}')
         for i in range(3):
             a, b, c = moments[i], moments[(i + 1) % 3], moments[(i + 2) % 3]
             if a + b < c * (1.0 - 1e-12):

@@ -31,7 +31,8 @@ class Dissipation:
 
     def __post_init__(self):
         if self.model not in DISSIPATION_MODELS:
-            raise ValueError(f'unknown dissipation model {self.model!r}; choose one of {DISSIPATION_MODELS}')
+            raise ValueError(f'unknown dissipation model {self.model!r}; '
+                             f'choose one of {DISSIPATION_MODELS}')
         c = float(self.coefficient)
         if not np.isfinite(c):
             raise ValueError(f'dissipation coefficient is not finite: {self.coefficient}')
@@ -102,5 +103,6 @@ class Dynamics:
         if not d.active:
             return 0.0
         if d.model == 'double_bracket':
-            return d.coefficient * momentum_norm ** 2 * (1.0 / self.moments.min() - 1.0 / self.moments.max())
+            return (d.coefficient * momentum_norm ** 2
+                    * (1.0 / self.moments.min() - 1.0 / self.moments.max()))
         return d.coefficient / self.moments.min()

@@ -81,7 +81,8 @@ def _frame_quaternions(order):
 def _carlson_pi(sn, cn, dn, n_):
     """Π(−N; am r | k²) for |am r| ≤ π/2, Carlson form."""
     s2 = sn * sn
-    return sn * elliprf(cn * cn, dn * dn, 1.0) - (n_ / 3.0) * sn * s2 * elliprj(cn * cn, dn * dn, 1.0, 1.0 + n_ * s2)
+    return (sn * elliprf(cn * cn, dn * dn, 1.0)
+            - (n_ / 3.0) * sn * s2 * elliprj(cn * cn, dn * dn, 1.0, 1.0 + n_ * s2))
 
 
 def _qz_qx_qz(phi, theta, psi):
@@ -179,7 +180,9 @@ class TorqueFreeSolution:
         lhat = rotation.rotate(q0, m0 / np.where(G > 0, G, 1.0)[:, None])
         self._lhat = np.where((G > 0)[:, None], lhat, [0.0, 0.0, 1.0])
         body_rate = np.abs(self._ws)
-        omega_period[c] = np.where(body_rate[c] > 0, 2 * np.pi / np.where(body_rate[c] > 0, body_rate[c], 1.0), np.inf)
+        omega_period[c] = np.where(body_rate[c] > 0,
+                                   2 * np.pi / np.where(body_rate[c] > 0, body_rate[c], 1.0),
+                                   np.inf)
         flip[c] = 0.5 * omega_period[c]
 
         # --- elliptic and separatrix constants (only for those bodies; others keep dummies)
@@ -213,7 +216,8 @@ class TorqueFreeSolution:
             else:
                 self._P0[idx] = self._moving(idx, np.zeros(idx.size))[2]
                 e0 = self._moving(idx, np.zeros(idx.size))[0]
-            self._C[idx] = rotation.multiply(rotation.multiply(q0[idx], self._w[idx]), rotation.conjugate(e0))
+            self._C[idx] = rotation.multiply(rotation.multiply(q0[idx], self._w[idx]),
+                                             rotation.conjugate(e0))
         shape = self.batch_shape
         self.kinetic_energy = T.reshape(shape)
         self.angular_momentum_norm = G.reshape(shape)
@@ -246,18 +250,21 @@ class TorqueFreeSolution:
         c['lam'] = lam = np.where(sp, (G / iy) * np.sqrt((iz - iy) * (iy - ix) / (ix * iz)), lam)
         c['cphi'] = (G / iz) * (iz - ix) / (ix * lam)
         K = ellipkm1(kp2)                                # K from k'² directly: no cancellation
-        c.update(kp2=kp2, kp=np.sqrt(kp2), K=K, pic=K - c['N'] / 3.0 * elliprj(0.0, kp2, 1.0, 1.0 + c['N']))
+        c.update(kp2=kp2, kp=np.sqrt(kp2), K=K,
+                 pic=K - c['N'] / 3.0 * elliprj(0.0, kp2, 1.0, 1.0 + c['N']))
         # u0 = F(am u0), am u0 from (cn, sn) = (m_x/Mx, m_y/(s My)), reduced to |am| ≤ π/2.
         ang = np.arctan2(mw[:, 1] / (c['s'] * c['my']), mw[:, 0] / c['mx'])
         turn = np.where(np.abs(ang) > 0.5 * np.pi, np.sign(ang), 0.0)
         sr, cr = np.sin(ang - turn * np.pi), np.cos(ang - turn * np.pi)
         u0 = turn * 2 * K + sr * elliprf(cr * cr, cr * cr + kp2 * sr * sr, 1.0)
         with np.errstate(divide='ignore', invalid='ignore'):
-            c['u0'] = np.where(sp, np.arcsinh(c['s'] * mw[:, 1] / np.hypot(mw[:, 0], mw[:, 2])), u0)
+            c['u0'] = np.where(sp, np.arcsinh(c['s'] * mw[:, 1] / np.hypot(mw[:, 0], mw[:, 2])),
+                               u0)
         return c
 
     def _moving(self, b, t):
-        """Working-frame E(t) = Rz(φ)Rx(θ)Rz(ψ), m_work and P(u) for elliptic/separatrix bodies b."""
+        """Working-frame E(t) = Rz(φ)Rx(θ)Rz(ψ), m_work and P(u) for elliptic/separatrix
+        bodies b."""
         lam, u0, N = self._lam[b], self._u0[b], self._N[b]
         u = lam * t + u0
         mx, my, mz, s, sigd = self._mx[b], self._my[b], self._mz[b], self._s[b], self._sigd[b]
@@ -285,7 +292,8 @@ class TorqueFreeSolution:
         E = _qz_qx_qz(phi, theta, psi)
         if np.any(sep):
             Es, ms, Ps = self._separatrix(b, t, u)
-            E, m, P = np.where(sep[:, None], Es, E), np.where(sep[:, None], ms, m), np.where(sep, Ps, P)
+            E, m, P = (np.where(sep[:, None], Es, E), np.where(sep[:, None], ms, m),
+                       np.where(sep, Ps, P))
         return E, m, P
 
     def _separatrix(self, b, t, u):
@@ -322,12 +330,16 @@ class TorqueFreeSolution:
             b, ts = body[sel], tt[sel]
             if closed[sel[0]]:
                 spin = self._e[b] * (self._ws[b] * ts)[:, None]
-                q[sel] = rotation.multiply(rotation.multiply(
-                    rotation.exp(self._lhat[b] * (self._rate_l[b] * ts)[:, None]), self._q0[b]), rotation.exp(spin))
+                q[sel] = rotation.multiply(
+                    rotation.multiply(
+                        rotation.exp(self._lhat[b] * (self._rate_l[b] * ts)[:, None]),
+                        self._q0[b]),
+                    rotation.exp(spin))
                 m[sel] = rotation.rotate(rotation.exp(-spin), self._m0[b])
             else:
                 E, mw, _ = self._moving(b, ts)
-                qs = rotation.multiply(rotation.multiply(self._C[b], E), rotation.conjugate(self._w[b]))
+                qs = rotation.multiply(rotation.multiply(self._C[b], E),
+                                       rotation.conjugate(self._w[b]))
                 q[sel] = qs
                 m[sel] = np.einsum('nji,nj->ni', self._W[b], mw)
         q /= np.linalg.norm(q, axis=-1, keepdims=True)

@@ -48,7 +48,8 @@ class Propagator:
         p.kinetic_energy, p.angular_momentum_inertial
     """
 
-    def __init__(self, body: RigidBody, attitude=(0.0, 0.0, 0.0, 1.0), angular_velocity=(0.0, 0.0, 0.0),
+    def __init__(self, body: RigidBody, attitude=(0.0, 0.0, 0.0, 1.0),
+                 angular_velocity=(0.0, 0.0, 0.0),
                  dissipation: Dissipation = Dissipation(), integrator: str = 'splitting2',
                  t: float = 0.0, **options):
         self.body = body

@@ -55,11 +55,13 @@ def exp(rotvec):
     """
     rotvec = np.asarray(rotvec, float)
     angle = np.linalg.norm(rotvec, axis=-1, keepdims=True)
-    return np.concatenate((rotvec * (0.5 * np.sinc(angle / (2.0 * np.pi))), np.cos(0.5 * angle)), axis=-1)
+    return np.concatenate((rotvec * (0.5 * np.sinc(angle / (2.0 * np.pi))), np.cos(0.5 * angle)),
+                          axis=-1)
 
 
 def axis_rotation(axis: int, angle):
-    """Quaternions of rotations by ``angle`` (array, rad) about principal axis ``axis`` (0, 1, 2)."""
+    """Quaternions of rotations by ``angle`` (array, rad) about principal axis ``axis``
+    (0, 1, 2)."""
     angle = np.asarray(angle, float)
     q = np.zeros(angle.shape + (4,))
     q[..., axis] = np.sin(0.5 * angle)

@@ -19,7 +19,8 @@ def get_integrator(name: str):
     try:
         return INTEGRATORS[name]
     except KeyError:
-        raise ValueError(f'unknown integrator {name!r}; registered: {", ".join(INTEGRATORS)}') from None
+        raise ValueError(f'unknown integrator {name!r}; '
+                         f'registered: {", ".join(INTEGRATORS)}') from None
 
 
 def create(name: str, dynamics, **options) -> Integrator:
@@ -27,4 +28,5 @@ def create(name: str, dynamics, **options) -> Integrator:
     return get_integrator(name)(dynamics, **options)
 
 
-__all__ = ['INTEGRATORS', 'Integrator', 'IntegrationError', 'PRESERVES', 'create', 'get_integrator']
+__all__ = ['INTEGRATORS', 'Integrator', 'IntegrationError', 'PRESERVES', 'create',
+           'get_integrator']

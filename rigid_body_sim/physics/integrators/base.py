@@ -20,7 +20,8 @@ class IntegrationError(RuntimeError):
 
 
 # Names of invariants a method may keep exactly (to round-off) in free rotation.
-PRESERVES = ('angular_momentum_norm', 'kinetic_energy', 'unit_quaternion', 'poisson', 'time_reversible')
+PRESERVES = ('angular_momentum_norm', 'kinetic_energy', 'unit_quaternion', 'poisson',
+             'time_reversible')
 
 
 class Integrator:
@@ -55,11 +56,33 @@ class Integrator:
         q_new, m_new = self._step(np.asarray(q, float), np.asarray(m, float), float(h),
                                   None if torque is None else np.asarray(torque, float), t)
         if not (np.all(np.isfinite(m_new)) and np.all(np.isfinite(q_new))):
-            raise IntegrationError(self.name, h, t, 'state became non-finite (the method diverged)')
+            raise IntegrationError(self.name, h, t,
+                                   'state became non-finite (the method diverged)')
         return q_new, m_new
 
     def _step(self, q, m, h, torque, t):
         raise NotImplementedError
+
+    def run(self, q, m, h: float, n: int, torque: Optional[np.ndarray] = None, t0: float = 0.0):
+        """``n`` steps of ``h`` from (q, m) at time t0; new arrays. Methods with a compiled
+        loop (``physics.kernels``) override this for one body; IntegrationError names the
+        step and time where the state stopped being finite."""
+        for k in range(n):
+            q, m = self.step(q, m, h, torque, t0 + k * h)
+        return q, m
+
+    def _run_kernel(self, kernel, q, m, h, n, torque, t0):
+        """Shared shell of the compiled loops: copies in, checks, failure with its time."""
+        if not (np.isfinite(h) and h > 0.0):
+            raise IntegrationError(self.name, h, t0, 'step must be finite and positive')
+        q = np.array(q, dtype=float)
+        m = np.array(m, dtype=float)
+        tau = np.zeros(3) if torque is None else np.array(torque, dtype=float).reshape(3)
+        failed = kernel(q, m, float(h), int(n), tau, torque is not None)
+        if failed >= 0:
+            raise IntegrationError(self.name, h, t0 + (failed + 1) * h,
+                                   'state became non-finite (the method diverged)')
+        return q, m
 
     def reset(self):
         """Forget any state carried between steps (caches, solver warm starts)."""

@@ -28,6 +28,12 @@ class Exact(Splitting2):
         super().__init__(dynamics)
         self.reset()
 
+    def run(self, q, m, h, n, torque=None, t0=0.0):
+        """Step by step (each step is a closed-form evaluation, not the splitting loop)."""
+        for k in range(n):
+            q, m = self.step(q, m, h, torque, t0 + k * h)
+        return q, m
+
     def reset(self):
         self._solution = None
         self._elapsed = 0.0

@@ -5,6 +5,7 @@ e.g. Fukushima 2008); neither |m| nor T is conserved.
 """
 import numpy as np
 
+from .. import kernels
 from .base import Integrator
 
 
@@ -17,12 +18,34 @@ class _ExplicitRK(Integrator):
     def _normalised(q):
         return q / np.linalg.norm(q, axis=-1, keepdims=True)
 
+    _kernel_loop = None        # compiled loop in physics.kernels
+    _stages = 1
+
+    def __init__(self, dynamics, **options):
+        super().__init__(dynamics, **options)
+        d = dynamics.dissipation
+        self._model = kernels.MODEL_CODES[d.model] if d.active else 0
+        self._coefficient = d.coefficient
+        self._moments = np.array(dynamics.moments, dtype=float)
+
+    def _kernel(self, q, m, h, n, tau, has_tau):
+        failed = type(self)._kernel_loop(q, m, h, n, self._moments, tau, self._model,
+                                         self._coefficient)
+        self.nfev += self._stages * (n if failed < 0 else failed + 1)
+        return failed
+
+    def run(self, q, m, h, n, torque=None, t0=0.0):
+        if np.ndim(q) != 1 or np.ndim(m) != 1:
+            return super().run(q, m, h, n, torque, t0)
+        return self._run_kernel(self._kernel, q, m, h, n, torque, t0)
+
 
 class Euler(_ExplicitRK):
     """Explicit Euler: first order; |m| and T grow at every step (by h²|ṁ|² and h²/2·ṁ·(ṁ/I))."""
     name = 'euler'
     order = 1
     stability = 'unstable for free rotation at any step (amplification √(1 + (hλ)²) > 1)'
+    _kernel_loop = staticmethod(kernels.euler_run)
 
     def _step(self, q, m, h, torque, t):
         dq, dm = self._rates(q, m, torque)
@@ -34,6 +57,8 @@ class RK4(_ExplicitRK):
     name = 'rk4'
     order = 4
     stability = 'real-axis limit hλ ≈ 2.785 (stiff dissipation); imaginary-axis limit hλ = 2√2'
+    _kernel_loop = staticmethod(kernels.rk4_run)
+    _stages = 4
 
     def _step(self, q, m, h, torque, t):
         dq1, dm1 = self._rates(q, m, torque)

@@ -16,7 +16,9 @@ def _skew(v):
     """[v]×, batched: (..., 3) -> (..., 3, 3)."""
     z = np.zeros(v.shape[:-1])
     x, y, w = v[..., 0], v[..., 1], v[..., 2]
-    return np.stack((np.stack((z, -w, y), -1), np.stack((w, z, -x), -1), np.stack((-y, x, z), -1)), -2)
+    return np.stack((np.stack((z, -w, y), -1),
+                     np.stack((w, z, -x), -1),
+                     np.stack((-y, x, z), -1)), -2)
 
 
 class ImplicitMidpoint(Integrator):
@@ -28,8 +30,10 @@ class ImplicitMidpoint(Integrator):
     name = 'implicit_midpoint'
     order = 2
     implicit = True
-    preserves = frozenset({'angular_momentum_norm', 'kinetic_energy', 'unit_quaternion', 'time_reversible'})
-    stability = 'A-stable; damped Newton, a failed solve retried on halved steps (seen to converge up to h·|Ω| = 1000)'
+    preserves = frozenset({'angular_momentum_norm', 'kinetic_energy', 'unit_quaternion',
+                           'time_reversible'})
+    stability = ('A-stable; damped Newton, a failed solve retried on halved steps '
+                 '(seen to converge up to h·|Ω| = 1000)')
 
     def __init__(self, dynamics, max_iterations: int = 30):
         super().__init__(dynamics)
@@ -91,7 +95,8 @@ class ImplicitMidpoint(Integrator):
                 break
         else:
             raise IntegrationError(self.name, h, t,
-                                   f'Newton iteration did not converge in {self.max_iterations} iterations')
+                                   'Newton iteration did not converge in '
+                                   f'{self.max_iterations} iterations')
         if not np.all(np.isfinite(x)):
             raise IntegrationError(self.name, h, t, 'Newton iteration diverged')
         m_new = 2.0 * x - m
@@ -100,5 +105,6 @@ class ImplicitMidpoint(Integrator):
         # Cayley transform equals right-multiplication by a unit quaternion:
         half = 0.25 * h * (x / dyn.moments)
         denom = 1.0 + np.sum(half * half, axis=-1, keepdims=True)
-        cayley = np.concatenate((2.0 * half, 1.0 - np.sum(half * half, axis=-1, keepdims=True)), -1) / denom
+        cayley = np.concatenate((2.0 * half, 1.0 - np.sum(half * half, axis=-1, keepdims=True)),
+                                -1) / denom
         return rotation.multiply(q, cayley), m_new

@@ -30,7 +30,8 @@ class DOP853(Integrator):
         def rhs(_, y):
             qq = y[:nq].reshape(shape_q)
             mm = y[nq:].reshape(shape_m)
-            return np.concatenate((dyn.attitude_rate(qq, mm).ravel(), dyn.momentum_rate(mm, torque).ravel()))
+            return np.concatenate((dyn.attitude_rate(qq, mm).ravel(),
+                                   dyn.momentum_rate(mm, torque).ravel()))
 
         sol = solve_ivp(rhs, (0.0, h), np.concatenate((q.ravel(), m.ravel())), method='DOP853',
                         rtol=self.rtol, atol=self.atol)

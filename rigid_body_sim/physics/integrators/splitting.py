@@ -26,6 +26,7 @@ import math
 
 import numpy as np
 
+from .. import kernels
 from .base import Integrator
 
 # Outer, middle, inner axis of the symmetric composition  a(h/2) b(h/2) c(h) b(h/2) a(h/2)
@@ -60,7 +61,8 @@ def _rotate_about(m, theta, xp):
     a2 = theta[0] * theta[0] + theta[1] * theta[1] + theta[2] * theta[2]
     a = xp.sqrt(a2)
     half = 0.5 * a
-    sinc_half = xp.sinc(half / math.pi) if xp is np else (math.sin(half) / half if half > 1e-8 else 1.0 - half * half / 6)
+    sinc_half = (xp.sinc(half / math.pi) if xp is np
+                 else (math.sin(half) / half if half > 1e-8 else 1.0 - half * half / 6))
     s1 = sinc_half * xp.cos(half)          # sin(a)/a
     s2 = 0.5 * sinc_half * sinc_half       # (1 − cos a)/a²
     c = 1.0 - a2 * s2                      # cos a
@@ -106,7 +108,8 @@ class Splitting2(Integrator):
     """
     name = 'splitting2'
     order = 2
-    preserves = frozenset({'angular_momentum_norm', 'unit_quaternion', 'poisson', 'time_reversible'})
+    preserves = frozenset({'angular_momentum_norm', 'unit_quaternion', 'poisson',
+                           'time_reversible'})
     stability = 'no step-size limit for free rotation (error bounded, |m| exact at any h)'
     # Composition weights of the Strang step (Yoshida); (1.0,) is Strang itself.
     weights = (1.0,)
@@ -116,6 +119,24 @@ class Splitting2(Integrator):
         ranks = np.argsort(dynamics.moments, kind='stable')
         self._axes = tuple(int(ranks[r]) for r in _ORDER)
         self._moments_list = [float(i) for i in dynamics.moments]
+        d = dynamics.dissipation
+        self._kernel_args = (np.array(self.weights, dtype=float), np.array(self._axes),
+                             np.array(dynamics.moments, dtype=float))
+        self._model = kernels.MODEL_CODES[d.model] if d.active else 0
+        self._coefficient = d.coefficient
+
+    def _kernel(self, q, m, h, n, tau, has_tau):
+        weights, axes, moments = self._kernel_args
+        failed, evals = kernels.splitting_run(q, m, h, n, weights, axes, moments, tau, has_tau,
+                                              self._model, self._coefficient)
+        self.nfev += evals
+        return failed
+
+    def run(self, q, m, h, n, torque=None, t0=0.0):
+        """One body: the compiled loop (physics.kernels); a batch: the numpy path."""
+        if np.ndim(q) != 1 or np.ndim(m) != 1:
+            return super().run(q, m, h, n, torque, t0)
+        return self._run_kernel(self._kernel, q, m, h, n, torque, t0)
 
     def _step(self, q, m, h, torque, t):
         """D(h/2) · [composition of K a b c b a K] · D(h/2) on component lists.
@@ -124,11 +145,11 @@ class Splitting2(Integrator):
         on (N,) component arrays in blocks small enough for the CPU cache (temporaries of
         10⁶ bodies would be memory-bound).
         """
-        if q.ndim == 1:
-            tc = None if torque is None else [float(v) for v in np.broadcast_to(torque, (3,))]
-            qc, mc = [float(v) for v in q], [float(v) for v in m]
-            self._components_step(qc, mc, h, tc, math)
-            return np.array(qc), np.array(mc)
+        if q.ndim == 1:  # the compiled loop, one step (the finiteness check is step()'s)
+            q, m = q.copy(), m.copy()
+            tau = np.zeros(3) if torque is None else np.broadcast_to(torque, (3,)).astype(float)
+            self._kernel(q, m, h, 1, tau, torque is not None)
+            return q, m
         shape = np.broadcast_shapes(q.shape[:-1], m.shape[:-1])
         q_flat = np.broadcast_to(q, shape + (4,)).reshape(-1, 4)
         m_flat = np.broadcast_to(m, shape + (3,)).reshape(-1, 3)
