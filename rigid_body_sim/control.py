@@ -42,8 +42,9 @@ and can limit-cycle), and the commanded rate is bounded by
 
 (max_torque / (I_i ω_n / ζ) about principal axis i with bandwidth gains; ``max_rate`` if
 smaller). Far from the target the body then cruises at |ω| ≤ ω_max and the braking needed
-once ω_cmd leaves its bound, ≈ |I ⊙ g ⊙ ω| / 2, is within half the available torque, so the loop re-enters its linear region without overshoot. There is no
-integrator, hence nothing to wind up.
+once ω_cmd leaves its bound, ≈ |I ⊙ g ⊙ ω| / 2, is within half the available torque, so the
+loop re-enters its linear region without overshoot. There is no integrator, hence nothing to
+wind up.
 
 Detumble decay prediction. With K_ω = c I (the default, c = 2ζω_n when ω_n is one
 number) the inertial angular momentum obeys dL/dt = −c L exactly: |L(t)| = |L₀| e^(−ct), and
@@ -58,6 +59,7 @@ from typing import Optional
 
 import numpy as np
 
+from .control_kernel import MODE_CODES, control_torque
 from .physics import rotation
 from .physics.body import RigidBody
 
@@ -82,7 +84,8 @@ def validated_target(target) -> np.ndarray:
     if norm < 1e-6:
         raise ValueError('target has zero norm; a rotation needs a unit quaternion (x, y, z, w)')
     if abs(norm - 1.0) > UNIT_TOLERANCE:
-        raise ValueError(f'target is not a unit quaternion (norm {norm:.6g}, tolerance {UNIT_TOLERANCE:g}); '
+        raise ValueError(f'target is not a unit quaternion (norm {norm:.6g}, '
+                         f'tolerance {UNIT_TOLERANCE:g}); '
                          'send (x, y, z, w) normalised')
     return q / norm
 
@@ -117,7 +120,8 @@ def critical_settling_time(natural_frequency, tolerance=0.02) -> float:
     return float(x / float(natural_frequency))
 
 
-def detumble_time(angular_velocity, decay_rate, threshold=1e-3, moments=None, bound=False) -> float:
+def detumble_time(angular_velocity, decay_rate, threshold=1e-3, moments=None,
+                  bound=False) -> float:
     """Time for |ω| to fall below ``threshold`` under τ = −c I ω (``decay_rate`` = c, 1/s).
 
     Linear prediction ln(|ω₀| / threshold) / c. With ``bound=True`` (needs ``moments``): the
@@ -200,7 +204,8 @@ class ControlConfig:
         if _unset(self.kp) and _unset(self.kd):
             kp, kd = bandwidth_gains(moments, wn, zeta)
         elif _unset(self.kp) or _unset(self.kd):
-            raise ValueError('set both kp and kd (3 values each), or neither to use natural_frequency/damping_ratio')
+            raise ValueError('set both kp and kd (3 values each), '
+                             'or neither to use natural_frequency/damping_ratio')
         else:
             kp, kd = _vector(self.kp, 'kp'), _vector(self.kd, 'kd')
         if _unset(self.rate_gain):
@@ -216,7 +221,8 @@ class ControlConfig:
         limit = np.inf if rate_max == 0.0 else rate_max
         for name, value in (('body', body), ('kp_principal', kp), ('kd_principal', kd),
                             ('rate_gain_principal', kw), ('rate_limit', float(limit)),
-                            ('torque_limit', float(tau_max)), ('gyroscopic_compensation', bool(self.gyroscopic_compensation))):
+                            ('torque_limit', float(tau_max)),
+                            ('gyroscopic_compensation', bool(self.gyroscopic_compensation))):
             if isinstance(value, np.ndarray):
                 value.setflags(write=False)
             object.__setattr__(self, name, value)
@@ -228,7 +234,8 @@ class ControlConfig:
             return self.rate_limit
         n = np.asarray(direction, float)
         n = n / np.linalg.norm(n)
-        demand = np.linalg.norm(self.body.principal_moments * self.kp_principal / self.kd_principal * n)
+        demand = np.linalg.norm(
+            self.body.principal_moments * self.kp_principal / self.kd_principal * n)
         return float(min(self.rate_limit, self.torque_limit / demand))
 
     @property
@@ -295,36 +302,18 @@ class AttitudeController:
 
     def compute(self, attitude, angular_velocity) -> ControlOutput:
         """The body-frame torque for the state (attitude q body→inertial, ω body frame)."""
-        cfg = self.config
-        body = cfg.body
-        w = np.asarray(angular_velocity, float).reshape(3)
-        q = np.asarray(attitude, float).reshape(4)
-        rate_norm = float(np.linalg.norm(w))
-        angle = float(error_angle(q, self.target))
-        rate_limited = False
-        if self.mode == 'off':
-            tau = np.zeros(3)
-        elif self.mode == 'detumble':
-            tau = body.to_body(-cfg.rate_gain_principal * body.to_principal(w))
-        else:
-            e = body.to_principal(error_quaternion(q, self.target)[:3])
-            w_p = body.to_principal(w)
-            w_cmd = -(cfg.kp_principal / cfg.kd_principal) * e
-            n = np.linalg.norm(w_cmd)
-            if n > 0.0:
-                limit = cfg.rate_limit_along(w_cmd)
-                if n > limit:
-                    w_cmd *= limit / n
-                    rate_limited = True
-            tau = body.to_body(-cfg.kd_principal * (w_p - w_cmd))
-            if cfg.gyroscopic_compensation:
-                tau = tau + np.cross(w, body.inertia @ w)
-        unsaturated = tau
-        norm = float(np.linalg.norm(tau))
-        saturated = norm > cfg.torque_limit
-        if saturated:
-            tau = tau * (cfg.torque_limit / norm)
-        return ControlOutput(tau, unsaturated, bool(saturated), rate_limited, angle, rate_norm, self.mode)
+        cfg, body = self.config, self.config.body
+        w = np.asarray(angular_velocity, dtype=float).reshape(3)
+        q = np.asarray(attitude, dtype=float).reshape(4)
+        tau, unsaturated = np.empty(3), np.empty(3)
+        # The law itself is a compiled kernel (control_kernel.py), the same in every front end.
+        saturated, rate_limited, angle, rate_norm = control_torque(
+            MODE_CODES[self.mode], q, w, self.target, body.principal_axes,
+            body.principal_moments, cfg.kp_principal, cfg.kd_principal,
+            cfg.rate_gain_principal, cfg.rate_limit, cfg.torque_limit,
+            cfg.gyroscopic_compensation, body.inertia, tau, unsaturated)
+        return ControlOutput(tau, unsaturated, bool(saturated), bool(rate_limited), float(angle),
+                             float(rate_norm), self.mode)
 
     def torque(self, attitude, angular_velocity) -> np.ndarray:
         """Shortcut for ``compute(...).torque``."""
@@ -343,7 +332,8 @@ PARAMETER_DEFAULTS = {
     'kd': [0.0, 0.0, 0.0],
     'rate_gain': 0.0,
     'gyroscopic_compensation': True,
-    'max_torque': 1.0,  # = the simulator's default (per-axis there; a norm here, so never clipped there)
+    # = the simulator's default (per-axis there; a norm here, so never clipped there)
+    'max_torque': 1.0,
     'max_rate': 0.0,
     'target_attitude': [0.0, 0.0, 0.0, 1.0],
     'mission.free_time': 0.0,
@@ -368,7 +358,8 @@ class Mission:
     """
 
     def __init__(self, free_time: float = 0.0, detumble_exit_rate: float = 0.0):
-        for name, value in (('mission.free_time', free_time), ('mission.detumble_exit_rate', detumble_exit_rate)):
+        for name, value in (('mission.free_time', free_time),
+                            ('mission.detumble_exit_rate', detumble_exit_rate)):
             if not (math.isfinite(value) and value >= 0.0):
                 raise ValueError(f'{name} must be finite and >= 0, got {value}')
         self.free_time, self.detumble_exit_rate = float(free_time), float(detumble_exit_rate)

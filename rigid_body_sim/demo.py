@@ -24,7 +24,8 @@ from .scene import SceneError, load
 def _executable(name):
     """The installed node executable (ament layout), else the module behind it."""
     path = os.path.join(sys.prefix, 'lib', 'rigid_body_sim', name)
-    return [path] if os.path.exists(path) else [sys.executable, '-m', f'rigid_body_sim.nodes.{name}']
+    return ([path] if os.path.exists(path)
+            else [sys.executable, '-m', f'rigid_body_sim.nodes.{name}'])
 
 
 class _Process:
@@ -32,8 +33,8 @@ class _Process:
         self.name = name
         self.log_path = os.path.join(log_dir, f'{name}.log')
         self.log = open(self.log_path, 'wb')
-        self.proc = subprocess.Popen(_executable(name) + args, stdout=self.log, stderr=subprocess.STDOUT,
-                                     start_new_session=True)
+        self.proc = subprocess.Popen(_executable(name) + args, stdout=self.log,
+                                     stderr=subprocess.STDOUT, start_new_session=True)
 
     def stop(self, timeout=10.0):
         if self.proc.poll() is None:
@@ -48,7 +49,8 @@ class _Process:
 
 
 class _Watcher:
-    """Subscribes to the simulator's state and the controller's command; keeps what the summary needs."""
+    """Subscribes to the simulator's state and the controller's command; keeps what the
+    summary needs."""
 
     def __init__(self, node, target):
         from diagnostic_msgs.msg import DiagnosticArray
@@ -173,10 +175,13 @@ def _plots_from_bag(bag, scene, out_dir):
 
 
 def add_arguments(parser):
-    parser.add_argument('--scene', default='default', help='scene name or params file (default: default)')
-    parser.add_argument('--duration', type=float, default=float(os.environ.get('DEMO_DURATION', 30)),
+    parser.add_argument('--scene', default='default',
+                        help='scene name or params file (default: default)')
+    parser.add_argument('--duration', type=float,
+                        default=float(os.environ.get('DEMO_DURATION', 30)),
                         help='wall seconds to run (default: $DEMO_DURATION or 30)')
-    parser.add_argument('--out', default=os.path.join('out', 'demo'), help='output directory (default out/demo)')
+    parser.add_argument('--out', default=os.path.join('out', 'demo'),
+                        help='output directory (default out/demo)')
 
 
 def run(args) -> int:
@@ -193,7 +198,8 @@ def run(args) -> int:
     if not args.duration > 0:
         print('error: --duration must be > 0 wall seconds', file=sys.stderr)
         return 2
-    os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')  # a demo stays on this machine
+    # a demo stays on this machine
+    os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
     out = os.path.abspath(args.out)
     bag = os.path.join(out, 'bag')
     shutil.rmtree(bag, ignore_errors=True)  # each demo replaces the previous one's bag
@@ -201,9 +207,11 @@ def run(args) -> int:
     params = ['--ros-args', '--params-file', os.path.abspath(scene.path)]
     target = np.asarray(scene.controller.get('target_attitude', (0.0, 0.0, 0.0, 1.0)), float)
     print(f'demo: scene {scene.name} — {scene.description}')
-    print(f'demo: logs and output in {out}; stopping after {args.duration:g} s (Ctrl-C stops earlier)')
+    print(f'demo: logs and output in {out}; stopping after {args.duration:g} s '
+          '(Ctrl-C stops earlier)')
 
-    procs = [_Process('recorder', ['--ros-args', '-p', f'output:={bag}', '-p', f'scene:={scene.name}'], out)]
+    procs = [_Process('recorder',
+                      ['--ros-args', '-p', f'output:={bag}', '-p', f'scene:={scene.name}'], out)]
     rclpy.init()
     node = Node('demo_status')
     watcher = _Watcher(node, target)
@@ -227,7 +235,8 @@ def run(args) -> int:
             now = time.monotonic()
             if now - last_print >= (0.25 if tty else 2.0):
                 last_print = now
-                print(('\r' if tty else '') + watcher.status(), end='' if tty else '\n', flush=True)
+                print(('\r' if tty else '') + watcher.status(), end='' if tty else '\n',
+                      flush=True)
     except KeyboardInterrupt:
         interrupted = True
     finally:
@@ -246,8 +255,10 @@ def run(args) -> int:
 
     failed = {n: c for n, c in codes.items() if c not in (0, None, -signal.SIGINT)}
     print('demo: summary' + (' (interrupted)' if interrupted else ''))
-    print(f'  final pointing error: {watcher.error_deg():.4f}° (target {np.round(target, 6).tolist()})')
-    print(f'  free phase: {len(watcher.free["T"])} samples, relative drift T {_drift(watcher.free["T"]):.2e}, '
+    print(f'  final pointing error: {watcher.error_deg():.4f}° '
+          f'(target {np.round(target, 6).tolist()})')
+    print(f'  free phase: {len(watcher.free["T"])} samples, '
+          f'relative drift T {_drift(watcher.free["T"]):.2e}, '
           f'|L| {_drift(watcher.free["L"]):.2e}')
     try:
         info = read_info(bag)

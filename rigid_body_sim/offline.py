@@ -193,7 +193,8 @@ def add_arguments(parser):
     parser.add_argument('--step', type=float, help='largest physics step, s')
     parser.add_argument('--accuracy', type=float, help='attitude-error budget for auto, rad')
     parser.add_argument('--out', help='output directory (default: out/<scene>)')
-    parser.add_argument('--json', action='store_true', help='print one JSON object with the results')
+    parser.add_argument('--json', action='store_true',
+                        help='print one JSON object with the results')
     parser.add_argument('--no-bag', action='store_true', help='skip writing the bag')
     parser.add_argument('--no-plots', action='store_true', help='skip the PNG plots')
 

@@ -44,7 +44,8 @@ def write_plots(samples, body, out_dir, title, free_end=np.inf):
     fig, ax = plt.subplots(figsize=(8, 4))
     for i, name in enumerate('xyz'):
         ax.plot(ts, w[:, i], lw=0.8, label=f'ω_{name}')
-    ax.set(xlabel=f't [{unit}]', ylabel='ω [rad/s] (body frame)', title=f'{title}: angular velocity')
+    ax.set(xlabel=f't [{unit}]', ylabel='ω [rad/s] (body frame)',
+           title=f'{title}: angular velocity')
     ax.legend(loc='upper right')
     ax.grid(alpha=0.3)
     paths.append(_save(fig, out_dir, 'omega.png', plt))
@@ -77,12 +78,14 @@ def write_plots(samples, body, out_dir, title, free_end=np.inf):
     ax3.plot_wireframe(radii[0] * np.cos(u) * np.sin(v), radii[1] * np.sin(u) * np.sin(v),
                        radii[2] * np.cos(v), color='0.8', lw=0.4)
     ax3.plot(w_p[:, 0], w_p[:, 1], w_p[:, 2], color='C3', lw=1.2, label='polhode')
-    ax3.set(xlabel='ω₁', ylabel='ω₂', zlabel='ω₃', title=f'polhode on the energy ellipsoid (t = {t[k0]:.3g} {unit})')
+    ax3.set(xlabel='ω₁', ylabel='ω₂', zlabel='ω₃',
+            title=f'polhode on the energy ellipsoid (t = {t[k0]:.3g} {unit})')
     ax3.set_box_aspect(radii / radii.max())
     ax3.legend(loc='upper left')
 
     ax2 = fig.add_subplot(1, 2, 2)
-    n = L[k0] / max(np.linalg.norm(L[k0]), 1e-300)  # invariable plane normal (fixed while torque-free)
+    # invariable plane normal (fixed while torque-free)
+    n = L[k0] / max(np.linalg.norm(L[k0]), 1e-300)
     e1 = np.cross(n, [1.0, 0, 0] if abs(n[0]) < 0.9 else [0, 1.0, 0])
     e1 /= np.linalg.norm(e1)
     e2 = np.cross(n, e1)
@@ -91,7 +94,8 @@ def write_plots(samples, body, out_dir, title, free_end=np.inf):
     ax2.plot([0], [0], 'k+')
     ax2.set_aspect('equal', adjustable='datalim')
     ax2.set(xlabel='ω·e₁ [rad/s]', ylabel='ω·e₂ [rad/s]',
-            title=f'herpolhode on the invariable plane (at 2T/|L| = {2 * T[k0] / max(Ln[k0], 1e-300):.4g})')
+            title=f'herpolhode on the invariable plane '
+                  f'(at 2T/|L| = {2 * T[k0] / max(Ln[k0], 1e-300):.4g})')
     ax2.grid(alpha=0.3)
     fig.suptitle(f'{title}: Poinsot\'s construction{phase}')
     paths.append(_save(fig, out_dir, 'poinsot.png', plt))

@@ -61,7 +61,8 @@ def resolve(scene: str) -> str:
     path = os.path.join(config_dir(), scene + '.yaml')
     if not os.path.isfile(path):
         names = ', '.join(n for n, _, _ in list_scenes())
-        raise SceneError(f'unknown scene {scene!r}; built-in scenes: {names} (or give a path to a params file)')
+        raise SceneError(f'unknown scene {scene!r}; built-in scenes: {names} '
+                         '(or give a path to a params file)')
     return path
 
 

@@ -10,7 +10,7 @@ import pytest
 
 from rigid_body_sim import control as C
 from rigid_body_sim.engine import NS, ControlSettings, Engine, EngineConfig
-from rigid_body_sim.physics import Dissipation, Propagator, RigidBody, rotation
+from rigid_body_sim.physics import Dissipation, RigidBody, rotation
 from rigid_body_sim.physics.dynamics import Dynamics
 
 INERTIA = [1.0, 2.0, 3.0]
@@ -108,7 +108,8 @@ def test_error_quaternion_takes_the_short_way():
     target = rotation.axis_rotation(2, np.radians(100.0))  # 200° one way, 160° the other
     qe = C.error_quaternion(q, target)
     assert qe[3] >= 0.0
-    assert 2 * np.arctan2(qe[2], qe[3]) == pytest.approx(np.radians(160.0))  # error +160° → torque −z... short way
+    # error +160° → torque −z... short way
+    assert 2 * np.arctan2(qe[2], qe[3]) == pytest.approx(np.radians(160.0))
     assert C.error_angle(q, target) == pytest.approx(np.radians(160.0))
     # q and −q are the same attitude: same error.
     np.testing.assert_allclose(C.error_quaternion(-q, target), qe)
@@ -166,7 +167,8 @@ def test_direct_gains_win_and_modes():
     ctl = C.AttitudeController(cfg, 'slew', rotation.axis_rotation(0, 0.2))
     w = np.array([0.1, -0.2, 0.3])
     e = C.error_quaternion([0, 0, 0, 1], ctl.target)[:3]
-    np.testing.assert_allclose(ctl.torque([0, 0, 0, 1], w), -np.array([1, 2, 3]) * e - np.array([4, 5, 6]) * w)
+    np.testing.assert_allclose(ctl.torque([0, 0, 0, 1], w),
+                               -np.array([1, 2, 3]) * e - np.array([4, 5, 6]) * w)
     ctl.set_mode('detumble')  # default K_ω = k_d
     np.testing.assert_allclose(ctl.torque([0, 0, 0, 1], w), -np.array([4, 5, 6]) * w)
     ctl.set_mode('off')
@@ -177,7 +179,8 @@ def test_direct_gains_win_and_modes():
 
 def test_non_diagonal_inertia_gains_live_in_the_principal_frame():
     tensor = np.array([[2.0, 0.3, 0.1], [0.3, 1.5, -0.2], [0.1, -0.2, 2.5]])
-    cfg = C.ControlConfig(inertia=tensor.ravel(), natural_frequency=0.7, gyroscopic_compensation=False)
+    cfg = C.ControlConfig(inertia=tensor.ravel(), natural_frequency=0.7,
+                          gyroscopic_compensation=False)
     # K_d = 2ζω_n I as a body-frame matrix, K_p = 2ω_n² I.
     np.testing.assert_allclose(cfg.kd_body, 2 * 0.7 * tensor, atol=1e-12)
     np.testing.assert_allclose(cfg.kp_body, 2 * 0.49 * tensor, atol=1e-12)
@@ -188,7 +191,8 @@ def test_saturation_scales_the_whole_vector():
     out = C.AttitudeController(cfg, 'detumble').compute([0, 0, 0, 1], [1.0, -2.0, 0.5])
     assert out.saturated
     assert np.linalg.norm(out.torque) == pytest.approx(0.1)
-    np.testing.assert_allclose(np.cross(out.torque, out.unsaturated_torque), 0.0, atol=1e-12)  # same direction
+    # same direction
+    np.testing.assert_allclose(np.cross(out.torque, out.unsaturated_torque), 0.0, atol=1e-12)
     assert np.dot(out.torque, out.unsaturated_torque) > 0
 
 
@@ -287,7 +291,8 @@ FULL_TENSOR = [2.0, 0.3, 0.1, 0.3, 1.5, -0.2, 0.1, -0.2, 2.5]
 
 
 @pytest.mark.parametrize('inertia, gyro, max_torque', [
-    (INERTIA, True, 0.3), (INERTIA, False, 0.3), (FULL_TENSOR, False, 0.0), (FULL_TENSOR, True, 0.3)])
+    (INERTIA, True, 0.3), (INERTIA, False, 0.3), (FULL_TENSOR, False, 0.0),
+    (FULL_TENSOR, True, 0.3)])
 def test_random_slews_from_tumbling_converge(inertia, gyro, max_torque):
     rng = np.random.default_rng(7)
     cfg = C.ControlConfig(inertia=inertia, natural_frequency=WN, gyroscopic_compensation=gyro,
@@ -320,8 +325,8 @@ def test_mission_from_parameters_for_offline_runs():
     for name, value in C.PARAMETER_DEFAULTS.items():
         assert defaults[name] == value, name
     ctl, mission, period = C.mission_from_parameters(
-        {'mode': 'slew', 'natural_frequency': [1.0], 'control_rate': 25.0, 'target_attitude': [0, 0, 1, 0],
-         'state_timeout': 0.3})
+        {'mode': 'slew', 'natural_frequency': [1.0], 'control_rate': 25.0,
+         'target_attitude': [0, 0, 1, 0], 'state_timeout': 0.3})
     assert not mission.active and period == pytest.approx(0.04)
     assert ctl.mode == 'slew'
     np.testing.assert_allclose(ctl.target, [0, 0, 1, 0])

@@ -39,7 +39,8 @@ def ros_args(namespace, params):
 
 
 def start_simulator(ros_process, namespace, **params):
-    base = dict(inertia=INERTIA, initial_attitude=[0.0, 0.0, 0.0, 1.0], initial_angular_velocity=[0.0, 0.0, 0.0],
+    base = dict(inertia=INERTIA, initial_attitude=[0.0, 0.0, 0.0, 1.0],
+                initial_angular_velocity=[0.0, 0.0, 0.0],
                 integrator='splitting2', step=0.001, publish_rate=100.0, real_time_factor=1.0,
                 max_torque=100.0, command_timeout=0.5)
     base.update(params)
@@ -47,7 +48,8 @@ def start_simulator(ros_process, namespace, **params):
 
 
 def start_controller(ros_process, namespace, **params):
-    base = dict(inertia=INERTIA, natural_frequency=WN, control_rate=50.0, max_torque=0.0)  # unlimited
+    base = dict(inertia=INERTIA, natural_frequency=WN, control_rate=50.0,
+                max_torque=0.0)  # unlimited
     base.update(params)
     return ros_process(venv_exe('controller'), *ros_args(namespace, base))
 
@@ -66,7 +68,8 @@ class Recorder:
         node.create_subscription(Vector3Stamped, f'{namespace}/angular_velocity', self._rate, 50)
         node.create_subscription(Vector3Stamped, f'{namespace}/torque_command', self._torque, 50)
         node.create_subscription(DiagnosticArray, '/diagnostics', self._diag, 50)
-        self.target_pub = node.create_publisher(QuaternionStamped, f'{namespace}/attitude_target', 10)
+        self.target_pub = node.create_publisher(QuaternionStamped,
+                                                f'{namespace}/attitude_target', 10)
 
     def _att(self, m):
         q = m.quaternion
@@ -119,7 +122,8 @@ class Recorder:
         msg = QuaternionStamped()
         msg.header.stamp = self.node.get_clock().now().to_msg()
         msg.header.frame_id = frame_id
-        msg.quaternion.x, msg.quaternion.y, msg.quaternion.z, msg.quaternion.w = (float(x) for x in q)
+        (msg.quaternion.x, msg.quaternion.y, msg.quaternion.z,
+         msg.quaternion.w) = (float(x) for x in q)
         self.target_pub.publish(msg)
 
     def last_diagnostic(self):
@@ -142,8 +146,8 @@ def start_loop(rec, ros_process, namespace, mode, sim_params=None, ctl_params=No
     record (messages sent before discovery completes would otherwise be lost)."""
     sim = start_simulator(ros_process, namespace, **(sim_params or {}))
     ctl = start_controller(ros_process, namespace, mode='off', **(ctl_params or {}))
-    if not rec.spin_until(lambda: len(rec.torque) > 5 and len(rec.rate) > 5 and len(rec.attitude) > 5
-                          and rec.diagnostics, 30.0):
+    if not rec.spin_until(lambda: len(rec.torque) > 5 and len(rec.rate) > 5
+                          and len(rec.attitude) > 5 and rec.diagnostics, 30.0):
         raise AssertionError('loop did not start:\n' + ctl.output() + sim.output())
     assert all(r.successful for r in set_params(rec.node, namespace, mode=mode))
     return sim, ctl
@@ -157,8 +161,10 @@ def signed_error_about(attitudes, target, axis):
 def test_detumble_near_intermediate_axis(ros_process, namespace, rclpy_node):
     rec = Recorder(rclpy_node, namespace)
     w0 = [1e-3, 1.0, 1e-3]  # the intermediate-axis instability grows it ~e^(0.58 t) while we wait
-    sim, ctl = start_loop(rec, ros_process, namespace, 'detumble', sim_params=dict(initial_angular_velocity=w0))
-    assert rec.spin_until(lambda: rec.rate and np.linalg.norm(rec.rate[-1][1]) < 1e-3, 15.0), ctl.output()
+    sim, ctl = start_loop(rec, ros_process, namespace, 'detumble',
+                          sim_params=dict(initial_angular_velocity=w0))
+    assert rec.spin_until(lambda: rec.rate and np.linalg.norm(rec.rate[-1][1]) < 1e-3,
+                          15.0), ctl.output()
     t0, w_start = rec.torque_onset()
     t, w = rec.arrays('rate')
     norm = np.linalg.norm(w, axis=1)
@@ -174,7 +180,8 @@ def test_slew_90_critically_damped(ros_process, namespace, rclpy_node):
     rec = Recorder(rclpy_node, namespace)
     angle = math.pi / 2
     target = rotation.axis_rotation(2, angle)
-    sim, ctl = start_loop(rec, ros_process, namespace, 'slew', ctl_params=dict(target_attitude=list(target)))
+    sim, ctl = start_loop(rec, ros_process, namespace, 'slew',
+                          ctl_params=dict(target_attitude=list(target)))
     predicted = C.critical_settling_time(WN, 0.02)  # (1 + ω_n t) e^(−ω_n t) = 2 %
     rec.spin(1.3 * predicted + 1.0)
     t0, _ = rec.torque_onset()
@@ -192,7 +199,8 @@ def test_slew_90_critically_damped(ros_process, namespace, rclpy_node):
 
 def test_slew_179_and_retarget(ros_process, namespace, rclpy_node):
     rec = Recorder(rclpy_node, namespace)
-    sim, ctl = start_loop(rec, ros_process, namespace, 'slew')  # target: identity = current attitude
+    # target: identity = current attitude
+    sim, ctl = start_loop(rec, ros_process, namespace, 'slew')
     first = rotation.axis_rotation(2, math.radians(179.0))
     t_send = rclpy_node.get_clock().now().nanoseconds * 1e-9
     rec.send_target(first)
@@ -202,7 +210,8 @@ def test_slew_179_and_retarget(ros_process, namespace, rclpy_node):
     moving = t > t_send
     assert w[moving, 2].min() > -1e-3, 'turned the long way'
     turned = np.trapezoid(w[moving, 2], t[moving])
-    print(f'slew 179°: turned {math.degrees(turned):.2f}° about +z, min ω_z {w[moving, 2].min():.2e} rad/s')
+    print(f'slew 179°: turned {math.degrees(turned):.2f}° about +z, '
+          f'min ω_z {w[moving, 2].min():.2e} rad/s')
     assert turned == pytest.approx(math.radians(179.0), abs=math.radians(3.0))
     assert rotation.angle_between(q[-1], first) < 0.02 * math.radians(179.0)
     # A second target while slewing: send it 1.5 s into a new slew.
@@ -210,13 +219,15 @@ def test_slew_179_and_retarget(ros_process, namespace, rclpy_node):
     rec.send_target(rotation.axis_rotation(1, math.pi / 2))
     rec.spin(1.5)
     rec.send_target(second)
-    assert rec.spin_until(lambda: rotation.angle_between(rec.attitude[-1][1], second) < 0.02 * math.pi / 3, 12.0)
+    assert rec.spin_until(
+        lambda: rotation.angle_between(rec.attitude[-1][1], second) < 0.02 * math.pi / 3, 12.0)
     rec.spin(1.0)
     assert rotation.angle_between(rec.attitude[-1][1], second) < 0.02 * math.pi / 3
 
 
 def test_saturated_slew_converges(ros_process, namespace, rclpy_node):
-    """max_torque = 10 % of the unsaturated peak k_p,z sin(45°) = 2 I_z ω_n² sin 45° (at t0, ω = 0)."""
+    """max_torque = 10 % of the unsaturated peak k_p,z sin(45°) = 2 I_z ω_n² sin 45°
+    (at t0, ω = 0)."""
     rec = Recorder(rclpy_node, namespace)
     wn = 1.5
     angle = math.pi / 2
@@ -224,15 +235,20 @@ def test_saturated_slew_converges(ros_process, namespace, rclpy_node):
     limit = 0.1 * 2 * INERTIA[2] * wn ** 2 * math.sin(angle / 2)
     # The whole saturated start (the first 1/(2ω_n) s) is on record, see start_loop.
     sim, ctl = start_loop(rec, ros_process, namespace, 'slew',
-                          ctl_params=dict(natural_frequency=wn, max_torque=limit, target_attitude=list(target)))
-    assert rec.spin_until(lambda: rec.diagnostics and rec.last_diagnostic().get('saturation_active') == 'true',
-                          5.0), 'saturation never reported'  # saturated at the start (ω = 0, rate error max)
+                          ctl_params=dict(natural_frequency=wn, max_torque=limit,
+                                          target_attitude=list(target)))
+    # saturated at the start (ω = 0, rate error max)
+    assert rec.spin_until(lambda: (rec.diagnostics
+                                   and rec.last_diagnostic().get('saturation_active') == 'true'),
+                          5.0), 'saturation never reported'
     settle_band = 0.02 * angle
-    assert rec.spin_until(lambda: rotation.angle_between(rec.attitude[-1][1], target) < 0.1 * settle_band, 25.0)
+    assert rec.spin_until(
+        lambda: rotation.angle_between(rec.attitude[-1][1], target) < 0.1 * settle_band, 25.0)
     t_reached = rec.attitude[-1][0]
     rec.spin(2.0)
     t0, _ = rec.torque_onset()
-    print(f'saturated slew 90° (|τ| <= {limit:.4g} N·m, ω_n = {wn}): within 0.2 % of the angle after '
+    print(f'saturated slew 90° (|τ| <= {limit:.4g} N·m, ω_n = {wn}): '
+          'within 0.2 % of the angle after '
           f'{t_reached - t0:.3f} s')
     t, q = rec.arrays('attitude')
     err = signed_error_about(q, target, 2)
@@ -257,7 +273,8 @@ def test_stale_state_nan_target_modes_and_parameters(ros_process, namespace, rcl
     ctl = start_controller(ros_process, namespace, mode='detumble', state_timeout=0.3)
     att_pub = rclpy_node.create_publisher(QuaternionStamped, f'{namespace}/attitude', 10)
     rate_pub = rclpy_node.create_publisher(Vector3Stamped, f'{namespace}/angular_velocity', 10)
-    assert rec.spin_until(lambda: rate_pub.get_subscription_count() > 0 and len(rec.torque) > 2, 20.0), ctl.output()
+    assert rec.spin_until(lambda: rate_pub.get_subscription_count() > 0 and len(rec.torque) > 2,
+                          20.0), ctl.output()
     # No state yet: explicit zeros, still published.
     assert rec.torque[-1][1] == (0.0, 0.0, 0.0)
 
@@ -284,7 +301,8 @@ def test_stale_state_nan_target_modes_and_parameters(ros_process, namespace, rcl
     # Stale: stop publishing -> zeros after state_timeout.
     rec.spin(0.6)
     assert rec.torque[-1][1] == (0.0, 0.0, 0.0)
-    assert rec.spin_until(lambda: rec.diagnostics and float(rec.last_diagnostic()['state_age']) > 0.3, 3.0)
+    assert rec.spin_until(
+        lambda: rec.diagnostics and float(rec.last_diagnostic()['state_age']) > 0.3, 3.0)
     assert rec.diagnostics[-1].level == DiagnosticStatus.WARN
     # Old stamps are stale too.
     feed(0.5, age=1.0)
@@ -321,7 +339,8 @@ def test_stale_state_nan_target_modes_and_parameters(ros_process, namespace, rcl
     np.testing.assert_allclose(rec.torque[-1][1], tau_slew, atol=1e-9)
     assert rec.spin_until(lambda: rec.last_diagnostic().get('targets_rejected') == '4', 3.0)
     out = ctl.output()
-    for reason in ('not finite', 'not a unit quaternion', 'zero norm', "differs from the attitude's"):
+    for reason in ('not finite', 'not a unit quaternion', 'zero norm',
+                   "differs from the attitude's"):
         assert reason in out, reason
 
     results = set_params(mode='off')

@@ -8,9 +8,8 @@ import subprocess
 import sys
 
 import numpy as np
-import pytest
 
-from rigid_body_sim.engine import NS, Engine, EngineConfig
+from rigid_body_sim.engine import Engine, EngineConfig
 from rigid_body_sim.physics import rotation
 from rigid_body_sim.physics.exact import TorqueFreeSolution
 
@@ -24,10 +23,12 @@ def test_scene_engine_and_offline_run_need_no_ros():
     offline (no bag, no plots)."""
     block = '; '.join(f'sys.modules[{m!r}] = None' for m in ROS_MODULES)
     code = (f'import sys; {block}\n'
-            'import rigid_body_sim.scene as S, rigid_body_sim.engine, rigid_body_sim.offline as O\n'
+            'import rigid_body_sim.scene as S, rigid_body_sim.engine, '
+            'rigid_body_sim.offline as O\n'
             'for name, _, _ in S.list_scenes():\n'
             '    scene = S.load(name)\n'
-            '    r = O.simulate(scene, duration=2 / scene.simulator["publish_rate"], keep="none")\n'
+            '    r = O.simulate(scene, duration=2 / scene.simulator["publish_rate"], '
+            'keep="none")\n'
             '    assert r.sample_count == 3, name\n'
             'print("ok", len(S.list_scenes()))\n')
     out = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True,

@@ -91,3 +91,33 @@ def test_a_non_positive_step_is_refused_before_the_loop():
     with pytest.raises(IntegrationError, match='finite and positive'):
         integ.run(np.array([0, 0, 0, 1.0]), np.array(M0), float('nan'), 3)
     assert kernels.COMPILED
+
+
+_CONTROL = '''
+import json, numpy as np
+from rigid_body_sim import control as C
+rng = np.random.default_rng(7)
+out = []
+for k in range(60):
+    inertia = [[1.5, 0.1, 0.0], [0.1, 2.0, 0.2], [0.0, 0.2, 2.5]] if k % 2 else [1.0, 2.0, 2.5]
+    cfg = C.ControlConfig(inertia=inertia, natural_frequency=0.8, max_torque=(0.0, 0.05)[k % 2],
+                          gyroscopic_compensation=bool(k % 3))
+    q, w, t = rng.normal(size=4), rng.normal(size=3), rng.normal(size=4)
+    for mode in C.MODES:
+        law = C.AttitudeController(cfg, mode, t / np.linalg.norm(t))
+        r = law.compute(q / np.linalg.norm(q), w)
+        out.append(r.torque.tolist() + [r.saturated, r.rate_limited, r.error_angle])
+print(json.dumps(out))
+'''
+
+
+def test_control_law_compiled_and_plain_python_agree():
+    """The control law kernel: same torques, flags and error angles in both modes."""
+    runs = []
+    for disable in ('0', '1'):
+        out = subprocess.run([sys.executable, '-c', _CONTROL], capture_output=True, text=True,
+                             env=dict(os.environ, NUMBA_DISABLE_JIT=disable), timeout=600)
+        assert out.returncode == 0, out.stderr[-3000:]
+        runs.append(np.array(json.loads(out.stdout), dtype=float))
+    assert runs[0].shape == (180, 6) and runs[0][:, 3].any()  # some saturate
+    np.testing.assert_allclose(runs[0], runs[1], rtol=0, atol=1e-13)

@@ -86,7 +86,9 @@ def test_record_live_three_readers(ros_process, namespace, rclpy_node, tmp_path)
         rclpy_node.create_subscription(message_class(TOPICS[topic]), f'{namespace}/{topic}',
                                        lambda raw, t=topic: seen[t].append(raw),
                                        QoSProfile(depth=1000), raw=True)
-    pub = start_publisher(ros_process, namespace, rate=200, duration=2, subscribers=2)
+    # depth 1000: reliable delivery survives scheduling stalls on a loaded machine (README)
+    pub = start_publisher(ros_process, namespace, rate=200, duration=2, subscribers=2,
+                          depth=1000)
     assert spin_until(rclpy_node, lambda: all(len(v) == 400 for v in seen.values()), 30,
                       spinner(rclpy_node))
     sent = sent_counts(pub)

@@ -91,4 +91,5 @@ def reference(scene):
     return fine[0], fine[1], 'dop853 rtol 1e-13', float(rotation.angle_between(fine[0], looser[0]))
 
 
-__all__ = ['cpu', 'metrics', 'propagate', 'engine_for', 'timed', 'reference', 'invariants', 'IntegrationError', 'EPS']
+__all__ = ['cpu', 'metrics', 'propagate', 'engine_for', 'timed', 'reference', 'invariants',
+           'IntegrationError', 'EPS']

@@ -24,7 +24,8 @@ def _module_missing(name):
 def _not_measured(mod, quick):
     """The result dict when a live measurement can't run here, else None."""
     if quick:
-        return {'status': 'not measured (skipped in --quick: starts ROS processes; run without --quick)'}
+        return {'status': 'not measured (skipped in --quick: starts ROS processes; '
+                          'run without --quick)'}
     if _module_missing(mod):
         return {'status': f'not measured ({mod} not found)'}
     return None
@@ -38,12 +39,13 @@ def simulator(quick, log=print):
     try:
         # 1 kHz physics as the target states: splitting2 steps every 1 ms (auto would pick the
         # exact flow and evaluate it only at publish instants)
-        proc = subprocess.run([sys.executable, '-m', mod, '--integrator', 'splitting2'], capture_output=True,
-                              text=True, timeout=600)
+        proc = subprocess.run([sys.executable, '-m', mod, '--integrator', 'splitting2'],
+                              capture_output=True, text=True, timeout=600)
     except subprocess.TimeoutExpired:
         return {'status': f'not measured ({mod} timed out after 600 s)'}
     out = proc.stdout.strip()
-    result = {'status': 'ok' if proc.returncode == 0 else f'exit code {proc.returncode}', 'output': out[-2000:]}
+    result = {'status': 'ok' if proc.returncode == 0 else f'exit code {proc.returncode}',
+              'output': out[-2000:]}
     for line in reversed(out.splitlines()):
         try:
             data = json.loads(line)
@@ -81,7 +83,8 @@ def recorder(quick, log=print):
     if not (m_pub and m_rec):
         return {'status': f'not measured (loadtest output not understood; exit {proc.returncode}: '
                           f'{(proc.stderr or out).strip()[-300:]})'}
-    return {'status': 'ok', 'command': ' '.join(cmd[1:]), 'offered_msgs_per_s': RECORDER_RATE_HZ * 3,
+    return {'status': 'ok', 'command': ' '.join(cmd[1:]),
+            'offered_msgs_per_s': RECORDER_RATE_HZ * 3,
             'published': int(m_pub.group(1)), 'published_msgs_per_s': int(m_pub.group(3)),
             'recorded': int(m_rec.group(1)), 'recorded_msgs_per_s': int(m_rec.group(2)),
             'lost': int(m_rec.group(3))}

@@ -43,9 +43,11 @@ def _start(ns, integrator, rtf):
     exe = os.path.join(sys.prefix, 'lib', 'rigid_body_sim', 'simulator')
     cmd = [exe if os.path.exists(exe) else sys.executable, *([] if os.path.exists(exe) else
            ['-m', 'rigid_body_sim.nodes.simulator']),
-           '--ros-args', '-r', f'__ns:={ns}', '-p', f'integrator:={integrator}', '-p', f'step:={STEP}',
-           '-p', f'publish_rate:={PUBLISH_RATE}', '-p', f'real_time_factor:={rtf}']
-    return subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
+           '--ros-args', '-r', f'__ns:={ns}', '-p', f'integrator:={integrator}',
+           '-p', f'step:={STEP}', '-p', f'publish_rate:={PUBLISH_RATE}',
+           '-p', f'real_time_factor:={rtf}']
+    return subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                            start_new_session=True)
 
 
 def _cpu_seconds(pid):
@@ -71,7 +73,9 @@ def run(integrator='auto', subscribe=False, seconds=6.0) -> dict:
             diags = []
             sub = probe.create_subscription(
                 DiagnosticArray, '/diagnostics',
-                lambda a: diags.extend(s for s in a.status if s.hardware_id == f'{ns}/{NODE_NAME}'), 10)
+                lambda a: diags.extend(s for s in a.status
+                                       if s.hardware_id == f'{ns}/{NODE_NAME}'),
+                10)
             subs = []
             if subscribe:
                 from geometry_msgs.msg import (PoseStamped, QuaternionStamped, TransformStamped,
@@ -80,8 +84,10 @@ def run(integrator='auto', subscribe=False, seconds=6.0) -> dict:
                 from std_msgs.msg import Float64
                 for topic, t in (('attitude', QuaternionStamped), ('pose', PoseStamped),
                                  ('transform', TransformStamped), ('odometry', Odometry),
-                                 ('angular_velocity', Vector3Stamped), ('angular_momentum', Vector3Stamped),
-                                 ('angular_momentum_body', Vector3Stamped), ('kinetic_energy', Float64)):
+                                 ('angular_velocity', Vector3Stamped),
+                                 ('angular_momentum', Vector3Stamped),
+                                 ('angular_momentum_body', Vector3Stamped),
+                                 ('kinetic_energy', Float64)):
                     subs.append(probe.create_subscription(t, f'{ns}/{topic}', lambda m: None, 10))
             proc = _start(ns, integrator, rtf)
             try:
@@ -100,11 +106,12 @@ def run(integrator='auto', subscribe=False, seconds=6.0) -> dict:
                 values = [{kv.key: kv.value for kv in s.values} for s in diags]
                 achieved = [float(v['real_time_factor_achieved']) for v in values]
                 key = 'rtf0' if rtf == 0 else 'rtf1'
-                result[key] = {'achieved_real_time_factor': float(np.median(achieved)) if achieved else None,
-                               'cpu_percent_of_one_core': 100.0 * cpu,
-                               'integrator_used': values[-1]['integrator'] if values else None,
-                               'step_used_s': float(values[-1]['step']) if values else None,
-                               'missed_deadlines': int(values[-1]['missed_deadlines']) if values else None}
+                result[key] = {
+                    'achieved_real_time_factor': float(np.median(achieved)) if achieved else None,
+                    'cpu_percent_of_one_core': 100.0 * cpu,
+                    'integrator_used': values[-1]['integrator'] if values else None,
+                    'step_used_s': float(values[-1]['step']) if values else None,
+                    'missed_deadlines': int(values[-1]['missed_deadlines']) if values else None}
                 if values:
                     result['step_cost_us'].setdefault(values[-1]['integrator'], None)
             finally:
@@ -131,9 +138,11 @@ def main(argv=None):
     parser.add_argument('--seconds', type=float, default=6.0)
     args = parser.parse_args(argv)
     r = run(args.integrator, args.subscribe, args.seconds)
-    print(f'simulator benchmark: integrator {args.integrator}, step {STEP * 1e3:g} ms, publish {PUBLISH_RATE:g} Hz, '
+    print(f'simulator benchmark: integrator {args.integrator}, step {STEP * 1e3:g} ms, '
+          f'publish {PUBLISH_RATE:g} Hz, '
           f'subscribers on all topics: {args.subscribe}')
-    for key, label in (('rtf0', 'real_time_factor 0 (as fast as possible)'), ('rtf1', 'real_time_factor 1')):
+    for key, label in (('rtf0', 'real_time_factor 0 (as fast as possible)'),
+                       ('rtf1', 'real_time_factor 1')):
         v = r.get(key, {})
         rtf = v.get('achieved_real_time_factor')
         print(f'  {label}: achieved RTF {rtf if rtf is None else f"{rtf:.2f}"}, '
@@ -141,7 +150,8 @@ def main(argv=None):
               f'integrator {v.get("integrator_used")} step {v.get("step_used_s")}, '
               f'missed deadlines {v.get("missed_deadlines")}')
     for name, cost in r['step_cost_us'].items():
-        print(f'  Propagator.step {name}: {cost["free"]:.1f} us torque-free, {cost["torque"]:.1f} us with torque')
+        print(f'  Propagator.step {name}: {cost["free"]:.1f} us torque-free, '
+              f'{cost["torque"]:.1f} us with torque')
     return 0
 
 

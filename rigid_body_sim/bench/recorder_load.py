@@ -100,7 +100,8 @@ def benchmark(args: argparse.Namespace) -> int:
                             '-p', f'flush_period:={args.flush_period}'],
                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
                            env=env, start_new_session=True)
-    cmd = [sys.executable, '-m', 'rigid_body_sim.bench.recorder_load', 'publish', '--namespace', ns,
+    cmd = [sys.executable, '-m', 'rigid_body_sim.bench.recorder_load', 'publish',
+           '--namespace', ns,
            '--rate', str(args.rate), '--duration', str(args.duration),
            '--topics', ','.join(topics), '--linger', '1', '--depth', str(args.pub_depth)]
     if args.kill_after:

@@ -16,8 +16,8 @@ from ..scene import load
 
 FIELDS = ('scene', 'method', 'step', 'cpu_s', 'attitude_error', 'budget', 'meets_budget')
 FIXED = ('splitting2', 'splitting4', 'splitting6', 'rk4', 'implicit_midpoint', 'exact')
-DURATIONS = {'default': 30.0, 'slew': 15.0, 'detumble': 15.0, 'tennis_racket': 10.0, 'symmetric_top': 20.0,
-             'explorer1': 30.0, 'rigid_earth': 86164.0905 * 30}
+DURATIONS = {'default': 30.0, 'slew': 15.0, 'detumble': 15.0, 'tennis_racket': 10.0,
+             'symmetric_top': 20.0, 'explorer1': 30.0, 'rigid_earth': 86164.0905 * 30}
 QUICK = ('slew', 'tennis_racket', 'explorer1')
 
 
@@ -43,8 +43,9 @@ def run(quick, log=print):
 
         auto, auto_cpu = _timed_run(scene, duration)
         auto_err = error(auto)
-        rows.append(dict(scene=name, method=f'auto→{auto.integrator}', step=auto.step, cpu_s=auto_cpu,
-                         attitude_error=auto_err, budget=budget, meets_budget=auto_err <= budget))
+        rows.append(dict(scene=name, method=f'auto→{auto.integrator}', step=auto.step,
+                         cpu_s=auto_cpu, attitude_error=auto_err, budget=budget,
+                         meets_budget=auto_err <= budget))
         best = None
         for method in FIXED:
             step = scene.simulator['step']
@@ -55,23 +56,25 @@ def run(quick, log=print):
                 except IntegrationError:
                     err, cpu = math.inf, math.nan
                 ok = err <= budget
-                rows.append(dict(scene=name, method=method, step=step, cpu_s=cpu, attitude_error=err,
-                                 budget=budget, meets_budget=ok))
+                rows.append(dict(scene=name, method=method, step=step, cpu_s=cpu,
+                                 attitude_error=err, budget=budget, meets_budget=ok))
                 if ok:
                     if best is None or cpu < best[1]:
                         best = (f'{method} h={step:.3g}', cpu)
                     break  # smaller steps only cost more
                 step /= 2
         if best is None:
-            t_rows.append(targets.simple('auto CPU / cheapest fixed choice meeting the budget', math.nan, 2.0,
-                                         None, f'no fixed choice met {budget:g} rad', scene=name))
+            t_rows.append(targets.simple('auto CPU / cheapest fixed choice meeting the budget',
+                                         math.nan, 2.0, None,
+                                         f'no fixed choice met {budget:g} rad', scene=name))
             continue
         ratio = auto_cpu / best[1]
         ok = auto_err <= budget and ratio <= 2.0
-        note = (f'auto → {auto.integrator} h={auto.step:.3g} ({auto_cpu:.3g} s, error {auto_err:.2g}) vs '
+        note = (f'auto → {auto.integrator} h={auto.step:.3g} '
+                f'({auto_cpu:.3g} s, error {auto_err:.2g}) vs '
                 f'{best[0]} ({best[1]:.3g} s); budget {budget:g} rad' +
                 ('' if auto_err <= budget else '; auto MISSED the budget'))
-        t_rows.append(targets.simple('auto CPU / cheapest fixed choice meeting the budget', ratio, 2.0, ok, note,
-                                     scene=name))
+        t_rows.append(targets.simple('auto CPU / cheapest fixed choice meeting the budget',
+                                     ratio, 2.0, ok, note, scene=name))
         log(f'  {name:14s} {"PASS" if ok else "MISS"}  {note}; ratio {ratio:.2f}')
     return rows, t_rows

@@ -231,7 +231,8 @@ class Engine:
 
     # ------------------------------------------------------------------ stepping
     def _free_exact(self) -> bool:
-        return self.method == 'exact' and self._tau_p is None and not self.dynamics.dissipation.active
+        return (self.method == 'exact' and self._tau_p is None
+                and not self.dynamics.dissipation.active)
 
     def _anchored(self):
         if self._anchor is None:
@@ -336,7 +337,10 @@ class Engine:
         n0, n = float(np.linalg.norm(L0)), float(np.linalg.norm(L))
         torque_on = self._tau_body is not None
         na = 'n/a (torque applied)'
-        rel = (lambda a, b: (a - b) / b if b > 0 else 0.0)
+
+        def rel(a, b):
+            return (a - b) / b if b > 0 else 0.0
+
         c = self.command
         return {
             'integrator': self.method, 'integrator_reason': self.reason,

@@ -58,7 +58,8 @@ class ParamSpec:
         parts = []
         if self.kind in ('float', 'int', 'float_array'):
             lo = None if self.low is None else ('> ' if self.low_open else '>= ') + f'{self.low:g}'
-            hi = None if self.high is None else ('< ' if self.high_open else '<= ') + f'{self.high:g}'
+            hi = None if self.high is None else \
+                ('< ' if self.high_open else '<= ') + f'{self.high:g}'
             rng = ' and '.join(p for p in (lo, hi) if p)
             if rng:
                 parts.append(('each value ' if self.kind == 'float_array' else '') + rng)

@@ -30,7 +30,8 @@ SIMULATOR = (
               kind='float', low=0.0, note='applies at once, state continuous'),
     ParamSpec('integrator', AUTO,
               'integration method, or auto (chosen from the scene and accuracy)',
-              kind='string', choices=(AUTO,) + tuple(INTEGRATORS), note='may change while running'),
+              kind='string', choices=(AUTO,) + tuple(INTEGRATORS),
+              note='may change while running'),
     ParamSpec('step', 0.001, 'largest physics step (each interval between events is split '
               'into equal steps no longer than this; auto may choose a smaller one)',
               kind='float', unit='s', low=1e-9, high=1e7),

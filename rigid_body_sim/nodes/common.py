@@ -30,9 +30,7 @@ from ..engine.params import ParamSpec
 from ..engine.specs import QOS_CHOICES, frame_id_problem  # noqa: F401 (re-exported)
 
 # --- QoS ---------------------------------------------------------------------------------
-
-#: Names accepted by :func:`qos_profile` (the ``qos`` parameter of the nodes).
-QOS_CHOICES = ('reliable', 'sensor_data')
+# QOS_CHOICES (imported above): names accepted by :func:`qos_profile` (the ``qos`` parameter).
 
 
 def qos_profile(name: str = 'reliable', depth: int = 10) -> QoSProfile:
@@ -44,7 +42,8 @@ def qos_profile(name: str = 'reliable', depth: int = 10) -> QoSProfile:
     """
     if name == 'reliable':
         return QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=depth,
-                          reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.VOLATILE)
+                          reliability=ReliabilityPolicy.RELIABLE,
+                          durability=DurabilityPolicy.VOLATILE)
     if name == 'sensor_data':
         return qos_profile_sensor_data
     raise ValueError(f'unknown qos {name!r}; choose one of {", ".join(QOS_CHOICES)}')
@@ -98,8 +97,10 @@ def declare_parameters(node, specs: Sequence[ParamSpec]) -> Dict[str, Any]:
     return values
 
 
-def coerce_parameters(specs: Iterable[ParamSpec], parameters: Iterable[Parameter]) -> Dict[str, Any]:
-    """{name: value} for the given parameters that appear in ``specs``; ValueError(reason) if invalid.
+def coerce_parameters(specs: Iterable[ParamSpec],
+                      parameters: Iterable[Parameter]) -> Dict[str, Any]:
+    """{name: value} for the given parameters that appear in ``specs``; ValueError(reason) if
+    invalid.
 
     Parameters not in ``specs`` are ignored (e.g. ``use_sim_time``).
     """
@@ -112,9 +113,10 @@ def coerce_parameters(specs: Iterable[ParamSpec], parameters: Iterable[Parameter
     return out
 
 
-def validate_update(specs: Sequence[ParamSpec], current: Mapping[str, Any], parameters: Iterable[Parameter],
-                    check) -> SetParametersResult:
-    """The on-set-parameters answer: coerce, merge into ``current``, cross-check with ``check(merged)``.
+def validate_update(specs: Sequence[ParamSpec], current: Mapping[str, Any],
+                    parameters: Iterable[Parameter], check) -> SetParametersResult:
+    """The on-set-parameters answer: coerce, merge into ``current``, cross-check with
+    ``check(merged)``.
 
     Any ValueError becomes ``successful=False`` with its message as the reason.
     """
@@ -162,5 +164,7 @@ def format_value(value) -> str:
 def diagnostic_status(name: str, hardware_id: str, level: str, message: str,
                       values: Mapping[str, Any]) -> DiagnosticStatus:
     """A DiagnosticStatus with ``level`` 'OK' | 'WARN' | 'ERROR' | 'STALE' and key-values."""
-    return DiagnosticStatus(level=LEVELS[level], name=name, hardware_id=hardware_id, message=message,
-                            values=[KeyValue(key=k, value=format_value(v)) for k, v in values.items()])
+    return DiagnosticStatus(level=LEVELS[level], name=name, hardware_id=hardware_id,
+                            message=message,
+                            values=[KeyValue(key=k, value=format_value(v))
+                                    for k, v in values.items()])

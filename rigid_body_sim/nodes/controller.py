@@ -72,7 +72,8 @@ class Controller(Node):
     def __init__(self, **kwargs):
         super().__init__(NODE_NAME, **kwargs)
         self._p = declare_parameters(self, SPECS)  # ValueError on bad overrides
-        if self.get_parameter('mode').type_ != Parameter.Type.STRING:  # `mode:=off` arrived as false
+        # `mode:=off` arrived as false
+        if self.get_parameter('mode').type_ != Parameter.Type.STRING:
             self.set_parameters([Parameter('mode', Parameter.Type.STRING, self._p['mode'])])
         check_parameters(self._p)
         self._log = self.get_logger()
@@ -90,7 +91,8 @@ class Controller(Node):
         self._age = math.inf
         self._stale_reason = 'no state received yet'
         self._published = 0
-        self._ticks = self._saturated_ticks = self._rate_limited_ticks = 0  # since the last diagnostics
+        # since the last diagnostics
+        self._ticks = self._saturated_ticks = self._rate_limited_ticks = 0
         self._rejected_targets = 0
         self._last_reject = ''
         self._rejected_states = 0
@@ -98,9 +100,11 @@ class Controller(Node):
 
         qos = qos_profile(self._p['qos'])
         self._pub = self.create_publisher(Vector3Stamped, 'torque_command', qos)
-        self._diag_pub = self.create_publisher(DiagnosticArray, '/diagnostics', qos_profile('reliable'))
+        self._diag_pub = self.create_publisher(DiagnosticArray, '/diagnostics',
+                                               qos_profile('reliable'))
         self.create_subscription(QuaternionStamped, 'attitude', self._on_attitude, qos)
-        self.create_subscription(Vector3Stamped, 'angular_velocity', self._on_angular_velocity, qos)
+        self.create_subscription(Vector3Stamped, 'angular_velocity', self._on_angular_velocity,
+                                 qos)
         self.create_subscription(QuaternionStamped, 'attitude_target', self._on_target, qos)
         self._timer = self.create_timer(1.0 / self._p['control_rate'], self._tick)
         self.create_timer(DIAGNOSTICS_PERIOD_S, self._publish_diagnostics,
@@ -113,9 +117,12 @@ class Controller(Node):
     def _summary(self) -> str:
         c = self._ctl.config
         limit = 'unlimited' if not math.isfinite(c.torque_limit) else f'{c.torque_limit:g} N*m'
-        return (f'mode {self._ctl.mode}, {self._p["control_rate"]:g} Hz; kp {np.round(c.kp_principal, 6).tolist()}, '
-                f'kd {np.round(c.kd_principal, 6).tolist()}, K_w {np.round(c.rate_gain_principal, 6).tolist()} '
-                f'(principal axes), gyroscopic compensation {"on" if c.gyroscopic_compensation else "off"}, '
+        return (f'mode {self._ctl.mode}, {self._p["control_rate"]:g} Hz; '
+                f'kp {np.round(c.kp_principal, 6).tolist()}, '
+                f'kd {np.round(c.kd_principal, 6).tolist()}, '
+                f'K_w {np.round(c.rate_gain_principal, 6).tolist()} '
+                f'(principal axes), '
+                f'gyroscopic compensation {"on" if c.gyroscopic_compensation else "off"}, '
                 f'max_torque {limit}, target {np.round(self._ctl.target, 6).tolist()}')
 
     def _warn(self, key: str, text: str):
@@ -138,7 +145,8 @@ class Controller(Node):
         n = float(np.linalg.norm(q))
         if not (np.all(np.isfinite(q)) and n > 1e-6):
             self._rejected_states += 1
-            return self._warn('bad_attitude', f'attitude {q.tolist()} ignored: not a rotation (NaN/Inf or zero)')
+            return self._warn('bad_attitude', f'attitude {q.tolist()} ignored: '
+                                              'not a rotation (NaN/Inf or zero)')
         self._q = q / n
         self._q_stamp = self._stamp_or_now(msg.header)
         self._attitude_frame = msg.header.frame_id.lstrip('/')
@@ -163,7 +171,8 @@ class Controller(Node):
         except ValueError as exc:
             self._rejected_targets += 1
             self._last_reject = str(exc)
-            self._log.warn(f'attitude_target rejected: {exc}; keeping target {np.round(self._ctl.target, 6).tolist()}')
+            self._log.warn(f'attitude_target rejected: {exc}; '
+                           f'keeping target {np.round(self._ctl.target, 6).tolist()}')
             return
         self._log.info(f'new target {np.round(self._ctl.target, 6).tolist()}')
 
@@ -211,8 +220,9 @@ class Controller(Node):
 
     def _apply_parameters(self, params):
         changed = changed_values(SPECS, self._p, params)
-        if any(p.name == 'target_attitude' for p in params):  # setting it (even to the same value)
-            changed['target_attitude'] = coerce_parameters(SPECS, params)['target_attitude']  # re-asserts it
+        # setting it (even to the same value) re-asserts it
+        if any(p.name == 'target_attitude' for p in params):
+            changed['target_attitude'] = coerce_parameters(SPECS, params)['target_attitude']
         if not changed:
             return
         self._p.update(changed)
@@ -270,14 +280,15 @@ class Controller(Node):
         elif self._ctl.mode == 'detumble':
             level, message = 'OK', f'detumble: |w| = {rate:.3g} rad/s'
         else:
-            level, message = 'OK', f'slew: error {math.degrees(angle):.3g} deg, |w| = {rate:.3g} rad/s'
+            level, message = 'OK', (f'slew: error {math.degrees(angle):.3g} deg, '
+                                    f'|w| = {rate:.3g} rad/s')
         if self._saturated_ticks:
             message += ' (torque saturated)'
         elif self._rate_limited_ticks:
             message += ' (slew rate limited)'
         self._ticks = self._saturated_ticks = self._rate_limited_ticks = 0
-        status = diagnostic_status(f'{self.get_name()}: control', self.get_fully_qualified_name(), level,
-                                   message, values)
+        status = diagnostic_status(f'{self.get_name()}: control', self.get_fully_qualified_name(),
+                                   level, message, values)
         array = DiagnosticArray(status=[status])
         array.header.stamp = self.get_clock().now().to_msg()
         self._diag_pub.publish(array)

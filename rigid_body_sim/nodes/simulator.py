@@ -60,7 +60,10 @@ def check_parameters(p):
 
 
 class Simulator(Node):
-    """The ``attitude_simulator`` node. Build, then call :meth:`run` (or drive :meth:`run_once`)."""
+    """The ``attitude_simulator`` node.
+
+    Build, then call :meth:`run` (or drive :meth:`run_once`).
+    """
 
     def __init__(self, **kwargs):
         super().__init__(NODE_NAME, **kwargs)

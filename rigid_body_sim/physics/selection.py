@@ -42,27 +42,26 @@ def _is_symmetric(moments, rtol=1e-12):
     return abs(b - a) <= rtol * c or abs(c - b) <= rtol * c
 
 
-YIELD_EVERY = 64  # pilot steps between yields: a caller can interleave its own work
+YIELD_EVERY = 512  # pilot steps per chunk (< 1 ms compiled): a caller can interleave work
 
 
 def _pilot(name, dyn, q, m, h, horizon):
     """Generator: attitude at ``horizon`` with step h and CPU seconds per step (its return
-    value); None if the method fails. Yields every YIELD_EVERY steps."""
+    value); None if the method fails. Runs the method's own loop (``Integrator.run``, the
+    compiled kernel where there is one) in chunks of YIELD_EVERY steps, yielding between."""
     integ = create(name, dyn)
     n = max(1, int(round(horizon / h)))
     h = horizon / n
     spent = 0.0
-    t0 = time.thread_time()
     try:
-        for k in range(n):
-            q, m = integ.step(q, m, h, None, k * h)
-            if k % YIELD_EVERY == YIELD_EVERY - 1:
-                spent += time.thread_time() - t0
-                yield
-                t0 = time.thread_time()
+        for k in range(0, n, YIELD_EVERY):
+            t0 = time.thread_time()
+            q, m = integ.run(q, m, h, min(YIELD_EVERY, n - k), None, k * h)
+            spent += time.thread_time() - t0
+            yield
     except IntegrationError:
         return None
-    return q, (spent + time.thread_time() - t0) / n
+    return q, spent / n
 
 
 def _largest_step(name, dyn, q, m, accuracy, horizon, pilot, h_max):  # generator
@@ -72,9 +71,10 @@ def _largest_step(name, dyn, q, m, accuracy, horizon, pilot, h_max):  # generato
     for the horizon exceeds the budget: starting small would measure round-off, not the
     truncation error, and choose needlessly small steps.
     """
-    order = create(name, dyn).order
+    probe = create(name, dyn)
     h = h_max
     for _ in range(3):
+        order = probe.effective_order(m, h)
         coarse = yield from _pilot(name, dyn, q, m, h, pilot)
         fine = yield from _pilot(name, dyn, q, m, h / 2, pilot)
         if coarse is None or fine is None:
@@ -84,7 +84,8 @@ def _largest_step(name, dyn, q, m, accuracy, horizon, pilot, h_max):  # generato
         if predicted <= accuracy:
             return h, coarse[1], float(predicted)
         h *= 0.9 * (accuracy / predicted) ** (1.0 / order)
-    return h, coarse[1], float(predicted * (0.9 * (accuracy / predicted) ** (1.0 / order)) ** order)
+    shrink = 0.9 * (accuracy / predicted) ** (1.0 / order)
+    return h, coarse[1], float(predicted * shrink ** order)
 
 
 def select(body: RigidBody, dissipation: Dissipation, attitude, angular_velocity, *, torque: bool,
@@ -120,7 +121,8 @@ def selecting(body: RigidBody, dissipation: Dissipation, attitude, angular_veloc
     if not torque and not dissipation.active:
         shape = 'symmetric body: closed-form free precession' if _is_symmetric(moments) else \
             'Jacobi elliptic functions + Carlson integrals'
-        return Selection('exact', max_step, f'torque-free, no dissipation → exact solution ({shape}); '
+        return Selection('exact', max_step, 'torque-free, no dissipation → exact solution '
+                         f'({shape}); '
                          'no stepping error at any horizon', 0.0)
 
     dyn = Dynamics(moments, dissipation)
@@ -129,7 +131,8 @@ def selecting(body: RigidBody, dissipation: Dissipation, attitude, angular_veloc
     horizon = duration if duration > 0 else DEFAULT_HORIZON
     rate = np.max(np.abs(m / moments))
     if rate == 0.0:
-        return Selection('splitting2', max_step, 'body at rest: any step is exact for the free part; '
+        return Selection('splitting2', max_step, 'body at rest: any step is exact for the free '
+                         'part; '
                          'splitting2 is the cheapest structure-preserving method', 0.0)
     period = 2 * np.pi / rate
     pilot = min(horizon, 2 * period)  # two rotation periods (or the whole run if shorter)
@@ -158,6 +161,7 @@ def selecting(body: RigidBody, dissipation: Dissipation, attitude, angular_veloc
     effects = [e for e, on in (('commanded torque', torque), (f'{dissipation.model} dissipation',
                                                                 dissipation.active)) if on]
     stiff = f', dissipation stiffness h·λ = {h * stiffness:.2g}' if stiffness else ''
-    reason = (f'{" + ".join(effects)} → cheapest method meeting {accuracy:g} rad over {horizon:g} s '
+    reason = (f'{" + ".join(effects)} → cheapest method meeting {accuracy:g} rad over '
+              f'{horizon:g} s '
               f'(step doubling on a {pilot:.3g} s pilot{stiff}): ' + '; '.join(why))
     return Selection(name, h, reason, float(predicted))

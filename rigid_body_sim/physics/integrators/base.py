@@ -63,6 +63,11 @@ class Integrator:
     def _step(self, q, m, h, torque, t):
         raise NotImplementedError
 
+    def effective_order(self, m, h) -> int:
+        """The order on this dynamics at step h (measured by the tests per kind of scene);
+        methods whose order depends on the damping's stiffness override this."""
+        return self.order
+
     def run(self, q, m, h: float, n: int, torque: Optional[np.ndarray] = None, t0: float = 0.0):
         """``n`` steps of ``h`` from (q, m) at time t0; new arrays. Methods with a compiled
         loop (``physics.kernels``) override this for one body; IntegrationError names the

@@ -33,6 +33,7 @@ from .base import Integrator
 # as ranks of the principal moments (0 = smallest, 1 = intermediate, 2 = largest).
 _ORDER = (0, 2, 1)
 _BLOCK = 4096  # bodies per block in batch mode (fits temporaries in L2 cache)
+INNER_LIMIT = 0.5  # |w|·h·λ up to which damping goes inside the compositions (weak damping)
 
 
 def _axis_flow(q, m, axis, t, moments, xp):
@@ -125,10 +126,28 @@ class Splitting2(Integrator):
         self._model = kernels.MODEL_CODES[d.model] if d.active else 0
         self._coefficient = d.coefficient
 
+    def inner_dissipation(self, m, h) -> bool:
+        """Whether damping goes inside every stage of the composition (symmetric flow): for
+        compositions (order 4, 6) when damping is weak at step h, |w|·h·λ ≤ INNER_LIMIT with
+        λ the dissipation stiffness; the composition then keeps its order. Otherwise it
+        stays outside (no stage runs damping backwards) and the coupling is order 2."""
+        if self._model == 0 or len(self.weights) == 1:
+            return False
+        norm = float(np.max(np.linalg.norm(m, axis=-1)))
+        stiffness = self.dynamics.dissipation_stiffness(norm)
+        return stiffness * h * max(abs(w) for w in self.weights) <= INNER_LIMIT
+
+    def effective_order(self, m, h) -> int:
+        """The order this method has on this dynamics at step h (see inner_dissipation)."""
+        if self._model != 0 and not self.inner_dissipation(m, h):
+            return 2
+        return self.order
+
     def _kernel(self, q, m, h, n, tau, has_tau):
         weights, axes, moments = self._kernel_args
         failed, evals = kernels.splitting_run(q, m, h, n, weights, axes, moments, tau, has_tau,
-                                              self._model, self._coefficient)
+                                              self._model, self._coefficient,
+                                              self.inner_dissipation(m, h))
         self.nfev += evals
         return failed
 
@@ -168,16 +187,21 @@ class Splitting2(Integrator):
         return q_out.reshape(shape + (4,)), m_out.reshape(shape + (3,))
 
     def _components_step(self, qc, mc, h, tc, xp):
-        self._dissipate_components(mc, 0.5 * h, xp)
-        self._compose(qc, mc, h, tc, xp)
-        self._dissipate_components(mc, 0.5 * h, xp)
+        inner = self.inner_dissipation(np.stack(mc, axis=-1), h)
+        if not inner:
+            self._dissipate_components(mc, 0.5 * h, xp)
+        self._compose(qc, mc, h, tc, xp, inner)
+        if not inner:
+            self._dissipate_components(mc, 0.5 * h, xp)
         self.nfev += len(self.weights)
 
-    def _compose(self, qc, mc, h, tc, xp):
+    def _compose(self, qc, mc, h, tc, xp, inner=False):
         moments = self._moments_list
         a, b, c = self._axes
         for w in self.weights:
             hw = w * h
+            if inner:
+                self._dissipate_symmetric(mc, 0.5 * hw, xp)
             if tc is not None:
                 for i in range(3):
                     mc[i] = mc[i] + (0.5 * hw) * tc[i]
@@ -189,6 +213,30 @@ class Splitting2(Integrator):
             if tc is not None:
                 for i in range(3):
                     mc[i] = mc[i] + (0.5 * hw) * tc[i]
+            if inner:
+                self._dissipate_symmetric(mc, 0.5 * hw, xp)
+
+    def _dissipate_symmetric(self, mc, t, xp):
+        """D(t), time-symmetric (t of either sign): see kernels._double_bracket_symmetric."""
+        d = self.dynamics.dissipation
+        moments = self._moments_list
+        if d.model == 'viscous':
+            for i in range(3):
+                mc[i] = mc[i] * xp.exp(-d.coefficient * t / moments[i])
+            return
+        m0 = list(mc)
+        _rotate_about(mc, _bracket_velocity(m0, t, moments, d.coefficient), xp)
+        scale = xp.sqrt(m0[0] * m0[0] + m0[1] * m0[1] + m0[2] * m0[2])
+        self.nfev += 1
+        for _ in range(kernels.SYMMETRIC_MAX_ITER):
+            mid = [0.5 * (m0[i] + mc[i]) for i in range(3)]
+            new = list(m0)
+            _rotate_about(new, _bracket_velocity(mid, t, moments, d.coefficient), xp)
+            change = sum(abs(new[i] - mc[i]) for i in range(3))
+            mc[:] = new
+            self.nfev += 1
+            if np.all(change <= kernels.SYMMETRIC_TOL * scale):
+                break
 
     def _dissipate_components(self, mc, t, xp):
         d = self.dynamics.dissipation

@@ -1,0 +1,89 @@
+"""The attitude control law as a compiled kernel (plain float code that numba compiles).
+
+Same law as documented in :mod:`rigid_body_sim.control` (which calls this): error
+quaternion q_e = target* ⊗ q with q_e.w ≥ 0; detumble τ = −K_ω ω; slew
+τ = −k_d ⊙ (ω − ω_cmd) [+ ω × Iω], ω_cmd = −sat(k_p/k_d ⊙ e); then the torque vector is
+scaled to |τ| ≤ max_torque. Gains are per principal axis; ``axes`` holds the principal
+axes as columns in the body frame (v_principal = v_body @ axes).
+"""
+import math
+
+from .physics.kernels import jit
+
+MODE_CODES = {'off': 0, 'detumble': 1, 'slew': 2}
+
+
+@jit
+def control_torque(mode, q, w, target, axes, moments, kp, kd, kw, rate_limit, torque_limit,
+                   gyroscopic, inertia, tau, unsaturated):
+    """Body-frame torque into ``tau`` (and before saturation into ``unsaturated``) for
+    attitude q (x, y, z, w, body → inertial) and body rate w. Returns (saturated,
+    rate_limited, error angle in rad, |ω|)."""
+    tx, ty, tz, tw = -target[0], -target[1], -target[2], target[3]
+    ex = tw * q[0] + tx * q[3] + ty * q[2] - tz * q[1]
+    ey = tw * q[1] - tx * q[2] + ty * q[3] + tz * q[0]
+    ez = tw * q[2] + tx * q[1] - ty * q[0] + tz * q[3]
+    ew = tw * q[3] - tx * q[0] - ty * q[1] - tz * q[2]
+    angle = 2.0 * math.atan2(math.sqrt(ex * ex + ey * ey + ez * ez), abs(ew))
+    if ew < 0.0:
+        ex, ey, ez = -ex, -ey, -ez
+    rate_norm = math.sqrt(w[0] * w[0] + w[1] * w[1] + w[2] * w[2])
+    rate_limited = False
+    p = [0.0, 0.0, 0.0]  # principal-frame torque
+    if mode == 1:
+        for j in range(3):
+            wp = w[0] * axes[0, j] + w[1] * axes[1, j] + w[2] * axes[2, j]
+            p[j] = -kw[j] * wp
+    elif mode == 2:
+        wc = [0.0, 0.0, 0.0]
+        for j in range(3):
+            ep = ex * axes[0, j] + ey * axes[1, j] + ez * axes[2, j]
+            wc[j] = -(kp[j] / kd[j]) * ep
+        n = math.sqrt(wc[0] * wc[0] + wc[1] * wc[1] + wc[2] * wc[2])
+        if n > 0.0:
+            limit = rate_limit
+            if torque_limit < math.inf:  # the rate the torque bound can brake (README)
+                d0 = moments[0] * kp[0] / kd[0] * wc[0] / n
+                d1 = moments[1] * kp[1] / kd[1] * wc[1] / n
+                d2 = moments[2] * kp[2] / kd[2] * wc[2] / n
+                limit = min(rate_limit, torque_limit / math.sqrt(d0 * d0 + d1 * d1 + d2 * d2))
+            if n > limit:
+                for j in range(3):
+                    wc[j] *= limit / n
+                rate_limited = True
+        for j in range(3):
+            wp = w[0] * axes[0, j] + w[1] * axes[1, j] + w[2] * axes[2, j]
+            p[j] = -kd[j] * (wp - wc[j])
+    for i in range(3):
+        tau[i] = p[0] * axes[i, 0] + p[1] * axes[i, 1] + p[2] * axes[i, 2]
+    if mode == 2 and gyroscopic:
+        iw0 = inertia[0, 0] * w[0] + inertia[0, 1] * w[1] + inertia[0, 2] * w[2]
+        iw1 = inertia[1, 0] * w[0] + inertia[1, 1] * w[1] + inertia[1, 2] * w[2]
+        iw2 = inertia[2, 0] * w[0] + inertia[2, 1] * w[1] + inertia[2, 2] * w[2]
+        tau[0] += w[1] * iw2 - w[2] * iw1
+        tau[1] += w[2] * iw0 - w[0] * iw2
+        tau[2] += w[0] * iw1 - w[1] * iw0
+    for i in range(3):
+        unsaturated[i] = tau[i]
+    norm = math.sqrt(tau[0] * tau[0] + tau[1] * tau[1] + tau[2] * tau[2])
+    saturated = norm > torque_limit
+    if saturated:
+        for i in range(3):
+            tau[i] *= torque_limit / norm
+    return saturated, rate_limited, angle, rate_norm
+
+
+def warm():
+    """Compile (or load from the cache) the control kernel for both argument layouts."""
+    import numpy as np
+    eye = np.eye(3)
+    ones = np.ones(3)
+    for writeable in (True, False):
+        args = [eye.copy(), ones.copy(), ones.copy(), ones.copy(), ones.copy(), eye.copy()]
+        for a in args:
+            a.setflags(write=writeable)
+        axes, moments, kp, kd, kw, inertia = args
+        for mode in (0, 1, 2):
+            control_torque(mode, np.array([0.0, 0.0, 0.0, 1.0]), np.zeros(3),
+                           np.array([0.0, 0.0, 0.0, 1.0]), axes, moments, kp, kd, kw, np.inf,
+                           np.inf, True, inertia, np.empty(3), np.empty(3))
