@@ -57,6 +57,8 @@ class Engine:
     def _start(self, t_ns: int):
         c = self.config
         self.body = self._builder.body = c.body
+        # principal frame = body frame (diagonal inertia): skip the frame conversions at events
+        self._aligned = bool(np.array_equal(c.body.principal_axes, np.eye(3)))
         self.dynamics = Dynamics(self.body.principal_moments, c.dissipation)
         self._q = self.body.attitude_to_principal(c.attitude)
         self._m = self.body.principal_moments * self.body.to_principal(c.angular_velocity)
@@ -90,12 +92,13 @@ class Engine:
     @property
     def attitude(self):
         """Quaternion (x, y, z, w), body → inertial."""
-        return self.body.attitude_to_body(self._q)
+        return self._q.copy() if self._aligned else self.body.attitude_to_body(self._q)
 
     @property
     def angular_velocity(self):
         """ω, body frame, rad/s."""
-        return self.body.to_body(self._m / self.body.principal_moments)
+        w = self._m / self.body.principal_moments
+        return w if self._aligned else self.body.to_body(w)
 
     @property
     def angular_momentum(self):
@@ -218,8 +221,10 @@ class Engine:
     def _update_torque(self):
         active = [s.torque for s in self.sources if s.torque is not None]
         before = self._tau_body
-        self._tau_body = None if not active else np.sum(active, axis=0)
-        self._tau_p = None if self._tau_body is None else self.body.to_principal(self._tau_body)
+        self._tau_body = None if not active else active[0] if len(active) == 1 else \
+            np.sum(active, axis=0)
+        self._tau_p = None if self._tau_body is None else \
+            self._tau_body if self._aligned else self.body.to_principal(self._tau_body)
         if self._tau_body is not None:
             self._anchor = None
             if not self._torque_seen:

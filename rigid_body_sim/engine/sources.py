@@ -117,6 +117,7 @@ class ControlLaw(TorqueSource):
 
     def on_event(self, t_ns, attitude, angular_velocity):
         tau, _, _ = self.evaluate(t_ns / 1e9, attitude, angular_velocity)
-        tau = np.clip(tau, -self.clip, self.clip)
+        if self.clip < math.inf:
+            tau = np.clip(tau, -self.clip, self.clip)
         self.torque = tau if tau.any() else None
         self.next_t = t_ns + self.settings.period_ns

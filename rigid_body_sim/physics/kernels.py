@@ -149,25 +149,16 @@ def _double_bracket_symmetric(m, t, moments, alpha):
 
 
 @jit
-def _dissipate_symmetric(m, t, moments, model, coefficient):
-    """D(t) by a time-symmetric flow (exact for viscous); returns rotations evaluated."""
+def _dissipate(m, t, moments, model, coefficient, symmetric):
+    """D(t); ``symmetric``: by a time-symmetric flow (t of either sign). Viscous damping is
+    exact either way. Returns the dissipative sub-flows evaluated (for nfev)."""
     if model == 2:
         for i in range(3):
             m[i] = m[i] * math.exp(-coefficient * t / moments[i])
         return 0
     if model == 1:
-        return _double_bracket_symmetric(m, t, moments, coefficient)
-    return 0
-
-
-@jit
-def _dissipate(m, t, moments, model, coefficient):
-    """D(t); returns the number of dissipative sub-flows evaluated (for nfev)."""
-    if model == 2:
-        for i in range(3):
-            m[i] = m[i] * math.exp(-coefficient * t / moments[i])
-        return 0
-    if model == 1:
+        if symmetric:
+            return _double_bracket_symmetric(m, t, moments, coefficient)
         return 2 * _double_bracket(m, t, moments, coefficient)
     return 0
 
@@ -185,11 +176,11 @@ def splitting_run(q, m, h, n, weights, axes, moments, tau, has_tau, model, coeff
     evals = 0
     for k in range(n):
         if not inner:
-            evals += _dissipate(m, 0.5 * h, moments, model, coefficient)
+            evals += _dissipate(m, 0.5 * h, moments, model, coefficient, False)
         for j in range(len(weights)):
             hw = weights[j] * h
             if inner:
-                evals += _dissipate_symmetric(m, 0.5 * hw, moments, model, coefficient)
+                evals += _dissipate(m, 0.5 * hw, moments, model, coefficient, True)
             if has_tau:
                 for i in range(3):
                     m[i] = m[i] + (0.5 * hw) * tau[i]
@@ -202,9 +193,9 @@ def splitting_run(q, m, h, n, weights, axes, moments, tau, has_tau, model, coeff
                 for i in range(3):
                     m[i] = m[i] + (0.5 * hw) * tau[i]
             if inner:
-                evals += _dissipate_symmetric(m, 0.5 * hw, moments, model, coefficient)
+                evals += _dissipate(m, 0.5 * hw, moments, model, coefficient, True)
         if not inner:
-            evals += _dissipate(m, 0.5 * h, moments, model, coefficient)
+            evals += _dissipate(m, 0.5 * h, moments, model, coefficient, False)
         evals += len(weights)
         if not _finite(q, m):
             return k, evals
