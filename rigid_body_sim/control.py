@@ -382,23 +382,3 @@ class Mission:
             return False, 'slew'
         return False, None
 
-
-def mission_from_parameters(params):
-    """(controller, mission, control_period) for an offline run of the node's parameters.
-
-    ``params``: {name: value} of the ``attitude_controller`` parameters (as coerced by the
-    node's SPECS; missing ones take :data:`PARAMETER_DEFAULTS`; node-only ones such as
-    ``state_timeout``, ``child_frame_id``, ``qos`` are ignored). ``control_period`` =
-    1 / control_rate, s. Raises ValueError(reason).
-    """
-    p = dict(PARAMETER_DEFAULTS, **{k: v for k, v in params.items() if k in PARAMETER_DEFAULTS})
-    rate = float(p['control_rate'])
-    if not (math.isfinite(rate) and rate > 0.0):
-        raise ValueError(f'control_rate must be > 0 Hz, got {rate}')
-    try:
-        target = validated_target(p['target_attitude'])
-    except ValueError as exc:
-        raise ValueError(f'target_attitude: {exc}') from None
-    controller = AttitudeController(config_from_parameters(p), p['mode'], target)
-    mission = Mission(p['mission.free_time'], p['mission.detumble_exit_rate'])
-    return controller, mission, 1.0 / rate

@@ -319,30 +319,34 @@ def test_rigid_body_import_is_the_physics_one():
     assert isinstance(C.ControlConfig(inertia=INERTIA).body, RigidBody)
 
 
-def test_mission_from_parameters_for_offline_runs():
+def test_control_settings_from_the_node_parameters():
+    """The engine's ControlLaw is built from the controller node's parameters and specs."""
+    from rigid_body_sim.engine import ControlLaw, ControlSettings
     from rigid_body_sim.nodes.controller import SPECS  # the node's defaults are the law's
     defaults = {s.name: s.default for s in SPECS}
     for name, value in C.PARAMETER_DEFAULTS.items():
         assert defaults[name] == value, name
-    ctl, mission, period = C.mission_from_parameters(
+    law = ControlLaw(ControlSettings.from_parameters(
         {'mode': 'slew', 'natural_frequency': [1.0], 'control_rate': 25.0,
-         'target_attitude': [0, 0, 1, 0], 'state_timeout': 0.3})
-    assert not mission.active and period == pytest.approx(0.04)
-    assert ctl.mode == 'slew'
-    np.testing.assert_allclose(ctl.target, [0, 0, 1, 0])
-    np.testing.assert_allclose(ctl.config.kp_principal, 2 * np.array(INERTIA))
+         'target_attitude': [0, 0, 1, 0], 'state_timeout': 0.3}))
+    assert not law.mission.active and law.settings.period_ns == 40_000_000
+    assert law.controller.mode == 'slew'
+    np.testing.assert_allclose(law.controller.target, [0, 0, 1, 0])
+    np.testing.assert_allclose(law.controller.config.kp_principal, 2 * np.array(INERTIA))
     with pytest.raises(ValueError, match='target_attitude'):
-        C.mission_from_parameters({'target_attitude': [0, 0, 0, 0]})
-    with pytest.raises(ValueError, match='unknown mode'):
-        C.mission_from_parameters({'mode': 'spin'})
-    with pytest.raises(ValueError, match='mission.free_time must be finite and >= 0'):
-        C.mission_from_parameters({'mission.free_time': -1.0})
+        ControlSettings.from_parameters({'target_attitude': [0, 0, 0, 0]})
+    with pytest.raises(ValueError, match="mode = 'spin' is not one of"):
+        ControlSettings.from_parameters({'mode': 'spin'})
+    with pytest.raises(ValueError, match='mission.free_time = -1 out of range'):
+        ControlSettings.from_parameters({'mission.free_time': -1.0})
 
 
 def test_mission_free_phase_then_detumble_then_slew():
     """Zero torque for free_time (state time), then detumble until |ω| < exit rate, then slew."""
-    ctl, mission, _ = C.mission_from_parameters({'mode': 'detumble', 'mission.free_time': 2.0,
-                                                 'mission.detumble_exit_rate': 0.05})
+    from rigid_body_sim.engine import ControlLaw, ControlSettings
+    law = ControlLaw(ControlSettings.from_parameters(
+        {'mode': 'detumble', 'mission.free_time': 2.0, 'mission.detumble_exit_rate': 0.05}))
+    ctl, mission = law.controller, law.mission
     assert mission.active
     assert mission.update(ctl, 10.0, [0.0, 1.0, 0.0]) == (True, None)   # first state: t0 = 10 s
     assert mission.update(ctl, 11.9, [0.0, 1.0, 0.0]) == (True, None)
