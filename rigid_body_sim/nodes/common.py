@@ -135,13 +135,6 @@ def changed_values(specs: Sequence[ParamSpec], current: Mapping[str, Any],
 
 # --- time ------------------------------------------------------------------------------
 
-def set_stamp(stamp: Time, seconds: float) -> Time:
-    """Write ``seconds`` (>= 0) into a builtin_interfaces/Time in place (nanosecond rounding)."""
-    ns = int(round(seconds * 1e9))
-    stamp.sec, stamp.nanosec = divmod(ns, 1_000_000_000)
-    return stamp
-
-
 def stamp_to_seconds(stamp: Time) -> float:
     return stamp.sec + 1e-9 * stamp.nanosec
 
