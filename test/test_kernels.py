@@ -29,6 +29,15 @@ for name, model in json.loads(sys.argv[1]):
     q0 = np.array(%r); q0 /= np.linalg.norm(q0)
     q, m = integ.run(q0, np.array(%r), 0.01, 300, np.array(%r), 0.0)
     out[name + "/" + model] = [q.tolist(), m.tolist(), integ.nfev]
+from rigid_body_sim.engine import Engine, EngineConfig  # the compiled closed loop
+engine = Engine(EngineConfig.from_parameters(
+    {"inertia": [1.0, 2.0, 3.0], "integrator": "splitting4",
+     "initial_angular_velocity": [0.3, -0.2, 0.4], "publish_rate": 2.0, "duration": 5.0},
+    {"mode": "slew", "target_attitude": [0.0, 0.0, 0.6, 0.8], "control_rate": 20.0}))
+for _ in engine.run():
+    pass
+q, m = engine.principal_state
+out["closed_loop"] = [q.tolist(), m.tolist(), engine.integrator.nfev]
 print(json.dumps(out))
 ''' % (MOMENTS, Q0, M0, TAU)
 

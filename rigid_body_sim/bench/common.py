@@ -61,6 +61,23 @@ def propagate(scene, method, h=None, **options):
     return q, m, engine
 
 
+def timed_engine(make, repeat_below=0.05, repeats=3):
+    """(min CPU seconds of the run, (q, m, engine) of the last run): ``make()`` builds a
+    fresh engine outside the timed region (as MuJoCo's model is built outside its timer);
+    only ``engine.run()`` is timed. Short runs are repeated, the minimum kept."""
+    best, engine = np.inf, None
+    for i in range(repeats):
+        engine = make()
+        t0 = cpu()
+        for _ in engine.run():
+            pass
+        best = min(best, cpu() - t0)
+        if best > repeat_below:
+            break
+    q, m = engine.principal_state
+    return best, (q, m, engine)
+
+
 def timed(run, repeat_below=0.05, repeats=3):
     """(min CPU seconds, result of the last run); short runs are repeated, the minimum kept."""
     best, out = np.inf, None
@@ -91,5 +108,5 @@ def reference(scene):
     return fine[0], fine[1], 'dop853 rtol 1e-13', float(rotation.angle_between(fine[0], looser[0]))
 
 
-__all__ = ['cpu', 'metrics', 'propagate', 'engine_for', 'timed', 'reference', 'invariants',
-           'IntegrationError', 'EPS']
+__all__ = ['cpu', 'metrics', 'propagate', 'engine_for', 'timed', 'timed_engine', 'reference',
+           'invariants', 'IntegrationError', 'EPS']

@@ -9,7 +9,7 @@ import math
 
 
 from ..physics import INTEGRATORS, IntegrationError
-from .common import metrics, propagate, timed
+from .common import engine_for, metrics, timed, timed_engine
 
 FIELDS = ('scene', 'method', 'family', 'kind', 'param', 'steps', 'cpu_s', 'nfev', 'attitude_error',
           'omega_error', 'energy_drift', 'momentum_drift', 'status')
@@ -67,14 +67,9 @@ def sweep_ours(scene, ref, budget, quick, log=print):
                             f'{scene.name}/{name}: {kind}={p:.3g}', log):
                 break
             opts = {'rtol': p, 'atol': p * 1e-3} if kind == 'rtol' else {}
-            box = {}
-
-            def run():
-                q, m, engine = propagate(scene, name, None if kind == 'rtol' else p, **opts)
-                box['engine'] = engine
-                return q, m
             try:
-                cost, (q, m) = timed(run)
+                cost, (q, m, engine) = timed_engine(
+                    lambda: engine_for(scene, name, None if kind == 'rtol' else p, **opts))
             except IntegrationError as exc:
                 rows.append(_row(scene, name, 'ours', kind, p, steps, float('nan'), 0, None,
                                  f'blown up at h={p:.3g}: {exc.reason}'))
@@ -83,7 +78,7 @@ def sweep_ours(scene, ref, budget, quick, log=print):
             last = (cost, steps)
             err = metrics(scene, q, m, q_ref, m_ref)
             rows.append(_row(scene, name, 'ours', kind, p, steps, cost,
-                             box['engine'].integrator.nfev + box['engine'].evaluations, err))
+                             engine.integrator.nfev + engine.evaluations, err))
             e = err['attitude_error']
             if e <= FLOOR:
                 break

@@ -302,4 +302,6 @@ def warm():
     euler_run(q, m, 1e-3, 1, moments, tau, 0, 0.0)
     from ..control_kernel import warm as warm_control
     warm_control()
+    from ..engine.closed_loop import warm as warm_closed_loop
+    warm_closed_loop()
     return COMPILED

@@ -92,6 +92,11 @@ class Integrator:
     def reset(self):
         """Forget any state carried between steps (caches, solver warm starts)."""
 
+    def loop_spec(self):
+        """(weights, split_axes) of this method's compiled one-body loop for kernels that
+        drive it themselves (the engine's compiled closed loop), or None if it has none."""
+        return None
+
     @classmethod
     def describe(cls) -> dict:
         return {'name': cls.name, 'order': cls.order, 'implicit': cls.implicit,

@@ -34,6 +34,9 @@ class _ExplicitRK(Integrator):
         self.nfev += self._stages * (n if failed < 0 else failed + 1)
         return failed
 
+    def loop_spec(self):
+        return np.ones(1), np.array([0, 2, 1])  # unused by the Runge–Kutta loops
+
     def run(self, q, m, h, n, torque=None, t0=0.0):
         if np.ndim(q) != 1 or np.ndim(m) != 1:
             return super().run(q, m, h, n, torque, t0)

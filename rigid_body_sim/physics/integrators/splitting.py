@@ -151,6 +151,9 @@ class Splitting2(Integrator):
         self.nfev += evals
         return failed
 
+    def loop_spec(self):
+        return self._kernel_args[0], self._kernel_args[1]
+
     def run(self, q, m, h, n, torque=None, t0=0.0):
         """One body: the compiled loop (physics.kernels); a batch: the numpy path."""
         if np.ndim(q) != 1 or np.ndim(m) != 1:
