@@ -29,33 +29,33 @@ def control_torque(mode, q, w, target, axes, moments, kp, kd, kw, rate_limit, to
         ex, ey, ez = -ex, -ey, -ez
     rate_norm = math.sqrt(w[0] * w[0] + w[1] * w[1] + w[2] * w[2])
     rate_limited = False
-    p = [0.0, 0.0, 0.0]  # principal-frame torque
+    # principal-frame rates, error and torque as scalars (no allocation per call)
+    w0 = w[0] * axes[0, 0] + w[1] * axes[1, 0] + w[2] * axes[2, 0]
+    w1 = w[0] * axes[0, 1] + w[1] * axes[1, 1] + w[2] * axes[2, 1]
+    w2 = w[0] * axes[0, 2] + w[1] * axes[1, 2] + w[2] * axes[2, 2]
+    p0 = p1 = p2 = 0.0
     if mode == 1:
-        for j in range(3):
-            wp = w[0] * axes[0, j] + w[1] * axes[1, j] + w[2] * axes[2, j]
-            p[j] = -kw[j] * wp
+        p0, p1, p2 = -kw[0] * w0, -kw[1] * w1, -kw[2] * w2
     elif mode == 2:
-        wc = [0.0, 0.0, 0.0]
-        for j in range(3):
-            ep = ex * axes[0, j] + ey * axes[1, j] + ez * axes[2, j]
-            wc[j] = -(kp[j] / kd[j]) * ep
-        n = math.sqrt(wc[0] * wc[0] + wc[1] * wc[1] + wc[2] * wc[2])
+        wc0 = -(kp[0] / kd[0]) * (ex * axes[0, 0] + ey * axes[1, 0] + ez * axes[2, 0])
+        wc1 = -(kp[1] / kd[1]) * (ex * axes[0, 1] + ey * axes[1, 1] + ez * axes[2, 1])
+        wc2 = -(kp[2] / kd[2]) * (ex * axes[0, 2] + ey * axes[1, 2] + ez * axes[2, 2])
+        n = math.sqrt(wc0 * wc0 + wc1 * wc1 + wc2 * wc2)
         if n > 0.0:
             limit = rate_limit
             if torque_limit < math.inf:  # the rate the torque bound can brake (README)
-                d0 = moments[0] * kp[0] / kd[0] * wc[0] / n
-                d1 = moments[1] * kp[1] / kd[1] * wc[1] / n
-                d2 = moments[2] * kp[2] / kd[2] * wc[2] / n
+                d0 = moments[0] * kp[0] / kd[0] * wc0 / n
+                d1 = moments[1] * kp[1] / kd[1] * wc1 / n
+                d2 = moments[2] * kp[2] / kd[2] * wc2 / n
                 limit = min(rate_limit, torque_limit / math.sqrt(d0 * d0 + d1 * d1 + d2 * d2))
             if n > limit:
-                for j in range(3):
-                    wc[j] *= limit / n
+                wc0 *= limit / n
+                wc1 *= limit / n
+                wc2 *= limit / n
                 rate_limited = True
-        for j in range(3):
-            wp = w[0] * axes[0, j] + w[1] * axes[1, j] + w[2] * axes[2, j]
-            p[j] = -kd[j] * (wp - wc[j])
+        p0, p1, p2 = -kd[0] * (w0 - wc0), -kd[1] * (w1 - wc1), -kd[2] * (w2 - wc2)
     for i in range(3):
-        tau[i] = p[0] * axes[i, 0] + p[1] * axes[i, 1] + p[2] * axes[i, 2]
+        tau[i] = p0 * axes[i, 0] + p1 * axes[i, 1] + p2 * axes[i, 2]
     if mode == 2 and gyroscopic:
         iw0 = inertia[0, 0] * w[0] + inertia[0, 1] * w[1] + inertia[0, 2] * w[2]
         iw1 = inertia[1, 0] * w[0] + inertia[1, 1] * w[1] + inertia[1, 2] * w[2]

@@ -35,16 +35,16 @@ def metrics(scene, q, m, q_ref, m_ref):
 def engine_for(scene, method, h=None, **options):
     """The simulation engine on a bench scene: one sample at the end, fixed steps h (or,
     h None, one adaptive call per interval between events: the whole horizon, or each
-    control period for the slew), the slew's law as the in-process control source."""
+    control period for controlled scenes), their law as the in-process control source."""
     ns = int(round(scene.t_end * NS))
     control = None
-    if scene.slew is not None:
-        s = scene.slew
+    if scene.control is not None:
+        s = scene.control
         law = ControlConfig(inertia=scene.moments, natural_frequency=s.natural_frequency,
                             damping_ratio=s.damping_ratio, gyroscopic_compensation=False)
-        control = ControlSettings(law, 'slew', np.asarray(s.target, float) /
+        control = ControlSettings(law, s.mode, np.asarray(s.target, float) /
                                   np.linalg.norm(s.target), int(round(s.period * NS)))
-    step = h if h is not None else (scene.slew.period if scene.slew else scene.t_end)
+    step = h if h is not None else (scene.control.period if scene.control else scene.t_end)
     config = EngineConfig(RigidBody.from_inertia(scene.moments), scene.dissipation,
                           scene.q0_array, np.asarray(scene.omega0, float), integrator=method,
                           step=step, sample_period_ns=ns, duration_ns=ns, max_torque=np.inf,

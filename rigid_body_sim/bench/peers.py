@@ -68,17 +68,17 @@ def _scipy(method):
         rhs = _rhs_factory(scene)
         y = np.r_[scene.q0_array, scene.m0]
         nfev = 0
-        if scene.slew is None:
+        if scene.control is None:
             sol = solve_ivp(rhs, (0.0, scene.t_end), y, method=method, rtol=rtol, atol=rtol * 1e-3)
             if not sol.success:
                 raise RuntimeError(sol.message)
             y, nfev = sol.y[:, -1], sol.nfev
         else:
             moments = np.asarray(scene.moments, float)
-            period = scene.slew.period
+            period = scene.control.period
             for k in range(int(round(scene.t_end / period))):
                 q = y[:4] / math.sqrt(float(np.dot(y[:4], y[:4])))
-                tau = tuple(float(v) for v in scene.slew.torque(moments, q, y[4:]))
+                tau = tuple(float(v) for v in scene.control.torque(moments, q, y[4:]))
                 sol = solve_ivp(rhs, (0.0, period), y, method=method, rtol=rtol,
                                 atol=rtol * 1e-3, args=(tau,))
                 if not sol.success:
@@ -112,16 +112,16 @@ def _mujoco(integrator, stages):
         data.qpos[3:7] = (q0[3], q0[0], q0[1], q0[2])
         data.qvel[3:6] = scene.m0 / moments
         t0 = cpu()
-        if scene.slew is None:
+        if scene.control is None:
             n = int(round(scene.t_end / h))
             mujoco.mj_step(model, data, nstep=n)
         else:
-            period = scene.slew.period
+            period = scene.control.period
             n_sub = int(round(period / h))
             n = 0
             for _ in range(int(round(scene.t_end / period))):
                 q = np.r_[data.qpos[4:7], data.qpos[3]]
-                data.qfrc_applied[3:6] = scene.slew.torque(moments, q, data.qvel[3:6] * moments)
+                data.qfrc_applied[3:6] = scene.control.torque(moments, q, data.qvel[3:6] * moments)
                 mujoco.mj_step(model, data, nstep=n_sub)
                 n += n_sub
         elapsed = cpu() - t0
@@ -146,8 +146,8 @@ def _basilisk(cls_name, adaptive, stages=None):
         from .common import cpu
         bskLogging.setDefaultLogLevel(bskLogging.BSK_WARNING)
         moments = np.asarray(scene.moments, float)
-        if scene.slew is not None:
-            task = scene.slew.period if adaptive else param
+        if scene.control is not None:
+            task = scene.control.period if adaptive else param
         else:
             task = min(scene.t_end, 10.0) if adaptive else param
         sim = SimulationBaseClass.SimBaseClass()
@@ -166,7 +166,7 @@ def _basilisk(cls_name, adaptive, stages=None):
         sc.setIntegrator(integ)
         sim.AddModelToTask('t', sc)
         ext = None
-        if scene.slew is not None:
+        if scene.control is not None:
             ext = extForceTorque.ExtForceTorque()
             sc.addDynamicEffector(ext)
             sim.AddModelToTask('t', ext)
@@ -178,14 +178,14 @@ def _basilisk(cls_name, adaptive, stages=None):
             return Rotation.from_matrix(r).as_quat(), np.array(st.omega_BN_B, float) * moments
 
         t0 = cpu()
-        if scene.slew is None:
+        if scene.control is None:
             sim.ConfigureStopTime(macros.sec2nano(scene.t_end))
             sim.ExecuteSimulation()
         else:
-            period = scene.slew.period
+            period = scene.control.period
             for k in range(int(round(scene.t_end / period))):
                 q, m = state()
-                ext.extTorquePntB_B = [[float(v)] for v in scene.slew.torque(moments, q, m)]
+                ext.extTorquePntB_B = [[float(v)] for v in scene.control.torque(moments, q, m)]
                 sim.ConfigureStopTime(macros.sec2nano((k + 1) * period))
                 sim.ExecuteSimulation()
         elapsed = cpu() - t0

@@ -12,24 +12,28 @@ from ..physics import Dissipation, Dynamics, rotation
 
 
 @dataclass(frozen=True)
-class Slew:
-    """Quaternion-feedback PD law, torque zero-order held over ``period`` s.
+class Control:
+    """The attitude control law, torque zero-order held over ``period`` s.
 
-    τ = −k_p ⊙ e − k_d ⊙ ω, e = vec(q_target* ⊗ q) with q_e.w ≥ 0, k_p = 2Iω_n², k_d = 2ζω_nI
-    (the law of :mod:`rigid_body_sim.control` without saturation or gyro compensation).
+    slew: τ = −k_p ⊙ e − k_d ⊙ ω, e = vec(q_target* ⊗ q) with q_e.w ≥ 0; detumble:
+    τ = −k_d ⊙ ω; k_p = 2Iω_n², k_d = 2ζω_nI (the law of :mod:`rigid_body_sim.control`
+    without saturation or gyro compensation). Principal frame = body frame here.
     """
     target: Tuple[float, float, float, float]
     natural_frequency: float = 0.5
     damping_ratio: float = 1.0
     period: float = 0.1
+    mode: str = 'slew'
 
     def torque(self, moments, q, m):
+        kd = 2.0 * self.damping_ratio * self.natural_frequency * moments
+        if self.mode == 'detumble':
+            return -kd * (m / moments)
         target = np.asarray(self.target, float)
         e = rotation.multiply(rotation.conjugate(target), q)
         if e[3] < 0.0:
             e = -e
         kp = 2.0 * moments * self.natural_frequency ** 2
-        kd = 2.0 * self.damping_ratio * self.natural_frequency * moments
         return -kp * e[:3] - kd * (m / moments)
 
 
@@ -42,7 +46,7 @@ class Scene:
     t_end: float
     q0: Tuple[float, float, float, float] = (0.0, 0.0, 0.0, 1.0)
     dissipation: Dissipation = Dissipation()
-    slew: Optional[Slew] = None
+    control: Optional[Control] = None
     # fixed-step grid, as h·|ω|max (dimensionless, rad per step); adaptive grid, rtol
     h_omega: Tuple[float, ...] = (1.0, 0.5, 0.2, 0.1, 0.05, 0.02, 0.01, 0.005, 0.002, 0.001,
                                   5e-4, 2e-4, 1e-4)
@@ -64,7 +68,7 @@ class Scene:
 
     @property
     def torque_free(self) -> bool:
-        return self.slew is None and not self.dissipation.active
+        return self.control is None and not self.dissipation.active
 
     @property
     def omega_max(self) -> float:
@@ -77,13 +81,13 @@ class Scene:
         return self.dynamics.dissipation_stiffness(float(np.linalg.norm(self.m0)))
 
     def steps(self, quick: bool):
-        """Fixed step sizes h (s), coarse to fine; for the slew they divide the control period."""
+        """Fixed step sizes h (s), coarse to fine; with control they divide the control period."""
         out = []
         for x in self.h_omega:
             h = x / self.omega_max
-            if self.slew is not None:  # here h_omega holds h / control period
+            if self.control is not None:  # here h_omega holds h / control period
                 n = max(1, int(round(1.0 / x)))
-                h = self.slew.period / n
+                h = self.control.period / n
             else:
                 n = max(1, int(round(self.t_end / h)))
                 h = self.t_end / n
@@ -130,10 +134,17 @@ SCENES = (
                       '(stiffness α|L|²(1/I_min − 1/I_max) = 667 /s), 5 s'),
     Scene('slew', 'controlled slew, zero-order-held torque', (1.0, 2.0, 3.0),
           (0.01, -0.02, 0.01), 20.0,
-          slew=Slew(_SLEW_TARGET, natural_frequency=0.5, period=0.1),
+          control=Control(_SLEW_TARGET, natural_frequency=0.5, period=0.1),
           h_omega=(1.0, 0.5, 0.2, 0.1, 0.05, 0.02, 0.01, 0.005, 0.002, 0.001),
           description='I = (1, 2, 3), 90° about (1, 1, 1)/√3, PD ω_n = 0.5 rad/s, ζ = 1, '
                       'torque held over 0.1 s, 20 s'),
+    Scene('detumble', 'rate damping from a fast tumble', (1.0, 2.0, 3.0),
+          (0.8, -0.6, 0.5), 15.0, q0=(0.1, -0.2, 0.3, 0.9),
+          control=Control((0.0, 0.0, 0.0, 1.0), natural_frequency=0.5, period=0.1,
+                          mode='detumble'),
+          h_omega=(1.0, 0.5, 0.2, 0.1, 0.05, 0.02, 0.01, 0.005, 0.002, 0.001),
+          description='I = (1, 2, 3), ω0 = (0.8, −0.6, 0.5) rad/s, τ = −2ζω_n I ω with '
+                      'ω_n = 0.5 rad/s, ζ = 1, torque held over 0.1 s, 15 s'),
 )
 
 SCENE_BY_NAME = {s.name: s for s in SCENES}

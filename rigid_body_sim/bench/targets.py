@@ -45,7 +45,7 @@ def work_precision(rows, scenes):
     out = []
     for scene in scenes:
         rs = [r for r in rows if r['scene'] == scene.name]
-        required = 2.0 if scene.slew is not None else 10.0
+        required = 10.0
         for level in LEVELS:
             ours = _best(rs, 'ours', level)
             peer = _best(rs, 'peer', level)

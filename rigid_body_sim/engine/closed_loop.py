@@ -61,6 +61,7 @@ def closed_loop_run(q, m, t_ns, t_stop_ns, control_ns, period_ns, h_max, method,
     step h. Returns the last step h (s)."""
     tau_p = np.zeros(3)
     tau_unsat = np.empty(3)
+    scratch = np.empty((10, 4))  # the Runge–Kutta loops' stages, allocated once
     qb = np.empty(4)
     wb = np.empty(3)
     has_tau = False
@@ -116,10 +117,11 @@ def closed_loop_run(q, m, t_ns, t_stop_ns, control_ns, period_ns, h_max, method,
                                                      coefficient))
             evals += e
         elif method == 1:
-            failed = kernels.rk4_run(q, m, h, n, moments, tau_p, model, coefficient)
+            failed = kernels.rk4_steps(q, m, h, n, moments, tau_p, model, coefficient, scratch)
             evals += 4 * (n if failed < 0 else failed + 1)
         else:
-            failed = kernels.euler_run(q, m, h, n, moments, tau_p, model, coefficient)
+            failed = kernels.euler_steps(q, m, h, n, moments, tau_p, model, coefficient,
+                                         scratch)
             evals += n if failed < 0 else failed + 1
         if failed >= 0:
             out[0] = t

@@ -240,8 +240,15 @@ def _normalise(q):
 @jit
 def euler_run(q, m, h, n, moments, tau, model, coefficient):
     """n explicit Euler steps (q renormalised); first non-finite step or -1."""
-    dq = np.empty(4)
-    dm = np.empty(3)
+    return euler_steps(q, m, h, n, moments, tau, model, coefficient, np.empty((2, 4)))
+
+
+@jit
+def euler_steps(q, m, h, n, moments, tau, model, coefficient, scratch):
+    """euler_run with caller-owned scratch (2, 4): no allocation per call, for callers
+    that run many short stretches (the engine's compiled closed loop)."""
+    dq = scratch[0]
+    dm = scratch[1, :3]
     for k in range(n):
         _rates(q, m, moments, tau, model, coefficient, dq, dm)
         for i in range(4):
@@ -257,10 +264,15 @@ def euler_run(q, m, h, n, moments, tau, model, coefficient):
 @jit
 def rk4_run(q, m, h, n, moments, tau, model, coefficient):
     """n classical RK4 steps (q renormalised after each); first non-finite step or -1."""
-    k1q, k2q, k3q, k4q = np.empty(4), np.empty(4), np.empty(4), np.empty(4)
-    k1m, k2m, k3m, k4m = np.empty(3), np.empty(3), np.empty(3), np.empty(3)
-    qs = np.empty(4)
-    ms = np.empty(3)
+    return rk4_steps(q, m, h, n, moments, tau, model, coefficient, np.empty((10, 4)))
+
+
+@jit
+def rk4_steps(q, m, h, n, moments, tau, model, coefficient, scratch):
+    """rk4_run with caller-owned scratch (10, 4): no allocation per call (see euler_steps)."""
+    k1q, k2q, k3q, k4q, qs = scratch[0], scratch[1], scratch[2], scratch[3], scratch[4]
+    k1m, k2m, k3m, k4m = scratch[5, :3], scratch[6, :3], scratch[7, :3], scratch[8, :3]
+    ms = scratch[9, :3]
     for k in range(n):
         _rates(q, m, moments, tau, model, coefficient, k1q, k1m)
         for i in range(4):
