@@ -19,7 +19,8 @@ import time
 
 from . import batch as batch_mod
 from . import compile as compile_cost
-from . import charts, live, longhorizon, peers, selection, stability, targets, workprecision
+from . import charts, live, longhorizon, peers, perstep, selection, stability, targets
+from . import workprecision
 from .common import reference
 from .scenes import SCENES, SCENE_BY_NAME
 
@@ -204,6 +205,11 @@ def _run(args) -> int:
     b_rows = batch_mod.run(quick, log)
     _write_csv(os.path.join(out, 'batch.csv'), batch_mod.FIELDS, b_rows)
 
+    # 4b. per step and end to end
+    log('\n== 4b. cost per step (one body) and per offline sample ==')
+    ps_rows, ps_fig = perstep.run(quick, log)
+    _write_csv(os.path.join(out, 'perstep.csv'), perstep.FIELDS, ps_rows)
+
     # 5. live
     log('\n== 5. live ==')
     live_res = {'simulator': live.simulator(quick, log), 'recorder': live.recorder(quick, log)}
@@ -247,6 +253,7 @@ def _run(args) -> int:
     else:
         t_rows.append(targets.simple('batch body-steps/s at N = 1e6 (one core)', math.nan, 1e7,
                                      None, 'not measured in --quick (N ≤ 1e4)'))
+    t_rows += perstep.targets_from(ps_fig)
     sim = live_res['simulator']
     for key, req, better in (('real_time_factor', 20.0, 'ge'),
                              ('cpu_share_at_real_time', 0.10, 'le')):

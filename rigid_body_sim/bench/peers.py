@@ -97,6 +97,19 @@ def _no_dissipation(scene):
     return not scene.dissipation.active
 
 
+def _damper(scene):
+    """The scene's internal damping as a body-frame torque of m (principal = body frame
+    here), for peers without the model; None without dissipation."""
+    d = scene.dissipation
+    if not d.active:
+        return None
+    moments = np.asarray(scene.moments, float)
+    c = d.coefficient
+    if d.model == 'double_bracket':
+        return lambda m: c * np.cross(m, np.cross(m, m / moments))
+    return lambda m: -c * (m / moments)
+
+
 def _mujoco(integrator, stages):
     def run(scene, h):
         import mujoco
@@ -111,9 +124,15 @@ def _mujoco(integrator, stages):
         moments = np.asarray(i, float)
         data.qpos[3:7] = (q0[3], q0[0], q0[1], q0[2])
         data.qvel[3:6] = scene.m0 / moments
+        damper = _damper(scene)
         t0 = cpu()
-        if scene.control is None:
-            n = int(round(scene.t_end / h))
+        n = int(round(scene.t_end / h))
+        if damper is not None:  # MuJoCo has no such damper: its torque is set every step
+            w = data.qvel[3:6]
+            for _ in range(n):
+                data.qfrc_applied[3:6] = damper(w * moments)
+                mujoco.mj_step(model, data)
+        elif scene.control is None:
             mujoco.mj_step(model, data, nstep=n)
         else:
             period = scene.control.period
@@ -121,7 +140,8 @@ def _mujoco(integrator, stages):
             n = 0
             for _ in range(int(round(scene.t_end / period))):
                 q = np.r_[data.qpos[4:7], data.qpos[3]]
-                data.qfrc_applied[3:6] = scene.control.torque(moments, q, data.qvel[3:6] * moments)
+                data.qfrc_applied[3:6] = scene.control.torque(moments, q,
+                                                              data.qvel[3:6] * moments)
                 mujoco.mj_step(model, data, nstep=n_sub)
                 n += n_sub
         elapsed = cpu() - t0
@@ -211,8 +231,7 @@ def optional_methods():
         notes.append(f'mujoco {mujoco.__version__}')
         for name, integ, stages in (('mujoco_euler', 'Euler', 1), ('mujoco_rk4', 'RK4', 4),
                                     ('mujoco_implicitfast', 'implicitfast', 1)):
-            methods[name] = PeerMethod(name, 'fixed', _mujoco(integ, stages), _no_dissipation,
-                                       stages)
+            methods[name] = PeerMethod(name, 'fixed', _mujoco(integ, stages), _always, stages)
     else:
         notes.append('mujoco not installed')
     if importlib.util.find_spec('Basilisk') is not None:

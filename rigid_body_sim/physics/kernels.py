@@ -60,58 +60,51 @@ def _axis_flow(q, m, axis, t, moments):
 
 
 @jit
-def _rotate_about(m, t0, t1, t2):
-    """m ← exp([θ]×) m (Rodrigues), stable for small |θ|."""
+def _rotated(x, y, z, t0, t1, t2):
+    """exp([θ]×) (x, y, z) (Rodrigues), stable for small |θ|; on scalars (no allocation)."""
     a2 = t0 * t0 + t1 * t1 + t2 * t2
     half = 0.5 * math.sqrt(a2)
     sinc_half = math.sin(half) / half if half > 1e-8 else 1.0 - half * half / 6.0
     s1 = sinc_half * math.cos(half)
     s2 = 0.5 * sinc_half * sinc_half
     c = 1.0 - a2 * s2
-    dot = t0 * m[0] + t1 * m[1] + t2 * m[2]
-    tx = t1 * m[2] - t2 * m[1]
-    ty = t2 * m[0] - t0 * m[2]
-    tz = t0 * m[1] - t1 * m[0]
-    m0 = c * m[0] + s1 * tx + s2 * dot * t0
-    m1 = c * m[1] + s1 * ty + s2 * dot * t1
-    m2 = c * m[2] + s1 * tz + s2 * dot * t2
-    m[0] = m0
-    m[1] = m1
-    m[2] = m2
+    dot = t0 * x + t1 * y + t2 * z
+    tx = t1 * z - t2 * y
+    ty = t2 * x - t0 * z
+    tz = t0 * y - t1 * x
+    return (c * x + s1 * tx + s2 * dot * t0, c * y + s1 * ty + s2 * dot * t1,
+            c * z + s1 * tz + s2 * dot * t2)
 
 
 @jit
-def _bracket_rotation(m, dt, moments, alpha, out):
+def _bracket_theta(x, y, z, dt, moments, alpha):
     """θ = dt·w(m), w = −α m×Ω: the rotation the double bracket applies to m."""
-    o0 = m[0] / moments[0]
-    o1 = m[1] / moments[1]
-    o2 = m[2] / moments[2]
+    o0 = x / moments[0]
+    o1 = y / moments[1]
+    o2 = z / moments[2]
     k = -alpha * dt
-    out[0] = k * (m[1] * o2 - m[2] * o1)
-    out[1] = k * (m[2] * o0 - m[0] * o2)
-    out[2] = k * (m[0] * o1 - m[1] * o0)
+    return k * (y * o2 - z * o1), k * (z * o0 - x * o2), k * (x * o1 - y * o0)
 
 
 @jit
 def _double_bracket(m, t, moments, alpha):
     """ṁ = α m×(m×Ω) for time t > 0 by the Lie midpoint rule in substeps short enough for
     the stiffness (α|m|²t(1/I_min − 1/I_max) ≤ 0.5); |m| stays exact. Returns substeps."""
-    norm2 = m[0] * m[0] + m[1] * m[1] + m[2] * m[2]
+    x, y, z = m[0], m[1], m[2]
+    norm2 = x * x + y * y + z * z
     i_min = min(moments[0], min(moments[1], moments[2]))
     i_max = max(moments[0], max(moments[1], moments[2]))
     rate = alpha * norm2 * (1.0 / i_min - 1.0 / i_max)
     n = max(1, int(math.ceil(rate * t / 0.5)))
     dt = t / n
-    half = np.empty(3)
-    theta = np.empty(3)
     for _ in range(n):
-        half[0] = m[0]
-        half[1] = m[1]
-        half[2] = m[2]
-        _bracket_rotation(m, 0.5 * dt, moments, alpha, theta)
-        _rotate_about(half, theta[0], theta[1], theta[2])
-        _bracket_rotation(half, dt, moments, alpha, theta)
-        _rotate_about(m, theta[0], theta[1], theta[2])
+        t0, t1, t2 = _bracket_theta(x, y, z, 0.5 * dt, moments, alpha)
+        hx, hy, hz = _rotated(x, y, z, t0, t1, t2)
+        t0, t1, t2 = _bracket_theta(hx, hy, hz, dt, moments, alpha)
+        x, y, z = _rotated(x, y, z, t0, t1, t2)
+    m[0] = x
+    m[1] = y
+    m[2] = z
     return n
 
 
@@ -125,26 +118,23 @@ def _double_bracket_symmetric(m, t, moments, alpha):
     m₁ = exp(t·w(m̄)) m₀, m̄ = (m₀ + m₁)/2, by fixed-point iteration from the explicit
     Lie step; |m| stays exact. Symmetric, so Yoshida compositions of a splitting that
     contains it keep their order (weak damping: |t|·rate ≤ 0.25). Returns rotations."""
-    m0 = m.copy()
-    theta = np.empty(3)
-    mid = np.empty(3)
-    _bracket_rotation(m0, t, moments, alpha, theta)
-    _rotate_about(m, theta[0], theta[1], theta[2])
-    scale = math.sqrt(m0[0] * m0[0] + m0[1] * m0[1] + m0[2] * m0[2])
+    a, b, c = m[0], m[1], m[2]
+    t0, t1, t2 = _bracket_theta(a, b, c, t, moments, alpha)
+    x, y, z = _rotated(a, b, c, t0, t1, t2)
+    scale = math.sqrt(a * a + b * b + c * c)
     count = 1
     for _ in range(SYMMETRIC_MAX_ITER):
-        for i in range(3):
-            mid[i] = 0.5 * (m0[i] + m[i])
-        _bracket_rotation(mid, t, moments, alpha, theta)
-        new = m0.copy()
-        _rotate_about(new, theta[0], theta[1], theta[2])
-        change = abs(new[0] - m[0]) + abs(new[1] - m[1]) + abs(new[2] - m[2])
-        m[0] = new[0]
-        m[1] = new[1]
-        m[2] = new[2]
+        t0, t1, t2 = _bracket_theta(0.5 * (a + x), 0.5 * (b + y), 0.5 * (c + z), t, moments,
+                                    alpha)
+        nx, ny, nz = _rotated(a, b, c, t0, t1, t2)
+        change = abs(nx - x) + abs(ny - y) + abs(nz - z)
+        x, y, z = nx, ny, nz
         count += 1
         if change <= SYMMETRIC_TOL * scale:
             break
+    m[0] = x
+    m[1] = y
+    m[2] = z
     return count
 
 
