@@ -130,3 +130,28 @@ def test_control_law_compiled_and_plain_python_agree():
         runs.append(np.array(json.loads(out.stdout), dtype=float))
     assert runs[0].shape == (180, 6) and runs[0][:, 3].any()  # some saturate
     np.testing.assert_allclose(runs[0], runs[1], rtol=0, atol=1e-13)
+
+
+def test_a_kernel_is_keyed_on_the_files_it_calls(tmp_path):
+    """numba's disk cache checks only the defining file; ``depends_on`` mixes the callee
+    files into the key, so a kernel calling the step loops is recompiled, not run stale,
+    after those change — and loaded from the cache while they don't."""
+    import types
+    import numba
+    from rigid_body_sim.engine import closed_loop
+    dep = tmp_path / 'dep.py'
+    dep.write_text('x = 1\n')
+    module = types.SimpleNamespace(__file__=str(dep))
+
+    def f():
+        return 1
+
+    def stamp(kernel):
+        return kernel._cache._cache_file._source_stamp
+    first = stamp(kernels.depends_on(numba.njit(cache=True)(f), module))
+    again = stamp(kernels.depends_on(numba.njit(cache=True)(f), module))
+    dep.write_text('x = 2\n')
+    changed = stamp(kernels.depends_on(numba.njit(cache=True)(f), module))
+    assert first == again != changed
+    plain = numba.njit(cache=True)(closed_loop.closed_loop_run.py_func)
+    assert stamp(closed_loop.closed_loop_run) != stamp(plain)

@@ -18,9 +18,10 @@ import math
 
 import numpy as np
 
+from .. import control_kernel
 from ..control_kernel import control_torque
 from ..physics import kernels
-from ..physics.kernels import jit
+from ..physics.kernels import depends_on, jit
 
 MODEL_CODES = kernels.MODEL_CODES
 METHOD_CODES = {'splitting2': 0, 'splitting4': 0, 'splitting6': 0, 'rk4': 1, 'euler': 2}
@@ -137,6 +138,10 @@ def closed_loop_run(q, m, t_ns, t_stop_ns, control_ns, period_ns, h_max, method,
     out[4] = evals
     out[5] = -1
     return h
+
+
+# it calls the step loops and the law from their own files (see kernels.depends_on)
+closed_loop_run = depends_on(closed_loop_run, kernels, control_kernel)
 
 
 def warm():

@@ -12,6 +12,7 @@ functions run as ordinary Python, which the tests use to check both modes agree.
 
 Dissipation models: 0 none, 1 double bracket (α), 2 viscous (c); see ``dynamics``.
 """
+import hashlib
 import math
 
 import numpy as np
@@ -26,6 +27,23 @@ except ImportError:  # pragma: no cover - numba is a pinned dependency
     COMPILED = False
 
 MODEL_CODES = {'none': 0, 'double_bracket': 1, 'viscous': 2}
+
+
+def depends_on(kernel, *modules):
+    """Key ``kernel``'s disk cache on the source of ``modules`` too, and return it.
+
+    numba's cache checks only the file that defines a function; a kernel that calls
+    compiled code from other files would otherwise keep running their old code after
+    those files change. Without the cache (JIT disabled), nothing to do."""
+    cache_file = getattr(getattr(kernel, '_cache', None), '_cache_file', None)
+    if cache_file is None or not hasattr(cache_file, '_source_stamp'):
+        return kernel
+    digest = hashlib.sha256(repr(cache_file._source_stamp).encode())
+    for module in modules:
+        with open(module.__file__, 'rb') as f:
+            digest.update(f.read())
+    cache_file._source_stamp = digest.hexdigest()
+    return kernel
 
 
 @jit
