@@ -290,7 +290,7 @@ def rk4_run(q, m, h, n, moments, tau, model, coefficient):
 
 def warm():
     """Compile (or load from the cache) every kernel on representative arguments, the
-    control law's included."""
+    batch loop's and the control law's included."""
     q = np.array([0.0, 0.0, 0.0, 1.0])
     m = np.array([0.1, 1.0, 0.2])
     moments = np.array([1.0, 2.0, 3.0])
@@ -300,6 +300,8 @@ def warm():
                       1, 0.1, inner)
     rk4_run(q, m, 1e-3, 1, moments, tau, 0, 0.0)
     euler_run(q, m, 1e-3, 1, moments, tau, 0, 0.0)
+    from .batch_kernels import warm as warm_batch
+    warm_batch()
     from ..control_kernel import warm as warm_control
     warm_control()
     return COMPILED
