@@ -105,9 +105,11 @@ def test_a_merged_angle_that_overflows_falls_back_to_single_steps():
 
 
 def _failing_batch():
-    """Per-body torques that overflow bodies 70 and 100 (alone: at t = 19 s and 8 s from
-    t0 = 2 s with h = 1 s). The batch must name the earlier, in a later block."""
+    """Per-body torques that overflow bodies 30, 70 and 100 (alone: at t = 7, 19 and 8 s
+    from t0 = 2 s with h = 1 s; 30 in the first block of 64, the others in the second).
+    The batch must name the earliest, though later bodies fail after it."""
     q0, m0, tau = _bodies(130, 7)
+    tau[30] = (0.0, 5e307, 0.0)
     tau[70] = (0.0, 3e307, 0.0)
     tau[100] = (0.0, 5e307, 0.0)
     return q0, m0, tau
@@ -116,16 +118,20 @@ def _failing_batch():
 def test_a_non_finite_body_raises_with_method_step_and_time():
     q0, m0, tau = _failing_batch()
     alone = []
-    for i in (70, 100):
+    for i in (30, 70, 100):
         with pytest.raises(IntegrationError) as single:
             create('splitting2', _dynamics('none')).run(q0[i], m0[i], 1.0, 100, tau[i], 2.0)
         alone.append(single.value.t)
-    assert alone == [19.0, 8.0]
+    assert alone == [7.0, 19.0, 8.0]
     with pytest.raises(IntegrationError) as batch:
         create('splitting2', _dynamics('none')).run(q0, m0, 1.0, 100, tau, 2.0)
     assert batch.value.integrator == 'splitting2' and batch.value.h == 1.0
-    assert batch.value.t == 8.0
-    assert 'non-finite' in str(batch.value) and 'body 100' in str(batch.value)
+    assert batch.value.t == 7.0
+    assert 'non-finite' in str(batch.value) and 'body 30' in str(batch.value)
+    # within one block too: the earlier failure first, a later one after it
+    pick = [100, 70]
+    with pytest.raises(IntegrationError, match=r'at t = 8 s .* body 0$'):
+        create('splitting2', _dynamics('none')).run(q0[pick], m0[pick], 1.0, 100, tau[pick], 2.0)
     # a NaN from the start, torque-free (merged path): the first step, t0 + h
     m0[5, 1] = np.nan
     with pytest.raises(IntegrationError, match=r'splitting4 failed at t = 1\.5 s .* body 5'):

@@ -13,8 +13,9 @@ consecutive stages and steps (first same as last): … b a(w_j h/2) · a(w_{j+1}
 component. Strang then costs four axis flows per step instead of five: a fifth fewer
 sin/cos, and an n-step run equals n single steps to round-off. A torque kick between the
 half-flows changes that component, so with torque each stage runs unmerged (bit for bit
-the operations of ``kernels.splitting_run``). With dissipation every body runs
-``kernels.splitting_run`` itself: the double bracket's substep count is per body.
+the operations of ``kernels.splitting_run``, which ``_block_flow`` repeats on columns).
+With dissipation every body runs ``kernels.splitting_run`` itself (through
+``kernels.splitting_bodies``): the double bracket's substep count is per body.
 
 A block whose state turns non-finite is re-run body by body from its initial state by
 ``kernels.splitting_run``: that names each body's exact first non-finite step (a merged
@@ -28,7 +29,7 @@ import math
 
 import numpy as np
 
-from .kernels import jit, splitting_run
+from .kernels import jit, splitting_bodies
 
 BLOCK = 64  # bodies stepped side by side: enough independent flows, 5 kB of state
 
@@ -113,41 +114,11 @@ def _block_steps(qb, mb, tb, count, h, n, weights, axes, moments, joins, has_tau
 
 
 @jit
-def _single(q, m, i, h, n, weights, axes, moments, tau, has_tau, model, coefficient, inner):
-    """Body i by kernels.splitting_run, in place: (first non-finite step or -1, evals)."""
-    qs = q[i].copy()
-    ms = m[i].copy()
-    out = splitting_run(qs, ms, h, n, weights, axes, moments, tau[i % tau.shape[0]], has_tau,
-                        model, coefficient, inner[i % inner.shape[0]])
-    for j in range(4):
-        q[i, j] = qs[j]
-    for j in range(3):
-        m[i, j] = ms[j]
-    return out
-
-
-@jit
-def batch_run(q, m, h, n, weights, axes, moments, tau, has_tau, model, coefficient, inner):
-    """n steps of ``kernels.splitting_run`` for every body of q (N, 4), m (N, 3), in place.
-
-    tau (1, 3) shared or (N, 3) per body; inner (1,) shared or (N,) per body: damping inside
-    the stages (``Splitting2.inner_dissipation``). Returns (first non-finite step or -1,
-    a body that fails there, the largest sub-flow count of one body: the bodies' sub-flows
-    run side by side, as the numpy path counts them). After a failure later bodies run
-    only the steps before it, as only an earlier failure can change the answer."""
+def _blocks(q, m, lo, h, n, weights, axes, moments, tau, has_tau):
+    """Blocks of bodies from ``lo`` on through ``_block_steps``, in place; stops at the
+    first block that turns non-finite, left in its initial state. Returns its first body,
+    or N when every block went through."""
     count = q.shape[0]
-    failed = -1
-    failed_body = -1
-    limit = n
-    evals = 0
-    if model != 0:
-        for i in range(count):
-            bad, used = _single(q, m, i, h, limit, weights, axes, moments, tau, has_tau,
-                                model, coefficient, inner)
-            evals = max(evals, used)
-            if bad >= 0:
-                failed, failed_body, limit = bad, i, bad
-        return failed, failed_body, evals
     stages = len(weights)
     joins = np.empty(stages)
     for j in range(stages):  # a-flow time after stage j: its last half and the next first
@@ -155,35 +126,62 @@ def batch_run(q, m, h, n, weights, axes, moments, tau, has_tau, model, coefficie
     qb = np.empty((4, BLOCK))
     mb = np.empty((3, BLOCK))
     tb = np.zeros((3, BLOCK))
-    for lo in range(0, count, BLOCK):
-        size = min(BLOCK, count - lo)
+    for start in range(lo, count, BLOCK):
+        size = min(BLOCK, count - start)
         for i in range(size):
             for j in range(4):
-                qb[j, i] = q[lo + i, j]
+                qb[j, i] = q[start + i, j]
             for j in range(3):
-                mb[j, i] = m[lo + i, j]
-                tb[j, i] = tau[(lo + i) % tau.shape[0], j]
-        if _block_steps(qb, mb, tb, size, h, limit, weights, axes, moments, joins,
-                        has_tau) < 0:
-            evals = max(evals, stages * limit)
-            for i in range(size):
-                for j in range(4):
-                    q[lo + i, j] = qb[j, i]
-                for j in range(3):
-                    m[lo + i, j] = mb[j, i]
-            continue
-        for i in range(lo, lo + size):  # q, m still hold this block's initial state
-            bad, used = _single(q, m, i, h, limit, weights, axes, moments, tau, has_tau,
-                                0, 0.0, inner)
-            evals = max(evals, used)
-            if bad >= 0:
-                failed, failed_body, limit = bad, i, bad
+                mb[j, i] = m[start + i, j]
+                tb[j, i] = tau[(start + i) % tau.shape[0], j]
+        if _block_steps(qb, mb, tb, size, h, n, weights, axes, moments, joins, has_tau) >= 0:
+            return start
+        for i in range(size):
+            for j in range(4):
+                q[start + i, j] = qb[j, i]
+            for j in range(3):
+                m[start + i, j] = mb[j, i]
+    return count
+
+
+def batch_run(q, m, h, n, weights, axes, moments, tau, has_tau, model, coefficient, inner):
+    """n steps of ``kernels.splitting_run`` for every body of q (N, 4), m (N, 3), in place.
+
+    tau (1, 3) shared or (N, 3) per body; inner (1,) shared or (N,) per body: damping inside
+    the stages (``Splitting2.inner_dissipation``). Returns (first non-finite step or -1,
+    a body that fails there, the largest sub-flow count of one body: the bodies' sub-flows
+    run side by side, as the numpy path counts them).
+
+    Plain Python around two compiled loops, ``_blocks`` and ``kernels.splitting_bodies``:
+    a compiled call from this file into kernels.py would be frozen into this file's disk
+    cache, which numba invalidates only when this file changes. The Python here runs once
+    per call and once per failing block."""
+    count = q.shape[0]
+    if model != 0:
+        return splitting_bodies(q, m, 0, count, h, n, weights, axes, moments, tau, has_tau,
+                                model, coefficient, inner)
+    failed, failed_body, evals, limit, lo = -1, -1, 0, n, 0
+    while lo < count:
+        stop = _blocks(q, m, lo, h, limit, weights, axes, moments, tau, has_tau)
+        if stop > lo:
+            evals = max(evals, len(weights) * limit)
+        if stop == count:
+            break
+        # the failing block, body by body from its initial state: exact steps (see above)
+        bad, body, used = splitting_bodies(q, m, stop, min(stop + BLOCK, count), h, limit,
+                                           weights, axes, moments, tau, has_tau, 0, 0.0,
+                                           inner)
+        evals = max(evals, used)
+        if bad >= 0:
+            failed, failed_body, limit = bad, body, bad
+        lo = stop + BLOCK
     return failed, failed_body, evals
 
 
 def warm():
-    """Compile (or load from the cache) the batch loop on representative arguments."""
+    """Compile (or load from the cache) the batch loops on representative arguments."""
     q = np.array([[0.0, 0.0, 0.0, 1.0]])
     m = np.array([[0.1, 1.0, 0.2]])
-    batch_run(q, m, 1e-3, 1, np.array([1.0]), np.array([0, 2, 1]), np.array([1.0, 2.0, 3.0]),
-              np.zeros((1, 3)), False, 0, 0.0, np.zeros(1, dtype=np.bool_))
+    args = (np.array([1.0]), np.array([0, 2, 1]), np.array([1.0, 2.0, 3.0]), np.zeros((1, 3)))
+    _blocks(q, m, 0, 1e-3, 1, *args, False)
+    splitting_bodies(q, m, 0, 1, 1e-3, 1, *args, False, 1, 0.1, np.zeros(1, dtype=np.bool_))
