@@ -248,8 +248,8 @@ def _run(args) -> int:
         ok = best['body_steps_per_s'] >= 1e7
         t_rows.append(targets.simple(
             'batch body-steps/s at N = 1e6 (one core)', best['body_steps_per_s'], 1e7, ok,
-            f'{best["method"]}' + ('' if ok else
-                                   f'; short by {1e7 / best["body_steps_per_s"]:.3g}x')))
+            f'{best["method"]}.{best["path"]}()'
+            + ('' if ok else f'; short by {1e7 / best["body_steps_per_s"]:.3g}x')))
     else:
         t_rows.append(targets.simple('batch body-steps/s at N = 1e6 (one core)', math.nan, 1e7,
                                      None, 'not measured in --quick (N ≤ 1e4)'))

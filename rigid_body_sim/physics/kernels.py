@@ -210,6 +210,41 @@ def splitting_run(q, m, h, n, weights, axes, moments, tau, has_tau, model, coeff
     return -1, evals
 
 
+@jit
+def splitting_bodies(q, m, lo, hi, h, n, weights, axes, moments, tau, has_tau, model,
+                     coefficient, inner):
+    """splitting_run on bodies lo … hi−1 of q (N, 4), m (N, 3), in place: a batch's bodies
+    with dissipation, or ones re-run unmerged (``batch_kernels``; here, not there, because
+    numba's disk cache of a function tracks only its own file). tau (1, 3) shared or
+    (N, 3); inner (1,) shared or (N,). Returns (first non-finite step or -1, a body that
+    fails there, the largest evaluation count of one body). After a failure later bodies
+    run only the steps before it: only an earlier failure can change the answer."""
+    qs = np.empty(4)
+    ms = np.empty(3)
+    failed = -1
+    failed_body = -1
+    limit = n
+    evals = 0
+    for i in range(lo, hi):
+        for j in range(4):
+            qs[j] = q[i, j]
+        for j in range(3):
+            ms[j] = m[i, j]
+        bad, used = splitting_run(qs, ms, h, limit, weights, axes, moments,
+                                  tau[i % tau.shape[0]], has_tau, model, coefficient,
+                                  inner[i % inner.shape[0]])
+        for j in range(4):
+            q[i, j] = qs[j]
+        for j in range(3):
+            m[i, j] = ms[j]
+        evals = max(evals, used)
+        if bad >= 0:
+            failed = bad
+            failed_body = i
+            limit = bad
+    return failed, failed_body, evals
+
+
 # ------------------------------------------------------------------ explicit Runge–Kutta
 @jit
 def _rates(q, m, moments, tau, model, coefficient, dq, dm):
@@ -310,7 +345,7 @@ def rk4_steps(q, m, h, n, moments, tau, model, coefficient, scratch):
 
 def warm():
     """Compile (or load from the cache) every kernel on representative arguments, the
-    control law's included."""
+    batch loop's and the control law's included."""
     q = np.array([0.0, 0.0, 0.0, 1.0])
     m = np.array([0.1, 1.0, 0.2])
     moments = np.array([1.0, 2.0, 3.0])
@@ -320,6 +355,8 @@ def warm():
                       1, 0.1, inner)
     rk4_run(q, m, 1e-3, 1, moments, tau, 0, 0.0)
     euler_run(q, m, 1e-3, 1, moments, tau, 0, 0.0)
+    from .batch_kernels import warm as warm_batch
+    warm_batch()
     from ..control_kernel import warm as warm_control
     warm_control()
     from ..engine.closed_loop import warm as warm_closed_loop

@@ -21,13 +21,17 @@ Higher orders compose the conservative part (Yoshida triple jump → 4, Yoshida'
 solution A → 6); dissipation stays outside those compositions because their negative
 substeps would run damping backwards (anti-damping), so with dissipation the coupling
 error is second order.
+
+Loops: one body runs ``kernels.splitting_run``; ``run`` on a batch runs
+``batch_kernels.batch_run`` (bodies side by side, merged half-flows); ``step`` on a batch
+stays on numpy (the reference the compiled loops are tested against).
 """
 import math
 
 import numpy as np
 
-from .. import kernels
-from .base import Integrator
+from .. import batch_kernels, kernels
+from .base import IntegrationError, Integrator
 
 # Outer, middle, inner axis of the symmetric composition  a(h/2) b(h/2) c(h) b(h/2) a(h/2)
 # as ranks of the principal moments (0 = smallest, 1 = intermediate, 2 = largest).
@@ -133,8 +137,11 @@ class Splitting2(Integrator):
         stays outside (no stage runs damping backwards) and the coupling is order 2."""
         if self._model == 0 or len(self.weights) == 1:
             return False
-        norm = float(np.max(np.linalg.norm(m, axis=-1)))
-        stiffness = self.dynamics.dissipation_stiffness(norm)
+        return bool(self._weak_damping(float(np.max(np.linalg.norm(m, axis=-1))), h))
+
+    def _weak_damping(self, norms, h):
+        """|w|·h·λ(|m|) ≤ INNER_LIMIT for a momentum norm or an array of them."""
+        stiffness = self.dynamics.dissipation_stiffness(norms)
         return stiffness * h * max(abs(w) for w in self.weights) <= INNER_LIMIT
 
     def effective_order(self, m, h) -> int:
@@ -155,10 +162,40 @@ class Splitting2(Integrator):
         return self._kernel_args[0], self._kernel_args[1]
 
     def run(self, q, m, h, n, torque=None, t0=0.0):
-        """One body: the compiled loop (physics.kernels); a batch: the numpy path."""
-        if np.ndim(q) != 1 or np.ndim(m) != 1:
-            return super().run(q, m, h, n, torque, t0)
-        return self._run_kernel(self._kernel, q, m, h, n, torque, t0)
+        """One body: the compiled loop (physics.kernels); a batch (q (..., 4), m (..., 3),
+        torque (3,) shared or (..., 3) per body): the compiled batch loop
+        (physics.batch_kernels), every body as if run alone — damping's substeps and
+        inner/outer placement are chosen per body, where the numpy ``step`` on a batch
+        chooses them once for the batch."""
+        if np.ndim(q) == 1 and np.ndim(m) == 1:
+            return self._run_kernel(self._kernel, q, m, h, n, torque, t0)
+        return self._run_batch(q, m, h, n, torque, t0)
+
+    def _run_batch(self, q, m, h, n, torque, t0):
+        if not (np.isfinite(h) and h > 0.0):
+            raise IntegrationError(self.name, h, t0, 'step must be finite and positive')
+        q, m = np.asarray(q, float), np.asarray(m, float)
+        shape = np.broadcast_shapes(q.shape[:-1], m.shape[:-1])
+        # np.array copies: the kernel works in place on C-contiguous (N, 4) and (N, 3).
+        q = np.array(np.broadcast_to(q, shape + (4,)).reshape(-1, 4), order='C')
+        m = np.array(np.broadcast_to(m, shape + (3,)).reshape(-1, 3), order='C')
+        if torque is None or np.ndim(torque) == 1:
+            tau = np.zeros((1, 3)) if torque is None else np.array(torque, float).reshape(1, 3)
+        else:
+            tau = np.array(np.broadcast_to(torque, shape + (3,)).reshape(-1, 3), float, order='C')
+        if self._model != 0 and len(self.weights) > 1:  # each body's own inner/outer choice
+            inner = np.asarray(self._weak_damping(np.linalg.norm(m, axis=-1), h)).reshape(-1)
+        else:
+            inner = np.zeros(1, dtype=bool)
+        weights, axes, moments = self._kernel_args
+        failed, body, evals = batch_kernels.batch_run(
+            q, m, float(h), int(n), weights, axes, moments, tau, torque is not None,
+            self._model, self._coefficient, inner)
+        self.nfev += evals
+        if failed >= 0:
+            raise IntegrationError(self.name, h, t0 + (failed + 1) * h,
+                                   f'state became non-finite (the method diverged), body {body}')
+        return q.reshape(shape + (4,)), m.reshape(shape + (3,))
 
     def _step(self, q, m, h, torque, t):
         """D(h/2) · [composition of K a b c b a K] · D(h/2) on component lists.
