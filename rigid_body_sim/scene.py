@@ -1,24 +1,21 @@
 """Scenes are data: ROS 2 params files in config/ that the nodes and offline runs load alike.
 
-A scene file has up to three sections, each ``{ros__parameters: {...}}``:
+The built-in scenes use up to three sections, each ``{ros__parameters: {...}}``:
 
 * ``/**``                    — shared keys (``inertia``) and ``scene.name`` / ``scene.description``
 * ``/**/attitude_simulator`` — the simulator's parameters
 * ``/**/attitude_controller`` — the controller's (only scenes that control the body)
 
-The ``/**/`` wildcard makes a section apply to the node under any namespace. Every key is
-validated against the very parameter specs the nodes declare, so a file that loads here
-also starts the nodes, and a bad file fails with the file, the key and the reason.
+Any form ``--params-file`` accepts works the same (``attitude_simulator:``, a namespace,
+rcl's wildcards): files are read as rcl reads them (:mod:`.params_file`), so a file that
+loads here starts the nodes and vice versa. Every key is validated against the very
+parameter specs the nodes declare, and a bad file fails with the file, the section, the
+key and the reason.
 """
 import os
 from dataclasses import dataclass, field
 from typing import Any, Dict, List, Tuple
 
-import yaml
-
-SIMULATOR_SECTION = '/**/attitude_simulator'
-CONTROLLER_SECTION = '/**/attitude_controller'
-SHARED_SECTION = '/**'
 SCENE_KEYS = ('scene.name', 'scene.description')
 
 
@@ -68,6 +65,7 @@ def resolve(scene: str) -> str:
 
 def list_scenes() -> List[Tuple[str, str, str]]:
     """(name, one-line description, path) of every built-in scene."""
+    from . import params_file
     out = []
     directory = config_dir()
     for fname in sorted(os.listdir(directory)):
@@ -75,76 +73,73 @@ def list_scenes() -> List[Tuple[str, str, str]]:
             continue
         path = os.path.join(directory, fname)
         try:
-            with open(path) as f:
-                data = yaml.safe_load(f) or {}
-            shared = (data.get(SHARED_SECTION) or {}).get('ros__parameters', {})
-            scene = shared.get('scene') or {}
-        except (OSError, yaml.YAMLError, AttributeError):
+            meta = params_file.node_parameters(path, SIMULATOR_NODE)
+        except params_file.ParamsFileError:
             continue
-        if scene.get('name'):
-            out.append((scene['name'], scene.get('description', ''), path))
+        if 'scene.name' in meta:
+            description = meta.get('scene.description')
+            out.append((str(meta['scene.name'].value),
+                        str(description.value) if description else '', path))
     return out
 
 
-def _flatten(d, prefix=''):
-    """ROS params-file nesting {a: {b: 1}} → {'a.b': 1}."""
-    out = {}
-    for key, value in d.items():
-        name = f'{prefix}{key}'
-        if isinstance(value, dict):
-            out.update(_flatten(value, name + '.'))
-        else:
-            out[name] = value
-    return out
+SIMULATOR_NODE = '/attitude_simulator'
+CONTROLLER_NODE = '/attitude_controller'
+META_KEYS = SCENE_KEYS + ('use_sim_time',)  # declared by every node (rclpy) or metadata
 
 
 def load(scene: str) -> SceneFile:
     """Load and validate a built-in scene (by name) or a params file (by path).
 
-    Uses the nodes' parameter specs (``engine.specs``) without importing ROS."""
+    The file is read as rcl reads it (``params_file``): the simulator takes what a node
+    ``/attitude_simulator`` would take from ``--params-file``, the controller what
+    ``/attitude_controller`` would. Values are checked with the nodes' parameter specs
+    (``engine.specs``) without importing ROS; an unknown key, a section that names neither
+    node, or a bad value fails with the file, the section, the key and the reason."""
     from .engine import EngineConfig, specs
     from .engine.params import coerce_all
+    from . import params_file
     path = resolve(scene)
+    sim_names = {s.name for s in specs.SIMULATOR} | set(META_KEYS)
+    ctl_names = {s.name for s in specs.CONTROLLER} | set(META_KEYS)
     try:
-        with open(path) as f:
-            data = yaml.safe_load(f)
-    except yaml.YAMLError as exc:
-        raise SceneError(f'{path}: not valid YAML: {str(exc).splitlines()[0]}') from None
-    except OSError as exc:
-        raise SceneError(f'{path}: {exc.strerror}') from None
-    if not isinstance(data, dict):
-        raise SceneError(f'{path}: a params file maps node names to {{ros__parameters: ...}}')
-    sections = {}
-    for key, body in data.items():
-        if key not in (SHARED_SECTION, SIMULATOR_SECTION, CONTROLLER_SECTION):
-            raise SceneError(f'{path}: {key}: unknown section; use {SHARED_SECTION}, '
-                             f'{SIMULATOR_SECTION} or {CONTROLLER_SECTION}')
-        if not isinstance(body, dict) or set(body) != {'ros__parameters'} or \
-                not isinstance(body['ros__parameters'], dict):
-            raise SceneError(f'{path}: {key}: must hold exactly one mapping ros__parameters')
-        sections[key] = _flatten(body['ros__parameters'])
-    shared = sections.get(SHARED_SECTION, {})
-    name = str(shared.get('scene.name') or os.path.splitext(os.path.basename(path))[0])
-    description = str(shared.get('scene.description', ''))
-    shared_params = {k: v for k, v in shared.items() if k not in SCENE_KEYS + ('use_sim_time',)}
-    # Shared keys must be known to at least one node; each node takes those it declares.
-    sim_names = {s.name for s in specs.SIMULATOR}
-    ctl_names = {s.name for s in specs.CONTROLLER}
-    for key in shared_params:
-        if key not in sim_names | ctl_names:
-            raise SceneError(f'{path}: {SHARED_SECTION}: {key}: unknown parameter for both nodes')
+        file_sections = params_file.sections(path)
+        for section, _ in file_sections:
+            if not (params_file.matches(section, SIMULATOR_NODE)
+                    or params_file.matches(section, CONTROLLER_NODE)):
+                raise SceneError(f'{path}: {section}: this section applies to neither '
+                                 f'{SIMULATOR_NODE} nor {CONTROLLER_NODE} (node keys are '
+                                 'matched as rcl matches them: attitude_simulator, '
+                                 '/**/attitude_simulator, /**, ...)')
+        problems = (params_file.unknown_keys(path, SIMULATOR_NODE, sim_names,
+                                             sim_names | ctl_names)
+                    + params_file.unknown_keys(path, CONTROLLER_NODE, ctl_names,
+                                               sim_names | ctl_names))
+        if problems:
+            raise SceneError(problems[0])
+        sim_raw = params_file.node_parameters(path, SIMULATOR_NODE)
+        ctl_raw = params_file.node_parameters(path, CONTROLLER_NODE)
+    except params_file.ParamsFileError as exc:
+        raise SceneError(str(exc)) from None
+    # controlled: some section is for the controller and not for the simulator
+    controlled = any(params_file.matches(k, CONTROLLER_NODE)
+                     and not params_file.matches(k, SIMULATOR_NODE) for k, _ in file_sections)
+    meta = {**{k: v.value for k, v in ctl_raw.items()}, **{k: v.value for k, v in
+                                                           sim_raw.items()}}
+    name = str(meta.get('scene.name') or os.path.splitext(os.path.basename(path))[0])
+    description = str(meta.get('scene.description', ''))
 
-    def section(which, names, node_specs):
-        own = {k: v for k, v in sections.get(which, {}).items() if k != 'use_sim_time'}
-        values = {**{k: v for k, v in shared_params.items() if k in names}, **own}
-        try:
-            return coerce_all(node_specs, values, which)
-        except ValueError as exc:
-            raise SceneError(f'{path}: {exc}') from None
+    def values(raw, names, node_specs, node):
+        own = {k: v.value for k, v in raw.items() if k in names and k not in META_KEYS}
+        for key, value in own.items():  # one by one, to name the section of a bad value
+            try:
+                coerce_all(node_specs, {key: value})
+            except ValueError as exc:
+                raise SceneError(f'{path}: {raw[key].section}: {exc}') from None
+        return coerce_all(node_specs, own, node)
 
-    sim = section(SIMULATOR_SECTION, sim_names, specs.SIMULATOR)
-    ctl = section(CONTROLLER_SECTION, ctl_names, specs.CONTROLLER) \
-        if CONTROLLER_SECTION in sections else {}
+    sim = values(sim_raw, sim_names, specs.SIMULATOR, SIMULATOR_NODE)
+    ctl = values(ctl_raw, ctl_names, specs.CONTROLLER, CONTROLLER_NODE) if controlled else {}
     try:
         EngineConfig.from_parameters(sim, ctl or None)
     except ValueError as exc:

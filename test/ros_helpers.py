@@ -12,7 +12,7 @@ def unique_namespace(test_name: str) -> str:
     """A valid ROS namespace derived from the test name plus the pid and a counter."""
     unique_namespace.counter = getattr(unique_namespace, 'counter', 0) + 1
     # ROS names forbid "__"
-    base = re.sub(r"_+", "_", re.sub(r"[^A-Za-z0-9_]", "_", test_name)).strip("_")[:40]
+    base = re.sub(r"_+", "_", re.sub(r"[^A-Za-z0-9_]", "_", test_name))[:40].strip("_")
     return f'/t_{base}_{os.getpid()}_{unique_namespace.counter}'
 
 

@@ -1,0 +1,174 @@
+"""Params files are read as rcl reads them: our ROS-free reader against rcl itself.
+
+The oracle is the real parser: rclpy initialised with ``--params-file`` and a node that
+declares every override, so rcl_yaml_param_parser types each value and rclpy matches the
+node keys. Then the same files through the offline loader and through real simulator node
+processes (``--params-file``), for every node-key form users write.
+"""
+import math
+import os
+import subprocess
+import sys
+
+import pytest
+
+from ros_helpers import spin_until, venv_exe
+
+from rigid_body_sim import params_file, scene
+
+SPELLINGS = ['1e-06', '0x10', '010', '08', '-7', '+3', '1_000', '3.', '.5', '1E3', 'yes',
+             'On', 'FALSE', 'n', 'true', '.inf', '-.Inf', '+.INF', '.nan', 'inf', 'nan',
+             'infinity', '"1.0"', "'true'", '!!str 5', 'hello', '0x1p3', '9223372036854775808',
+             '[1.0, 2.0]', '[1, 2]', '[true, false]', '[a, b]', '[1e-06, 2.5]']
+
+
+def _write(tmp_path, name, text):
+    path = tmp_path / name
+    path.write_text(text)
+    return str(path)
+
+
+def _rcl_parameters(path, node_name='probe', namespace='/'):
+    """{name: value} as rcl parses the file for node ``namespace/node_name``."""
+    import rclpy
+    from rclpy.context import Context
+    from rclpy.node import Node
+    context = Context()
+    rclpy.init(args=['--ros-args', '--params-file', path], context=context)
+    try:
+        node = Node(node_name, namespace=namespace, context=context,
+                    automatically_declare_parameters_from_overrides=True)
+        try:
+            return {name: p.value for name, p in node._parameters.items()
+                    if name not in ('use_sim_time', 'start_type_description_service')}
+        finally:
+            node.destroy_node()
+    finally:
+        rclpy.shutdown(context=context)
+
+
+def _same(a, b):
+    if isinstance(a, float) and isinstance(b, float) and math.isnan(a):
+        return math.isnan(b)
+    return type(a) is type(b) and a == b
+
+
+def test_values_are_typed_as_rcl_types_them(tmp_path):
+    """Every scalar spelling above, one parameter each: the same Python type and value as
+    rcl gives (1e-06 is a double, 0x10 and 010 integers, 08 a double, yes/On bools,
+    .inf/.nan doubles, quoted and !!str strings, int64 overflow a double)."""
+    body = ''.join(f'    p{i}: {text}\n' for i, text in enumerate(SPELLINGS))
+    path = _write(tmp_path, 'values.yaml', f'probe:\n  ros__parameters:\n{body}')
+    rcl = _rcl_parameters(path)
+    ours = {k: v.value for k, v in params_file.node_parameters(path, '/probe').items()}
+    assert set(ours) == set(rcl) == {f'p{i}' for i in range(len(SPELLINGS))}
+    for i, text in enumerate(SPELLINGS):
+        a, b = ours[f'p{i}'], rcl[f'p{i}']
+        if isinstance(a, list):
+            assert len(a) == len(b) and all(_same(x, y) for x, y in zip(a, b)), text
+        else:
+            assert _same(a, b), f'{text}: ours {a!r} ({type(a).__name__}), rcl {b!r}'
+    assert ours['p0'] == 1e-06 and ours['p1'] == 16 and ours['p2'] == 8
+
+
+NODE_KEYS = ['attitude_simulator', '/attitude_simulator', '/**/attitude_simulator', '/**',
+             '/*/attitude_simulator', '/sat1/attitude_simulator', '/**/sat1/**']
+NAMESPACES = ['/', '/sat1', '/fleet/sat1']
+
+
+@pytest.mark.parametrize('key', NODE_KEYS)
+def test_node_keys_match_as_rcl_matches_them(tmp_path, key):
+    """Each key form against nodes in three namespaces: ours applies a section to exactly
+    the nodes rcl applies it to, and nested namespace keys ({sat1: {attitude_simulator:
+    ...}}) are the same section as the joined key."""
+    path = _write(tmp_path, 'keys.yaml', f'{key}:\n  ros__parameters:\n    accuracy: 1e-06\n')
+    for ns in NAMESPACES:
+        rcl = _rcl_parameters(path, 'attitude_simulator', ns)
+        ours = params_file.node_parameters(
+            path, params_file.fully_qualified('attitude_simulator', ns))
+        assert {k: v.value for k, v in ours.items()} == rcl, (key, ns)
+    nested = _write(tmp_path, 'nested.yaml',
+                    'sat1:\n  attitude_simulator:\n    ros__parameters:\n      step: 2\n')
+    assert params_file.node_parameters(nested, '/sat1/attitude_simulator')['step'].value == 2
+    assert _rcl_parameters(nested, 'attitude_simulator', '/sat1') == {'step': 2}
+
+
+def test_later_sections_override_earlier_ones_as_in_rcl(tmp_path):
+    path = _write(tmp_path, 'order.yaml', '/**:\n  ros__parameters:\n    step: 0.5\n'
+                  '    accuracy: 0.1\nattitude_simulator:\n  ros__parameters:\n    step: 0.25\n')
+    ours = {k: v.value for k, v in
+            params_file.node_parameters(path, '/attitude_simulator').items()}
+    assert ours == _rcl_parameters(path, 'attitude_simulator') == {'step': 0.25,
+                                                                   'accuracy': 0.1}
+
+
+def test_mixed_sequences_are_refused_as_rcl_refuses_them(tmp_path):
+    path = _write(tmp_path, 'mixed.yaml',
+                  'attitude_simulator:\n  ros__parameters:\n    inertia: [1.0, 2, 3.0]\n')
+    with pytest.raises(params_file.ParamsFileError, match='inertia: a sequence must hold'):
+        params_file.node_parameters(path, '/attitude_simulator')
+    with pytest.raises(Exception):
+        _rcl_parameters(path, 'attitude_simulator')
+
+
+SCENE_BODY = ('    inertia: [1.0, 2.0, 3.0]\n    initial_angular_velocity: [0.1, 0.7, -0.2]\n'
+              '    accuracy: 1e-06\n    step: 1\n    publish_rate: 20\n')
+
+
+@pytest.mark.parametrize('key', ['attitude_simulator', '/attitude_simulator',
+                                 '/**/attitude_simulator', '/**'])
+def test_a_file_runs_offline_and_starts_the_node(tmp_path, key, ros_process, namespace,
+                                                 rclpy_node):
+    """The same file through the offline loader and a real simulator process
+    (--params-file): both take the file's values (the node's first angular_velocity
+    message is the file's initial rate), and ``rigid-body-sim run`` runs it."""
+    from geometry_msgs.msg import Vector3Stamped
+    path = _write(tmp_path, 'scene.yaml', f'{key}:\n  ros__parameters:\n{SCENE_BODY}')
+    loaded = scene.load(path)
+    assert loaded.simulator['accuracy'] == 1e-06 and loaded.simulator['step'] == 1.0
+    assert loaded.simulator['initial_angular_velocity'] == [0.1, 0.7, -0.2]
+    out = subprocess.run([venv_exe('rigid-body-sim'), 'run', path, '--duration', '1',
+                          '--json', '--no-bag', '--no-plots', '--out', str(tmp_path / 'o')],
+                         capture_output=True, text=True, timeout=300)
+    assert out.returncode == 0, out.stderr
+    if key.startswith('/**'):
+        ns_args = ['-r', f'__ns:={namespace}']
+    else:  # a key without wildcard names the node in the root namespace
+        ns_args, namespace = [], ''
+    got = []
+    rclpy_node.create_subscription(Vector3Stamped, f'{namespace}/angular_velocity',
+                                   got.append, 10)
+    sim = ros_process(venv_exe('simulator'), '--ros-args', '--params-file', path, *ns_args,
+                      '-p', 'publish_clock:=true')  # stamps = sim time
+    assert spin_until(rclpy_node, lambda: got, 60.0), sim.output()[-2000:]
+    # the node's state at that sim time is the offline engine's for the loaded file
+    t_ns = got[0].header.stamp.sec * 1_000_000_000 + got[0].header.stamp.nanosec
+    from rigid_body_sim.engine import Engine, EngineConfig, SampleBlock
+    offline = SampleBlock.concatenate(
+        Engine(EngineConfig.from_parameters(loaded.simulator)).run(t_ns))
+    assert offline.t_ns[-1] == t_ns
+    v = got[0].vector
+    assert max(abs(a - b) for a, b in zip([v.x, v.y, v.z], offline.angular_velocity[-1])) \
+        <= 1e-12
+
+
+def test_unknown_and_unmatched_keys_are_refused_offline(tmp_path):
+    typo = _write(tmp_path, 'typo.yaml',
+                  'attitude_simulator:\n  ros__parameters:\n    intertia: [1.0, 2.0, 3.0]\n')
+    with pytest.raises(scene.SceneError, match=r'typo\.yaml: /attitude_simulator: intertia: '
+                                               r'unknown parameter .*did you mean inertia'):
+        scene.load(typo)
+    other = _write(tmp_path, 'other.yaml',
+                   'attitude_simulatr:\n  ros__parameters:\n    step: 0.1\n')
+    with pytest.raises(scene.SceneError, match='applies to neither'):
+        scene.load(other)
+
+
+def test_the_offline_loader_needs_no_ros(tmp_path):
+    path = _write(tmp_path, 's.yaml', f'attitude_simulator:\n  ros__parameters:\n{SCENE_BODY}')
+    code = ('import sys; sys.modules["rclpy"] = None\n'
+            'from rigid_body_sim import scene\n'
+            f'print(scene.load({path!r}).simulator["accuracy"])\n')
+    out = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True,
+                         timeout=120, env=dict(os.environ))
+    assert out.returncode == 0 and out.stdout.strip() == '1e-06', out.stderr
