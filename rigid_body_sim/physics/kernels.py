@@ -365,4 +365,6 @@ def warm():
     warm_control()
     from ..engine.closed_loop import warm as warm_closed_loop
     warm_closed_loop()
+    from .dop853_kernel import warm as warm_dop853
+    warm_dop853()
     return COMPILED
