@@ -207,3 +207,14 @@ def test_the_engine_runs_one_integration_through_its_events():
     q_ex, _ = TorqueFreeSolution(moments, Q_ID, moments * w0).at(t)
     assert np.max(rotation.angle_between(attitude, q_ex)) < 1e-9
     assert engine.integrator.nfev == 2 + 12 * 2000
+
+
+def test_the_cached_kernels_are_keyed_on_kernels_py_too():
+    """They embed kernels._rates: after kernels.py changes they must recompile, not run the
+    old rates from numba's cache (which checks only the defining file)."""
+    import numba
+    for kernel in (dop853_kernel._rhs, dop853_kernel._initial_step, dop853_kernel._rk_step,
+                   dop853_kernel.integrate, dop853_kernel.advance):
+        plain = numba.njit(cache=True)(kernel.py_func)
+        assert (kernel._cache._cache_file._source_stamp
+                != plain._cache._cache_file._source_stamp), kernel.__name__

@@ -20,13 +20,15 @@ time 0 → span; the caller adds its t0 when reporting a failure.
 
 Plain numerical Python on float arrays, compiled by ``kernels.jit``; with
 NUMBA_DISABLE_JIT=1 the same source runs as ordinary Python (the tests compare the two).
+The kernels embed ``kernels._rates``, so their disk cache is keyed on kernels.py too.
 """
 import math
 
 import numpy as np
 from scipy.integrate._ivp import dop853_coefficients as _coefficients
 
-from .kernels import COMPILED, _finite, _rates, jit
+from . import kernels
+from .kernels import COMPILED, _finite, _rates, depends_on, jit
 
 N_STAGES = _coefficients.N_STAGES  # 12; stage 0 is the FSAL derivative, so 11 new + f_new
 # (A, B, E3, E5): scipy's arrays, contiguous copies so numba sees plain C arrays. The nodes
@@ -245,6 +247,11 @@ def advance(q, m, span, tau, h_abs, y, f, last, moments, model, coefficient, rto
     if not _finite(q, m):  # q fell to zero
         return NON_FINITE, t, h, nfev
     return OK, t, h, nfev
+
+
+# numba's disk cache checks only this file; each of these embeds kernels._rates or _finite
+for _kernel in (_rhs, _initial_step, _rk_step, integrate, advance):
+    depends_on(_kernel, kernels)
 
 
 def warm():
