@@ -1,15 +1,21 @@
-"""scipy's adaptive DOP853 (solve_ivp) over each step: the high-accuracy reference method."""
+"""Adaptive DOP853, the high-accuracy reference method: compiled for one body, scipy's
+solve_ivp for a batch."""
 import numpy as np
 from scipy.integrate import solve_ivp
 
+from .. import dop853_kernel, kernels
 from .base import IntegrationError, Integrator
 
 
 class DOP853(Integrator):
-    """Dormand–Prince 8(5,3) via scipy.integrate.solve_ivp, adaptive with rtol/atol.
+    """Dormand–Prince 8(5,3), adaptive with rtol/atol; continues across output steps.
 
-    Options: rtol (default 1e-10), atol (default 1e-12). Each call to ``step`` integrates
-    [t, t + h] for the whole batch as one system; q is renormalised at the end of the step.
+    Options: rtol (default 1e-10), atol (default 1e-12). One body runs the compiled kernel
+    (``physics.dop853_kernel``: scipy's method, same steps): ``run``/``step`` integrate the
+    whole interval landing on its end, and consecutive calls continue one integration —
+    the step size and the last state's derivative carry over (the derivative is recomputed
+    after a torque change; any other input state, or ``reset``, starts afresh). q is
+    returned normalised. A batch is one system for scipy's solve_ivp, restarted each step.
     """
     name = 'dop853'
     order = 8
@@ -21,8 +27,47 @@ class DOP853(Integrator):
         if not (rtol > 0 and atol > 0):
             raise ValueError('dop853 needs rtol > 0 and atol > 0')
         self.rtol, self.atol = float(rtol), float(atol)
+        d = dynamics.dissipation
+        self._model = kernels.MODEL_CODES[d.model] if d.active else 0
+        self._coefficient = d.coefficient
+        self._moments = np.array(dynamics.moments, dtype=float)
+        self._zero = np.zeros(3)
+        # the kernel's memory between calls: raw state, its derivative, last output + torque
+        self._y, self._f, self._last = np.zeros(7), np.zeros(7), np.zeros(10)
+        self.reset()
+
+    def reset(self):
+        self._h = 0.0  # the step the kernel proposed last (0: start afresh next call)
+
+    def run(self, q, m, h, n, torque=None, t0=0.0):
+        """One body: one integration over n·h (h is an output interval, not a step)."""
+        if np.ndim(q) != 1 or np.ndim(m) != 1:
+            return super().run(q, m, h, n, torque, t0)
+        if not (np.isfinite(h) and h > 0.0):
+            raise IntegrationError(self.name, h, t0, 'step must be finite and positive')
+        return self._advance(q, m, h * n, torque, t0)
 
     def _step(self, q, m, h, torque, t):
+        if q.ndim == 1 and m.ndim == 1:
+            return self._advance(q, m, h, torque, t)
+        return self._scipy_step(q, m, h, torque, t)
+
+    def _advance(self, q, m, span, torque, t0):
+        q = np.array(q, dtype=float)  # fresh arrays: the kernel writes the result into them
+        m = np.array(m, dtype=float)
+        tau = self._zero if torque is None else np.asarray(torque, dtype=float).reshape(3)
+        status, t, h, nfev = dop853_kernel.advance(
+            q, m, float(span), tau, self._h, self._y, self._f, self._last, self._moments,
+            self._model, self._coefficient, self.rtol, self.atol, *dop853_kernel.TABLEAU)
+        self.nfev += nfev
+        if status != dop853_kernel.OK:
+            self._h = 0.0  # the state is garbage: start afresh next time
+            raise IntegrationError(self.name, h if h > 0.0 else span, t0 + t,
+                                   dop853_kernel.REASONS[status])
+        self._h = h
+        return q, m
+
+    def _scipy_step(self, q, m, h, torque, t):
         shape_q, shape_m = q.shape, m.shape
         nq = q.size
         dyn = self.dynamics

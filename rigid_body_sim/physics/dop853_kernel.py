@@ -1,0 +1,263 @@
+"""Compiled adaptive Dormand–Prince 8(5,3) (DOP853) for one body, across output steps.
+
+The same method as scipy's ``solve_ivp(method='DOP853')`` — its tableau (imported from
+scipy, so the coefficients are the same numbers), its error estimator (the 5th and 3rd
+order combination), step-size control (safety 0.9, factors 0.2–10, exponent −1/8) and
+initial step selection — so on the same right-hand side it takes the same steps, to
+round-off. The right-hand side is the rigid body's ``kernels._rates`` on the packed state
+y = (q (4), m (3)), with the torque held over the call.
+
+What differs from calling solve_ivp once per output step: :func:`advance` keeps the
+proposed step and the last accepted state with its derivative (FSAL) in arrays the caller
+owns, so consecutive calls (event to event) continue the same integration instead of
+restarting from a fresh initial-step guess each time. Each call lands exactly on its end
+time, clipping the last step as scipy does; the step proposed afterwards is the one the
+clipped step interrupted (unless the clipped step's error asks for less). A torque change
+is a discontinuity: the step is kept, the derivative is recomputed.
+
+The system is autonomous (the torque is held over a call), so each call integrates local
+time 0 → span; the caller adds its t0 when reporting a failure.
+
+Plain numerical Python on float arrays, compiled by ``kernels.jit``; with
+NUMBA_DISABLE_JIT=1 the same source runs as ordinary Python (the tests compare the two).
+The kernels embed ``kernels._rates``, so their disk cache is keyed on kernels.py too.
+"""
+import math
+
+import numpy as np
+from scipy.integrate._ivp import dop853_coefficients as _coefficients
+
+from . import kernels
+from .kernels import COMPILED, _finite, _rates, depends_on, jit
+
+N_STAGES = _coefficients.N_STAGES  # 12; stage 0 is the FSAL derivative, so 11 new + f_new
+# (A, B, E3, E5): scipy's arrays, contiguous copies so numba sees plain C arrays. The nodes
+# C are not needed: the system is autonomous.
+TABLEAU = (np.ascontiguousarray(_coefficients.A[:N_STAGES, :N_STAGES]),
+           np.ascontiguousarray(_coefficients.B),
+           np.ascontiguousarray(_coefficients.E3),
+           np.ascontiguousarray(_coefficients.E5))
+
+# scipy.integrate._ivp.rk: SAFETY, MIN_FACTOR, MAX_FACTOR; error estimator order 7.
+SAFETY = 0.9
+MIN_FACTOR = 0.2
+MAX_FACTOR = 10.0
+ERROR_EXPONENT = -1.0 / 8.0
+DIM = 7  # q (4) + m (3)
+
+OK, NON_FINITE, STEP_UNDERFLOW = 0, 1, 2
+REASONS = {NON_FINITE: 'state became non-finite (the method diverged)',
+           STEP_UNDERFLOW: 'step size fell below 10 ulps of t (tolerance unreachable: '
+                           'too stiff or singular)'}
+
+
+@jit
+def _rhs(y, out, moments, tau, model, coefficient):
+    """out = dy/dt at y, both (7,) = (q, m)."""
+    _rates(y[:4], y[4:], moments, tau, model, coefficient, out[:4], out[4:])
+
+
+@jit
+def _initial_step(y, f, span, moments, tau, model, coefficient, rtol, atol, y1, f1):
+    """scipy's select_initial_step (Hairer–Nørsett–Wanner II.4) for an order-7 error
+    estimate, over an interval of ``span``; one evaluation."""
+    d0 = 0.0
+    d1 = 0.0
+    for i in range(DIM):
+        scale = atol + abs(y[i]) * rtol
+        d0 += (y[i] / scale) ** 2
+        d1 += (f[i] / scale) ** 2
+    root_n = math.sqrt(DIM)
+    d0 = math.sqrt(d0) / root_n
+    d1 = math.sqrt(d1) / root_n
+    h0 = 1e-6 if d0 < 1e-5 or d1 < 1e-5 else 0.01 * d0 / d1
+    h0 = min(h0, span)
+    for i in range(DIM):
+        y1[i] = y[i] + h0 * f[i]
+    _rhs(y1, f1, moments, tau, model, coefficient)
+    if h0 == 0.0:  # |f| overflowed the scale: no guess; the caller starts at its floor
+        return 0.0
+    d2 = 0.0
+    for i in range(DIM):
+        scale = atol + abs(y[i]) * rtol
+        d2 += ((f1[i] - f[i]) / scale) ** 2
+    d2 = math.sqrt(d2) / root_n / h0
+    if d1 <= 1e-15 and d2 <= 1e-15:
+        h1 = max(1e-6, h0 * 1e-3)
+    else:
+        h1 = (0.01 / max(d1, d2)) ** (1.0 / 8.0)
+    return min(100.0 * h0, min(h1, span))
+
+
+@jit
+def _rk_step(y, h, K, y_stage, y_new, moments, tau, model, coefficient, A, B):
+    """One DOP853 step of h from y, K[0] = f(y) given: stages into K[1:12], the 8th-order
+    solution into y_new and f(y_new) into K[12] (FSAL). 12 evaluations."""
+    for s in range(1, N_STAGES):
+        # j outer, i inner: seven independent sums (same order per component as j inner)
+        for i in range(DIM):
+            y_stage[i] = 0.0
+        for j in range(s):
+            a = A[s, j]
+            for i in range(DIM):
+                y_stage[i] += K[j, i] * a
+        for i in range(DIM):
+            y_stage[i] = y[i] + y_stage[i] * h
+        _rhs(y_stage, K[s], moments, tau, model, coefficient)
+    for i in range(DIM):
+        y_new[i] = 0.0
+    for j in range(N_STAGES):
+        b = B[j]
+        for i in range(DIM):
+            y_new[i] += K[j, i] * b
+    for i in range(DIM):
+        y_new[i] = y[i] + h * y_new[i]
+    _rhs(y_new, K[N_STAGES], moments, tau, model, coefficient)
+
+
+@jit
+def _error_norm(y, y_new, h, K, rtol, atol, E3, E5):
+    """scipy's DOP853 error norm: |h|·‖e5‖² / √((‖e5‖² + 0.01‖e3‖²)·n), weighted by
+    atol + rtol·max(|y|, |y_new|)."""
+    err5 = 0.0
+    err3 = 0.0
+    for i in range(DIM):
+        scale = atol + max(abs(y[i]), abs(y_new[i])) * rtol
+        e5 = 0.0
+        e3 = 0.0
+        for j in range(N_STAGES + 1):
+            e5 += K[j, i] * E5[j]
+            e3 += K[j, i] * E3[j]
+        err5 += (e5 / scale) ** 2
+        err3 += (e3 / scale) ** 2
+    if err5 == 0.0 and err3 == 0.0:
+        return 0.0
+    return abs(h) * err5 / math.sqrt((err5 + 0.01 * err3) * DIM)
+
+
+@jit
+def integrate(y, f, span, h_abs, fresh, moments, tau, model, coefficient, rtol, atol,
+              A, B, E3, E5):
+    """Advance y (7,) in place from local time 0 to ``span`` exactly; f holds dy/dt at y
+    (recomputed first if ``fresh``) and on return at the new y. ``h_abs`` > 0: the step to
+    try first; otherwise scipy's initial step selection picks it.
+
+    Returns (status, t reached, step proposed next — or the failing step —, evaluations)."""
+    nfev = 0
+    K = np.empty((N_STAGES + 1, DIM))
+    y_stage = np.empty(DIM)
+    y_new = np.empty(DIM)
+    if fresh:
+        _rhs(y, f, moments, tau, model, coefficient)
+        nfev += 1
+    if not (_finite(y[:4], y[4:]) and _finite(f[:4], f[4:])):
+        return NON_FINITE, 0.0, h_abs, nfev
+    if not h_abs > 0.0:
+        h_abs = _initial_step(y, f, span, moments, tau, model, coefficient, rtol, atol,
+                              y_stage, y_new)
+        nfev += 1
+    t = 0.0
+    while t < span:
+        # scipy's floor: 10 ulps of t (local time here, so never coarser than scipy's)
+        min_step = 10.0 * (np.nextafter(t, np.inf) - t)
+        if h_abs < min_step:
+            h_abs = min_step
+        rejected = False
+        while True:
+            if h_abs < min_step:
+                return STEP_UNDERFLOW, t, h_abs, nfev
+            t_new = t + h_abs
+            clipped = t_new > span
+            if clipped:
+                t_new = span  # land on the end exactly
+            h = t_new - t  # the step actually taken, rounded as scipy rounds it
+            for i in range(DIM):
+                K[0, i] = f[i]
+            _rk_step(y, h, K, y_stage, y_new, moments, tau, model, coefficient, A, B)
+            nfev += N_STAGES
+            err = _error_norm(y, y_new, h, K, rtol, atol, E3, E5)
+            if err < 1.0:
+                if err == 0.0:
+                    factor = MAX_FACTOR
+                else:
+                    factor = min(MAX_FACTOR, SAFETY * err ** ERROR_EXPONENT)
+                if rejected:
+                    factor = min(1.0, factor)
+                if clipped:
+                    # The next call should resume at the step this one interrupted, not at
+                    # ≤ 10× a possibly tiny clipped step; the clipped step's own (uncapped)
+                    # proposal still wins if it asks for less.
+                    if err > 0.0:
+                        h_abs = min(h_abs, h * SAFETY * err ** ERROR_EXPONENT)
+                else:
+                    h_abs = h * factor
+                break
+            # rejected; a NaN error (overflow inside the step) shrinks by the most, as in scipy
+            factor = SAFETY * err ** ERROR_EXPONENT if err == err else MIN_FACTOR
+            h_abs = h * max(MIN_FACTOR, factor)
+            rejected = True
+        t = t_new
+        for i in range(DIM):
+            y[i] = y_new[i]
+            f[i] = K[N_STAGES, i]
+        if not _finite(y[:4], y[4:]):
+            return NON_FINITE, t, h, nfev
+    return OK, t, h_abs, nfev
+
+
+@jit
+def advance(q, m, span, tau, h_abs, y, f, last, moments, model, coefficient, rtol, atol,
+            A, B, E3, E5):
+    """One output step of ``span`` for an integrator that keeps its memory between calls.
+
+    q (4,), m (3,): the state to advance, overwritten with the result (q normalised).
+    Memory the caller owns: y (7,) the raw (unnormalised) last accepted state, f (7,) its
+    derivative, last (10,) the q, m returned last time and the torque used, h_abs the step
+    proposed last time (0: no memory). When (q, m) is what was returned last time the
+    integration continues from y with that step (derivative recomputed if the torque
+    changed); any other state starts afresh. Returns what :func:`integrate` returns."""
+    warm = h_abs > 0.0
+    for i in range(4):
+        warm = warm and q[i] == last[i]
+    for i in range(3):
+        warm = warm and m[i] == last[4 + i]
+    fresh = True
+    if warm:
+        fresh = tau[0] != last[7] or tau[1] != last[8] or tau[2] != last[9]
+    else:
+        for i in range(4):
+            y[i] = q[i]
+        for i in range(3):
+            y[4 + i] = m[i]
+        h_abs = 0.0
+    status, t, h, nfev = integrate(y, f, span, h_abs, fresh, moments, tau, model, coefficient,
+                                   rtol, atol, A, B, E3, E5)
+    if status != OK:
+        return status, t, h, nfev
+    # q is returned normalised (the caller's state stays unit); y keeps the raw solution
+    # so that continuing reproduces one long integration.
+    norm = math.sqrt(y[0] * y[0] + y[1] * y[1] + y[2] * y[2] + y[3] * y[3])
+    for i in range(4):
+        q[i] = y[i] / norm
+        last[i] = q[i]
+    for i in range(3):
+        m[i] = y[4 + i]
+        last[4 + i] = m[i]
+        last[7 + i] = tau[i]
+    if not _finite(q, m):  # q fell to zero
+        return NON_FINITE, t, h, nfev
+    return OK, t, h, nfev
+
+
+# numba's disk cache checks only this file; each of these embeds kernels._rates or _finite
+for _kernel in (_rhs, _initial_step, _rk_step, integrate, advance):
+    depends_on(_kernel, kernels)
+
+
+def warm():
+    """Compile (or load from the cache) the kernel on representative arguments."""
+    q = np.array([0.0, 0.0, 0.0, 1.0])
+    m = np.array([0.1, 1.0, 0.2])
+    advance(q, m, 1e-3, np.zeros(3), 0.0, np.empty(DIM), np.empty(DIM), np.empty(10),
+            np.array([1.0, 2.0, 3.0]), 1, 0.1, 1e-10, 1e-12, *TABLEAU)
+    return COMPILED
