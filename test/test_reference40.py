@@ -15,10 +15,11 @@ pytestmark = pytest.mark.fast
 
 @pytest.mark.parametrize('name', ['intermediate_axis', 'tumble', 'symmetric_top'])
 def test_closed_form_matches_mpmath_ode(name):
-    """Agreement to 1e-35 at t = 10 s (measured ≤ 1e-39 at 40 digits): the constants, signs
-    and phase conventions of the closed form are right. ~12 s of CPU for the three."""
-    att, mom = ode_check(name, 10.0)
-    assert att < 1e-35 and mom < 1e-35
+    """Agreement to 1e-30 at t = 10 s (measured ≤ 1e-35 with the ODE at 34 digits, ≤ 1e-41
+    at 40): the constants, signs and phase conventions of the closed form are right.
+    ~8 s of CPU for the three."""
+    att, mom = ode_check(name, 10.0, dps=34)
+    assert att < 1e-30 and mom < 1e-30
 
 
 @pytest.mark.parametrize('name', ['intermediate_axis', 'tumble', 'symmetric_top',
