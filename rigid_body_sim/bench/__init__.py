@@ -3,11 +3,12 @@
     rigid-body-sim bench [--quick] [--out DIR] [--peers]
 
 One process run measures every section, prints tables and writes CSV + PNG files into DIR:
-work_precision.csv, stability.csv, long_horizon.csv, batch.csv, live.json, targets.csv,
-targets.md, work_precision_<scene>.png, stability.png, long_horizon.png. Times are process
-CPU seconds (``time.process_time``), so they include Python overhead — ours and scipy's
-alike; MuJoCo and Basilisk step in C. Modules: scenes (data), workprecision, stability,
-longhorizon, batch, live, peers, targets, charts.
+work_precision.csv, stability.csv, long_horizon.csv, batch.csv, live.json, exact_horizon.csv,
+targets.csv, targets.md, work_precision_<scene>.png, stability.png, long_horizon.png. Times
+are process CPU seconds (``time.process_time``), so they include Python overhead — ours and
+scipy's alike; MuJoCo and Basilisk step in C. Modules: scenes (data), workprecision,
+stability, longhorizon, batch, live, peers, exact_horizon (with reference40, the 40-digit
+reference; mpmath), targets, charts.
 """
 import csv
 import json
@@ -19,8 +20,8 @@ import time
 
 from . import batch as batch_mod
 from . import compile as compile_cost
-from . import charts, live, longhorizon, peers, perstep, selection, stability, targets
-from . import workprecision
+from . import (charts, exact_horizon, live, longhorizon, peers, perstep, selection, stability,
+               targets, workprecision)
 from .common import reference
 from .scenes import SCENES, SCENE_BY_NAME
 
@@ -85,48 +86,6 @@ def _markdown_targets(rows, machine_text, command):
                  _fmt(r['required']), verdict]
         lines.append('| ' + ' | '.join(str(c).replace('|', '\\|') for c in cells) + ' |')
     return '\n'.join(lines) + '\n'
-
-
-def _exact_floor(log):
-    """exact on the intermediate-axis scene at t = 1e3 and 1e6 s."""
-    import numpy as np
-    from ..physics import create, rotation
-    from ..physics.exact import TorqueFreeSolution
-    scene = SCENE_BY_NAME['intermediate_axis']
-    sol = TorqueFreeSolution(np.asarray(scene.moments, float), scene.q0_array, scene.m0)
-    out = []
-    q3, _ = sol.at(1e3)
-    d13 = create('dop853', scene.dynamics, rtol=1e-13, atol=1e-15).step(
-        scene.q0_array, scene.m0, 1e3)
-    d12 = create('dop853', scene.dynamics, rtol=1e-12, atol=1e-14).step(
-        scene.q0_array, scene.m0, 1e3)
-    diff = float(rotation.angle_between(q3, d13[0]))
-    ref_err = float(rotation.angle_between(d12[0], d13[0]))
-    if diff <= 1e-12:
-        out.append(targets.simple(
-            'exact attitude error at t = 1e3 s (intermediate axis)', diff, 1e-12, True,
-            f'vs dop853 rtol 1e-13 (its own error estimate {ref_err:.2g})'))
-    else:
-        out.append(targets.simple(
-            'exact attitude error at t = 1e3 s (intermediate axis)', diff, 1e-12, None,
-            f'UNVERIFIED: differs from dop853 rtol 1e-13 by {diff:.2g} rad, but that '
-            f'reference is itself only good to ~{ref_err:.2g} (rtol 1e-12 vs 1e-13); '
-            'no float64 reference resolves 1e-12 here'))
-    # 1e6 s: no reference can be integrated that far; consistency proxy: direct evaluation vs
-    # ten re-anchored hops of 1e5 s (differences come from rounding in the anchors and phase).
-    q6, _ = sol.at(1e6)
-    q, m = scene.q0_array, scene.m0
-    for _ in range(10):
-        q, m = TorqueFreeSolution(np.asarray(scene.moments, float), q, m).at(1e5)
-    proxy = float(rotation.angle_between(q6, q))
-    floor = np.finfo(float).eps * scene.omega_max * 1e6
-    out.append(targets.simple(
-        'exact attitude error at t = 1e6 s (intermediate axis)', proxy, 1e-9, proxy <= 1e-9,
-        f'PROXY (no reference reaches 1e6 s): direct at(1e6) vs 10 re-anchored hops of '
-        f'1e5 s; eps*|w|*t = {floor:.2g}'))
-    log(f'  exact floor: t=1e3 diff vs dop853 {diff:.2g} (ref err ~{ref_err:.2g}); '
-        f't=1e6 proxy {proxy:.2g}')
-    return out
 
 
 def run(args) -> int:
@@ -230,11 +189,15 @@ def _run(args) -> int:
     if c_rows:
         _write_csv(os.path.join(out, 'compile.csv'), compile_cost.FIELDS, c_rows)
 
+    # 8. exact against the 40-digit reference at 1e3 s and 1e6 s, every torque-free scene
+    log('\n== 8. exact at long horizons (40-digit reference) ==')
+    eh_rows, eh_targets = exact_horizon.run(quick, log)
+    if eh_rows:
+        _write_csv(os.path.join(out, 'exact_horizon.csv'), exact_horizon.FIELDS, eh_rows)
+
     # targets
     log('\n== targets ==')
-    t_rows = targets.work_precision(wp_rows, scenes) + sel_targets
-    if any(s.name == 'intermediate_axis' for s in scenes):
-        t_rows += _exact_floor(log)
+    t_rows = targets.work_precision(wp_rows, scenes) + sel_targets + eh_targets
     split = [r for r in st_rows if r['method'].startswith('splitting') and r['status'] == 'ok']
     if split:
         worst = max(split, key=lambda r: r['max_momentum_drift'])

@@ -3,7 +3,8 @@
 * :mod:`.body` — inertia validation, principal moments and axes.
 * :mod:`.dynamics` — Euler's equations, torques and dissipation (principal frame).
 * :mod:`.integrators` — the registry of methods with one interface.
-* :mod:`.exact` — the torque-free solution in closed form (Jacobi elliptic functions).
+* :mod:`.exact` — the torque-free solution in closed form (Jacobi elliptic functions);
+  :mod:`.exact_scalar` its one-body path, :mod:`.extended` its long-double phases.
 * :mod:`.propagator` — propagation in the user's body frame.
 """
 from .body import RigidBody
