@@ -302,6 +302,8 @@ def warm():
                       1, 0.1, inner)
     rk4_run(q, m, 1e-3, 1, moments, tau, 0, 0.0)
     euler_run(q, m, 1e-3, 1, moments, tau, 0, 0.0)
+    from .implicit_kernel import warm as warm_implicit
+    warm_implicit()
     from ..control_kernel import warm as warm_control
     warm_control()
     from ..engine.closed_loop import warm as warm_closed_loop
