@@ -7,7 +7,8 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from rigid_body_sim.physics import Dissipation, Dynamics, IntegrationError, create, rotation
+from rigid_body_sim.physics import (Dissipation, Dynamics, IntegrationError, create, kernels,
+                                    rotation)
 from rigid_body_sim.physics.integrators import INTEGRATORS
 
 I_STD = np.array([2.0, 1.0, 2.0 / 3.0])
@@ -62,7 +63,8 @@ def test_splitting_keeps_momentum_norm_and_bounded_energy(name):
 
 
 @pytest.mark.parametrize('name,order', [('splitting2', 2), ('splitting4', 4), ('splitting6', 6),
-                                        ('rk4', 4), ('implicit_midpoint', 2), ('euler', 1)])
+                                        ('rk4', 4), ('implicit_midpoint', 2), ('euler', 1),
+                                        ('splitting2_lstable', 2)])
 def test_observed_order_of_convergence(name, order):
     """Observed order within ±0.1 (±0.2 for 6, where round-off starts to show) at T = 10 s."""
     dyn = Dynamics(I_STD)
@@ -79,7 +81,8 @@ def test_observed_order_of_convergence(name, order):
 
 @pytest.mark.parametrize('model', ['double_bracket', 'viscous'])
 @pytest.mark.parametrize('name,order', [('splitting2', 2), ('splitting4', 4), ('splitting6', 6),
-                                        ('rk4', 4), ('implicit_midpoint', 2)])
+                                        ('rk4', 4), ('implicit_midpoint', 2),
+                                        ('splitting2_lstable', 2)])
 def test_observed_order_with_damping_and_torque(name, order, model):
     """With weak damping (λh ≪ 1) and a held torque the compositions keep their order:
     the damping runs inside every stage by a time-symmetric flow. Against DOP853 at rtol
@@ -107,6 +110,57 @@ def test_stiff_damping_stays_outside_the_composition():
     assert not integ.inner_dissipation(m0, 0.01) and integ.effective_order(m0, 0.01) == 2
     q, m = integ.run(np.array([0.0, 0.0, 0.0, 1.0]), m0, 0.01, 500)
     assert abs(np.linalg.norm(m) - 1.0) < 1e-12 and abs(m[2]) > 1.0 - 1e-9
+
+
+@pytest.mark.parametrize('alpha,t', [(0.5, 2.0), (1000.0, 0.15)])
+def test_exact_double_bracket_flow_solves_its_equation(alpha, t):
+    """The closed form of ṁ = α m×(m×Ω) that splitting2_lstable uses for its damping, mild
+    and stiff (λt ≈ 1 and 77): the ODE's solution (DOP853, rtol 1e-13) to 1e-12, |m| to
+    round-off."""
+    dyn = Dynamics(np.array([1.0, 2.0, 3.0]), Dissipation('double_bracket', alpha))
+    m0 = np.array([0.6, -0.5, 0.4])
+    ref = solve_ivp(lambda _, m: dyn.dissipation_rate(m), (0.0, t), m0, method='DOP853',
+                    rtol=1e-13, atol=1e-15).y[:, -1]
+    m = m0.copy()
+    kernels.double_bracket_exact(m, t, dyn.moments, alpha)
+    np.testing.assert_allclose(m, ref, rtol=0, atol=1e-12)
+    assert abs(np.linalg.norm(m) / np.linalg.norm(m0) - 1.0) < 1e-15
+
+
+def test_lstable_splitting_kills_the_stiff_mode_where_implicit_midpoint_rings():
+    """The bench's stiff scene (I = (1, 2, 3), |L| = 1 started 1e-3 off the major axis,
+    α = 1000: stiffness λ = 667/s) at hλ = 100. Implicit midpoint (A- but not L-stable)
+    damps the transverse momentum by only ~0.95 per step (its factor → −1 as hλ → ∞);
+    splitting2_lstable by ≤ 0.1 (its exact damping sub-flow: e^{−hλ}), keeping |m| to
+    1e-12 and T non-increasing, and ends on the major axis like the reference (DOP853,
+    rtol 1e-13; truth: transverse 1e-13× its start)."""
+    dyn = Dynamics(np.array([1.0, 2.0, 3.0]), Dissipation('double_bracket', 1000.0))
+    m0 = np.array([1e-3, 1e-3, 1.0]) / np.linalg.norm([1e-3, 1e-3, 1.0])
+    h = 100.0 / dyn.dissipation_stiffness(1.0)
+    n = 33
+    q_ref, m_ref = create('dop853', dyn, rtol=1e-13, atol=1e-15).step(Q_ID, m0, n * h)
+    per_step = {}
+    for name in ('splitting2_lstable', 'implicit_midpoint'):
+        integ, q, m = create(name, dyn), Q_ID, m0
+        transverse, energy, norm = [np.hypot(m[0], m[1])], [dyn.kinetic_energy(m)], []
+        for _ in range(n):
+            q, m = integ.run(q, m, h, 1)
+            transverse.append(np.hypot(m[0], m[1]))
+            energy.append(dyn.kinetic_energy(m))
+            norm.append(np.linalg.norm(m))
+        transverse = np.array(transverse)
+        live = transverse[:-1] > 1e-250  # before the mode is gone below the denormals
+        per_step[name] = np.max(transverse[1:][live] / transverse[:-1][live])
+        if name == 'implicit_midpoint':
+            per_step['implicit_midpoint_mean'] = (transverse[-1] / transverse[0]) ** (1 / n)
+            continue
+        assert np.max(np.abs(np.array(norm) - 1.0)) < 1e-12
+        assert np.all(np.diff(energy) <= 1e-15)
+        np.testing.assert_allclose(m, m_ref, rtol=0, atol=1e-12)
+        assert rotation.angle_between(q, q_ref) < 1e-5
+    assert per_step['splitting2_lstable'] <= 0.1
+    assert per_step['implicit_midpoint'] < 1.0 and per_step['implicit_midpoint_mean'] > 0.9, \
+        per_step
 
 
 def test_implicit_midpoint_keeps_energy_and_momentum_norm():
@@ -215,7 +269,8 @@ def test_symmetric_top_body_precession_rate():
     assert w[2] == pytest.approx(1.0, rel=1e-14)
 
 
-@pytest.mark.parametrize('name', ['splitting2', 'splitting4', 'implicit_midpoint', 'rk4', 'exact'])
+@pytest.mark.parametrize('name', ['splitting2', 'splitting4', 'implicit_midpoint', 'rk4', 'exact',
+                                  'splitting2_lstable'])
 def test_double_bracket_goes_to_major_axis_keeping_momentum_norm(name):
     """|L| const (1e-10; explicit rk4 only to its error), T monotone, T → |L|²/(2 I3)."""
     moments = np.array([1.0, 2.0, 3.0])

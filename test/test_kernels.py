@@ -14,7 +14,8 @@ import pytest
 
 from rigid_body_sim.physics import Dissipation, Dynamics, IntegrationError, create, kernels
 
-CASES = [(name, model) for name in ('splitting2', 'splitting4', 'splitting6', 'rk4', 'euler')
+CASES = [(name, model) for name in ('splitting2', 'splitting4', 'splitting6', 'rk4', 'euler',
+                                    'implicit_midpoint', 'splitting2_lstable')
          for model in ('none', 'double_bracket', 'viscous')]
 MOMENTS = (1.0, 2.0, 3.0)
 Q0, M0, TAU = (0.1, -0.2, 0.3, 0.9), (0.3, 0.6, 2.7), (0.01, -0.02, 0.005)
@@ -84,6 +85,45 @@ try:
 except IntegrationError as exc:
     print(exc.integrator, exc.h, exc.t > 2.0, exc.t <= 2.0 + 0.05 * 10000)
 '''
+
+
+_NEWTON_FAILS = '''
+import json, numpy as np
+from rigid_body_sim.physics import Dynamics, IntegrationError, create
+from rigid_body_sim.physics.integrators import Integrator
+dyn = Dynamics(np.array([2.0, 1.0, 2.0 / 3.0]))
+m0 = 50 * np.array([np.cos(1.1), 0.0, np.sin(1.1)])
+out = []
+# h = 100 fails at once (reported at h/16 = 6.25 at the step's start); h = 0.3 at scale 0.1
+# first fails at h/16 after one sub-step of h/16 succeeded (t = 1 + 0.3/16)
+for scale, h, t0, cap in ((1.0, 100.0, 3.0, 1), (0.1, 0.3, 1.0, 3)):
+    for loop in ("kernel", "numpy"):
+        integ = create("implicit_midpoint", dyn, max_iterations=cap)
+        run = integ.run if loop == "kernel" else lambda *a: Integrator.run(integ, *a)
+        try:
+            run(np.array([0.0, 0.0, 0.0, 1.0]), scale * m0, h, 5, None, t0)
+        except IntegrationError as exc:
+            out.append([loop, exc.integrator, exc.h, exc.t, exc.reason, integ.nfev])
+print(json.dumps(out))
+'''
+
+
+@pytest.mark.parametrize('disable_jit', [False, True])
+def test_implicit_midpoint_newton_failure_is_the_numpy_paths_in_both_modes(disable_jit):
+    """A Newton iteration capped too low: the compiled loop retries on halved steps and
+    fails at h/16 with the same step, time, reason and evaluation count as the numpy path."""
+    env = dict(os.environ, NUMBA_DISABLE_JIT='1' if disable_jit else '0')
+    out = subprocess.run([sys.executable, '-c', _NEWTON_FAILS], env=env,
+                         capture_output=True, text=True, timeout=600)
+    assert out.returncode == 0, out.stderr[-3000:]
+    rows = json.loads(out.stdout)
+    assert len(rows) == 4
+    for kernel, numpy_path in (rows[0:2], rows[2:4]):
+        assert kernel[0] == 'kernel' and numpy_path[0] == 'numpy'
+        assert kernel[1:] == numpy_path[1:]
+    assert rows[0][1:5] == ['implicit_midpoint', 6.25, 3.0,
+                            'Newton iteration did not converge in 1 iterations']
+    assert rows[2][2:4] == [0.3 / 16, 1.0 + 0.3 / 16]
 
 
 @pytest.mark.parametrize('disable_jit', [False, True])

@@ -11,7 +11,8 @@ use and cached on disk (``make`` warms the cache). With ``NUMBA_DISABLE_JIT=1`` 
 numba) the same functions run as ordinary Python, which the tests use to check both modes
 agree.
 
-Dissipation models: 0 none, 1 double bracket (α), 2 viscous (c); see ``dynamics``.
+Dissipation models: 0 none, 1 double bracket (α), 2 viscous (c); see ``dynamics``. Code 3
+is the double bracket by its exact flow (``splitting2_lstable``).
 """
 import hashlib
 import math
@@ -161,9 +162,42 @@ def _double_bracket_symmetric(m, t, moments, alpha):
 
 
 @jit
+def double_bracket_exact(m, t, moments, alpha):
+    """The exact flow of ṁ = α m×(m×Ω) for time t ≥ 0, in place. On the sphere |m| = L it
+    is ṁ_i = α m_i (2T − L²/I_i), whose solution is m_i(t) ∝ m_i(0) e^{−αL²t/I_i}, scaled
+    back to |m| = L: every transverse mode decays as e^{−λt}, so at any step the stiff ones
+    vanish (R(z) = e^z, L-stable) at the cost of three exponentials. Exponents are taken
+    relative to the largest I with m_i ≠ 0, so none overflows and that component stays."""
+    norm2 = m[0] * m[0] + m[1] * m[1] + m[2] * m[2]
+    if norm2 == 0.0:
+        return
+    c = alpha * norm2 * t
+    ref = 0.0  # 1/I of the reference component
+    for i in range(3):
+        if m[i] != 0.0 and (ref == 0.0 or 1.0 / moments[i] < ref):
+            ref = 1.0 / moments[i]
+    big = 0.0
+    for i in range(3):
+        if m[i] != 0.0:  # a zero component stays zero (its factor may overflow)
+            m[i] = m[i] * math.exp(c * (ref - 1.0 / moments[i]))
+        big = max(big, abs(m[i]))
+    s = 0.0  # |m|² after the decay, scaled by the largest component (no underflow)
+    for i in range(3):
+        r = m[i] / big
+        s += r * r
+    scale = math.sqrt(norm2) / (big * math.sqrt(s))
+    for i in range(3):
+        m[i] = m[i] * scale
+
+
+@jit
 def _dissipate(m, t, moments, model, coefficient, symmetric):
     """D(t); ``symmetric``: by a time-symmetric flow (t of either sign). Viscous damping is
-    exact either way. Returns the dissipative sub-flows evaluated (for nfev)."""
+    exact either way; model 3 is the double bracket by its exact flow (t ≥ 0, never inside
+    compositions). Returns the dissipative sub-flows evaluated (for nfev)."""
+    if model == 3:
+        double_bracket_exact(m, t, moments, coefficient)
+        return 0
     if model == 2:
         for i in range(3):
             m[i] = m[i] * math.exp(-coefficient * t / moments[i])
@@ -361,6 +395,8 @@ def warm():
     euler_run(q, m, 1e-3, 1, moments, tau, 0, 0.0)
     from .batch_kernels import warm as warm_batch
     warm_batch()
+    from .implicit_kernel import warm as warm_implicit
+    warm_implicit()
     from ..control_kernel import warm as warm_control
     warm_control()
     from ..engine.closed_loop import warm as warm_closed_loop

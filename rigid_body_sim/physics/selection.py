@@ -24,7 +24,7 @@ from .body import RigidBody
 from .dynamics import Dissipation, Dynamics
 from .integrators import IntegrationError, create
 
-CANDIDATES = ('splitting2', 'splitting4', 'splitting6', 'implicit_midpoint')
+CANDIDATES = ('splitting2_lstable', 'splitting2', 'splitting4', 'splitting6', 'implicit_midpoint')
 DEFAULT_HORIZON = 600.0  # s: the budget horizon for open-ended (duration 0) runs
 
 
@@ -140,7 +140,8 @@ def selecting(body: RigidBody, dissipation: Dissipation, attitude, angular_veloc
     why = []
     best = None
     for name in CANDIDATES:
-        if name == 'implicit_midpoint' and stiffness * min(max_step, pilot / 8) < 1.0:
+        if name in ('implicit_midpoint', 'splitting2_lstable') and \
+                stiffness * min(max_step, pilot / 8) < 1.0:
             continue  # A-stability only pays off when dissipation is stiff at the step we need
         if best is not None and best[1] >= max_step and name != 'implicit_midpoint':
             break  # a higher order cannot take a larger step and costs more per step

@@ -7,9 +7,11 @@ from .explicit import Euler, RK4
 from .exact_flow import Exact
 from .implicit import ImplicitMidpoint
 from .ivp import DOP853
+from .lstable import Splitting2LStable
 from .splitting import Splitting2, Splitting4, Splitting6
 
-_METHODS = (Euler, RK4, DOP853, ImplicitMidpoint, Splitting2, Splitting4, Splitting6, Exact)
+_METHODS = (Euler, RK4, DOP853, ImplicitMidpoint, Splitting2, Splitting4, Splitting6, Exact,
+            Splitting2LStable)
 
 INTEGRATORS = {cls.name: cls for cls in _METHODS}
 

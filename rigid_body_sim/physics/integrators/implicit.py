@@ -6,7 +6,7 @@ transform of ½[Ω]: the quaternion norm is kept exactly, no renormalising.
 """
 import numpy as np
 
-from .. import rotation
+from .. import implicit_kernel, kernels, rotation
 from .base import IntegrationError, Integrator
 
 _EPS = np.finfo(float).eps
@@ -38,6 +38,34 @@ class ImplicitMidpoint(Integrator):
     def __init__(self, dynamics, max_iterations: int = 30):
         super().__init__(dynamics)
         self.max_iterations = int(max_iterations)
+        d = dynamics.dissipation
+        self._model = kernels.MODEL_CODES[d.model] if d.active else 0
+        self._coefficient = d.coefficient
+        self._moments = np.array(dynamics.moments, dtype=float)
+
+    def run(self, q, m, h, n, torque=None, t0=0.0):
+        """One body: the compiled loop (physics.implicit_kernel); a batch: the numpy path.
+        Both retry a failed Newton solve on halved steps and report a failure at h/16
+        with the sub-step's size and start time."""
+        if np.ndim(q) != 1 or np.ndim(m) != 1:
+            return super().run(q, m, h, n, torque, t0)
+        if not (np.isfinite(h) and h > 0.0):
+            raise IntegrationError(self.name, h, t0, 'step must be finite and positive')
+        q = np.array(q, dtype=float)
+        m = np.array(m, dtype=float)
+        tau = np.zeros(3) if torque is None else np.array(torque, dtype=float).reshape(3)
+        failed, status, level, pos, evals = implicit_kernel.implicit_midpoint_run(
+            q, m, float(h), int(n), self._moments, tau, self._model, self._coefficient,
+            self.max_iterations)
+        self.nfev += evals
+        if failed >= 0:
+            t = t0 + failed * h  # the start of the failing step, as Integrator.run has it
+            reason = implicit_kernel.REASONS[status].format(self.max_iterations)
+            if status == implicit_kernel.NON_FINITE:
+                raise IntegrationError(self.name, h, t, reason)
+            raise IntegrationError(self.name, h * 0.5 ** level,
+                                   implicit_kernel.substep_time(t, h, level, pos), reason)
+        return q, m
 
     def _jacobian(self, x):
         """dF/dm at x for F(m) = m×Ω + τ + dissipation."""
