@@ -174,6 +174,18 @@ def _plots_from_bag(bag, scene, out_dir):
     return write_plots(samples, body, out_dir, f'{scene.name} (live)', free_end)
 
 
+def _overrides_file(scene, out) -> str:
+    """The scene's values after --set, as a params file read after the scene's own."""
+    import yaml
+    path = os.path.join(out, 'overrides.yaml')
+    data = {'/**/attitude_simulator': {'ros__parameters': scene.simulator}}
+    if scene.controlled:
+        data['/**/attitude_controller'] = {'ros__parameters': scene.controller}
+    with open(path, 'w') as f:
+        yaml.safe_dump(data, f)
+    return path
+
+
 def add_arguments(parser):
     parser.add_argument('--scene', default='default',
                         help='scene name or params file (default: default)')
@@ -182,6 +194,8 @@ def add_arguments(parser):
                         help='wall seconds to run (default: $DEMO_DURATION or 30)')
     parser.add_argument('--out', default=os.path.join('out', 'demo'),
                         help='output directory (default out/demo)')
+    from .offline import add_set_argument
+    add_set_argument(parser)
 
 
 def run(args) -> int:
@@ -191,7 +205,7 @@ def run(args) -> int:
     from .bag.errors import BagError
     from .bag.reader import read_info
     try:
-        scene = load(args.scene)
+        scene = load(args.scene, args.set)
     except SceneError as exc:
         print(f'error: {exc}', file=sys.stderr)
         return 2
@@ -205,6 +219,8 @@ def run(args) -> int:
     shutil.rmtree(bag, ignore_errors=True)  # each demo replaces the previous one's bag
     os.makedirs(out, exist_ok=True)
     params = ['--ros-args', '--params-file', os.path.abspath(scene.path)]
+    if args.set:  # a second params file: its node sections win over the scene's (rcl order)
+        params += ['--params-file', _overrides_file(scene, out)]
     target = np.asarray(scene.controller.get('target_attitude', (0.0, 0.0, 0.0, 1.0)), float)
     print(f'demo: scene {scene.name} — {scene.description}')
     print(f'demo: logs and output in {out}; stopping after {args.duration:g} s '

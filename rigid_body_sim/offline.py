@@ -197,13 +197,21 @@ def add_arguments(parser):
                         help='print one JSON object with the results')
     parser.add_argument('--no-bag', action='store_true', help='skip writing the bag')
     parser.add_argument('--no-plots', action='store_true', help='skip the PNG plots')
+    add_set_argument(parser)
+
+
+def add_set_argument(parser):
+    parser.add_argument('--set', action='append', default=[], metavar='KEY=VALUE',
+                        help='override a scene parameter after the file (repeatable), typed '
+                             'as in a params file: --set accuracy=1e-9 --set '
+                             'initial_angular_velocity=[0.1,2.0,0.0]')
 
 
 def run(args) -> int:
     from .bag.errors import BagError
     bag = None
     try:
-        scene = load(args.scene)
+        scene = load(args.scene, args.set)
         out = args.out or os.path.join('out', scene.name)
         if not args.no_bag:
             bag_dir = os.path.join(out, 'bag')

@@ -77,12 +77,16 @@ def scalar(text: str, style, tag) -> Any:
     return text
 
 
-def _tree(path: str):
-    """The YAML document as nested dicts/lists with typed scalars (from parser events, so
-    that quoting and explicit tags are seen as rcl sees them)."""
+def _tree(path: str, text: str = None):
+    """The YAML document (file ``path``, or ``text``) as nested dicts/lists with typed
+    scalars (from parser events, so that quoting and explicit tags are seen as rcl sees
+    them)."""
     try:
-        with open(path, encoding='utf-8') as f:
-            events = list(yaml.parse(f))
+        if text is None:
+            with open(path, encoding='utf-8') as f:
+                events = list(yaml.parse(f))
+        else:
+            events = list(yaml.parse(text))
     except OSError as exc:
         raise ParamsFileError(f'{path}: {exc.strerror}') from None
     except yaml.YAMLError as exc:
@@ -186,6 +190,18 @@ def node_parameters(path: str, node_fqn: str) -> Dict[str, Value]:
         if matches(key, node_fqn):
             out.update({name: Value(value, key) for name, value in params.items()})
     return out
+
+
+def parse_override(text: str) -> Tuple[str, Any]:
+    """``KEY=VALUE`` (a --set option) → (key, value typed as rcl types that value in a
+    params file: ``1e-06`` a double, ``[1.0, 2.0]`` a double array, ``off`` a bool)."""
+    key, sep, value = text.partition('=')
+    key = key.strip()
+    if not sep or not key:
+        raise ParamsFileError(f'--set {text}: expected KEY=VALUE, e.g. --set accuracy=1e-9')
+    tree = _tree(f'--set {key}', f'x: {value}' if value.strip() else 'x: ""')
+    flat = _flatten(tree, f'--set {key}', '--set')
+    return key, flat['x']
 
 
 def fully_qualified(name: str, namespace: str = '/') -> str:

@@ -88,8 +88,11 @@ CONTROLLER_NODE = '/attitude_controller'
 META_KEYS = SCENE_KEYS + ('use_sim_time',)  # declared by every node (rclpy) or metadata
 
 
-def load(scene: str) -> SceneFile:
+def load(scene: str, overrides=()) -> SceneFile:
     """Load and validate a built-in scene (by name) or a params file (by path).
+
+    ``overrides``: ``KEY=VALUE`` texts (``--set``) applied after the file, to each node of
+    the scene that declares KEY; an unknown KEY fails with the closest valid one.
 
     The file is read as rcl reads it (``params_file``): the simulator takes what a node
     ``/attitude_simulator`` would take from ``--params-file``, the controller what
@@ -124,6 +127,19 @@ def load(scene: str) -> SceneFile:
     # controlled: some section is for the controller and not for the simulator
     controlled = any(params_file.matches(k, CONTROLLER_NODE)
                      and not params_file.matches(k, SIMULATOR_NODE) for k, _ in file_sections)
+    try:
+        for text in overrides:
+            key, value = params_file.parse_override(text)
+            targets = [raw for raw, names in ((sim_raw, sim_names), (ctl_raw, ctl_names))
+                       if key in names and (raw is sim_raw or controlled)]
+            if not targets or key in META_KEYS:
+                known = sim_names | (ctl_names if controlled else set())
+                raise SceneError(f'--set {text}: {key}: not a parameter of this scene\'s '
+                                 f'nodes{params_file.closest(key, known - set(META_KEYS))}')
+            for raw in targets:
+                raw[key] = params_file.Value(value, '--set')
+    except params_file.ParamsFileError as exc:
+        raise SceneError(str(exc)) from None
     meta = {**{k: v.value for k, v in ctl_raw.items()}, **{k: v.value for k, v in
                                                            sim_raw.items()}}
     name = str(meta.get('scene.name') or os.path.splitext(os.path.basename(path))[0])
@@ -135,7 +151,9 @@ def load(scene: str) -> SceneFile:
             try:
                 coerce_all(node_specs, {key: value})
             except ValueError as exc:
-                raise SceneError(f'{path}: {raw[key].section}: {exc}') from None
+                where = '--set' if raw[key].section == '--set' else \
+                    f'{path}: {raw[key].section}'
+                raise SceneError(f'{where}: {exc}') from None
         return coerce_all(node_specs, own, node)
 
     sim = values(sim_raw, sim_names, specs.SIMULATOR, SIMULATOR_NODE)

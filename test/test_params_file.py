@@ -10,6 +10,7 @@ import os
 import subprocess
 import sys
 
+import numpy as np
 import pytest
 
 from ros_helpers import spin_until, venv_exe
@@ -172,3 +173,66 @@ def test_the_offline_loader_needs_no_ros(tmp_path):
     out = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True,
                          timeout=120, env=dict(os.environ))
     assert out.returncode == 0 and out.stdout.strip() == '1e-06', out.stderr
+
+
+@pytest.mark.parametrize('exe', ['simulator', 'controller'])
+def test_live_nodes_refuse_unknown_keys_and_name_the_file(tmp_path, exe):
+    """A typo in a params file, a typo given with -p, and a bad value from a file: the
+    node exits with code 2 before publishing, and its FATAL line names the file, the
+    section, the key and the closest valid key (rclpy alone would start on defaults)."""
+    node = 'attitude_simulator' if exe == 'simulator' else 'attitude_controller'
+    typo = _write(tmp_path, 'typo.yaml', f'{node}:\n  ros__parameters:\n'
+                  '    intertia_typo: [1.0, 2.0, 3.0]\n')
+    bad = _write(tmp_path, 'bad.yaml', f'/**/{node}:\n  ros__parameters:\n    inertia: [-1.0]\n')
+    env = dict(os.environ, ROS_DOMAIN_ID=os.environ['ROS_DOMAIN_ID'])
+    cases = [(['--params-file', typo], [typo, f'/{node}', 'intertia_typo',
+                                        'did you mean inertia?']),
+             (['-p', 'intertia:=[1.0, 2.0, 3.0]'], ['-p intertia', 'did you mean inertia?']),
+             (['--params-file', bad], [bad, f'/**/{node}', 'inertia'])]
+    for args, expected in cases:
+        out = subprocess.run([venv_exe(exe), '--ros-args', *args], capture_output=True,
+                             text=True, timeout=60, env=env)
+        text = out.stdout + out.stderr
+        assert out.returncode == 2, text
+        fatal = [line for line in text.splitlines() if '[FATAL]' in line]
+        assert fatal and all(e in fatal[0] for e in expected), (expected, text)
+
+
+def test_setting_an_undeclared_parameter_is_refused(ros_process, namespace, rclpy_node):
+    """`ros2 param set` of a name the simulator does not declare fails with a reason."""
+    from rcl_interfaces.srv import SetParameters
+    from rclpy.parameter import Parameter
+    sim = ros_process(venv_exe('simulator'), '--ros-args', '-r', f'__ns:={namespace}')
+    client = rclpy_node.create_client(SetParameters,
+                                      f'{namespace}/attitude_simulator/set_parameters')
+    assert spin_until(rclpy_node, client.service_is_ready, 60.0), sim.output()[-2000:]
+    future = client.call_async(SetParameters.Request(parameters=[
+        Parameter('intertia', value=[1.0, 2.0, 3.0]).to_parameter_msg()]))
+    assert spin_until(rclpy_node, future.done, 30.0)
+    result = future.result().results[0]
+    assert not result.successful and 'intertia' in result.reason
+
+
+def test_set_overrides_apply_after_the_file(tmp_path):
+    """--set KEY=VALUE wins over the file, typed as a params file types it, goes to each
+    node of the scene that declares KEY, and refuses keys no node of the scene has; the
+    demo's second params file carries the result to the live nodes (rcl: later wins)."""
+    from rigid_body_sim.demo import _overrides_file
+    s = scene.load('slew', ['accuracy=1e-9', 'inertia=[1.0, 2.0, 2.25]', 'mode=detumble',
+                            'publish_clock=on'])
+    assert s.simulator['accuracy'] == 1e-9 and s.simulator['publish_clock'] is True
+    assert s.simulator['inertia'] == s.controller['inertia'] == [1.0, 2.0, 2.25]
+    assert s.controller['mode'] == 'detumble'
+    again = scene.load(_overrides_file(s, str(tmp_path)))
+    for a, b in ((again.simulator, s.simulator), (again.controller, s.controller)):
+        assert a.keys() == b.keys()
+        for key in a:  # a one-value gain may come back as a list of one: the same gain
+            assert a[key] == b[key] or list(np.ravel(a[key])) == list(np.ravel(b[key])), key
+    with pytest.raises(scene.SceneError, match='did you mean accuracy'):
+        scene.load('slew', ['acuracy=1e-9'])
+    with pytest.raises(scene.SceneError, match='mode: not a parameter'):
+        scene.load('tennis_racket', ['mode=slew'])  # no controller in that scene
+    with pytest.raises(scene.SceneError, match='--set: accuracy'):
+        scene.load('slew', ['accuracy=-1'])
+    with pytest.raises(scene.SceneError, match='expected KEY=VALUE'):
+        scene.load('slew', ['accuracy'])

@@ -16,7 +16,8 @@ Numeric parameters are declared with ``dynamic_typing`` so that a params file ma
 ``1`` where ``1.0`` is meant (a classic ROS 2 trap); :meth:`ParamSpec.coerce` then accepts
 integers and doubles, rejects everything else, and checks the range with a readable reason.
 """
-from typing import Any, Dict, Iterable, Mapping, Sequence
+import sys
+from typing import Any, Dict, Iterable, List, Mapping, Sequence, Tuple
 
 from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
@@ -26,8 +27,16 @@ from rclpy.parameter import Parameter
 from rclpy.qos import (DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy,
                        qos_profile_sensor_data)
 
+from .. import params_file
+from ..engine import specs as engine_specs
 from ..engine.params import ParamSpec
 from ..engine.specs import QOS_CHOICES, frame_id_problem  # noqa: F401 (re-exported)
+
+# declared by rclpy on every node, or scene metadata the nodes read from '/**'
+AUTOMATIC = {'use_sim_time', 'start_type_description_service', 'scene.name',
+             'scene.description'}
+# what a wildcard section of a scene may hold: any of the package's node parameters
+SHARED = {s.name for s in engine_specs.SIMULATOR + engine_specs.CONTROLLER} | AUTOMATIC
 
 # --- QoS ---------------------------------------------------------------------------------
 # QOS_CHOICES (imported above): names accepted by :func:`qos_profile` (the ``qos`` parameter).
@@ -81,19 +90,83 @@ def _value(parameter: Parameter):
                                           Parameter.Type.INTEGER_ARRAY) else v
 
 
-def declare_parameters(node, specs: Sequence[ParamSpec]) -> Dict[str, Any]:
+def ros_arguments(argv=None) -> Tuple[List[str], Dict[str, str]]:
+    """(params files, {name: 'name:=value'} of -p overrides) in the process's --ros-args."""
+    argv = sys.argv if argv is None else argv
+    files, overrides, ros = [], {}, False
+    args = iter(argv)
+    for a in args:
+        if a == '--ros-args':
+            ros = True
+        elif a == '--':
+            ros = False
+        elif ros and a == '--params-file':
+            files.append(next(args, ''))
+        elif ros and a in ('-p', '--param'):
+            text = next(args, '')
+            overrides[text.split(':=', 1)[0]] = text
+    return files, overrides
+
+
+def _origin(node, name: str, files) -> str:
+    """Where an override of ``name`` came from: 'FILE: SECTION: ' or '-p ' or ''."""
+    fqn = node.get_fully_qualified_name()
+    where = ''
+    for path in files:  # the last file that sets it wins, as in rcl
+        try:
+            found = params_file.node_parameters(path, fqn).get(name)
+        except params_file.ParamsFileError:
+            continue
+        if found is not None:
+            where = f'{path}: {found.section}: '
+    return where
+
+
+def check_overrides(node, specs: Sequence[ParamSpec], argv=None) -> None:
+    """Refuse overrides ``node`` does not declare (rclpy would ignore them silently): a
+    key in a params-file section naming this node or given with -p must be one of its
+    parameters; a wildcard section may hold any of the package's nodes' parameters.
+    ValueError listing each problem with the file, the section, the key and the closest
+    valid key."""
+    own = {s.name for s in specs} | AUTOMATIC
+    fqn = node.get_fully_qualified_name()
+    files, cli = ros_arguments(argv)
+    problems, seen = [], set(cli)
+    for path in files:
+        try:
+            problems += params_file.unknown_keys(path, fqn, own, SHARED)
+            seen.update(params_file.node_parameters(path, fqn))
+        except params_file.ParamsFileError as exc:
+            problems.append(str(exc))
+    problems += [f'-p {text}: {name}: unknown parameter of {fqn}'
+                 f'{params_file.closest(name, own)}' for name, text in cli.items()
+                 if name not in own]
+    # anything else rcl handed over (e.g. from files given some other way)
+    for name in getattr(node, '_parameter_overrides', {}):
+        if name not in own | SHARED and name not in seen:
+            problems.append(f'{name}: unknown parameter of {fqn}'
+                            f'{params_file.closest(name, own)}')
+    if problems:
+        raise ValueError('; '.join(problems))
+
+
+def declare_parameters(node, specs: Sequence[ParamSpec], argv=None) -> Dict[str, Any]:
     """Declare ``specs`` on ``node`` (overrides from params files apply) and return coerced values.
 
-    Raises ValueError with a readable reason if an override has the wrong type or range.
-    Call before registering on-set callbacks, or they see the declarations too.
+    Raises ValueError with a readable reason if an override is not a parameter of the
+    node, or has the wrong type or range (naming the params file and section it came
+    from). Call before registering on-set callbacks, or they see the declarations too.
     """
+    check_overrides(node, specs, argv)
+    files = ros_arguments(argv)[0]
     values = {}
     for spec in specs:
         try:
             param = node.declare_parameter(spec.name, spec.default, descriptor(spec))
+            values[spec.name] = spec.coerce(_value(param))
         except Exception as exc:  # rclpy raises InvalidParameterValueException / TypeError
-            raise ValueError(f'parameter {spec.name}: {exc}') from None
-        values[spec.name] = spec.coerce(_value(param))
+            raise ValueError(f'{_origin(node, spec.name, files)}parameter {spec.name}: '
+                             f'{exc}') from None
     return values
 
 
@@ -120,6 +193,13 @@ def validate_update(specs: Sequence[ParamSpec], current: Mapping[str, Any],
 
     Any ValueError becomes ``successful=False`` with its message as the reason.
     """
+    parameters = list(parameters)
+    names = {s.name for s in specs}
+    for p in parameters:  # rclpy's own refusal names no parameter: say which and why
+        if p.name not in names | AUTOMATIC:
+            return SetParametersResult(
+                successful=False, reason=f'{p.name}: not a parameter of this node'
+                f'{params_file.closest(p.name, names)}')
     try:
         check(dict(current, **coerce_parameters(specs, parameters)))
     except ValueError as exc:

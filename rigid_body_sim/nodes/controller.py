@@ -70,7 +70,8 @@ class Controller(Node):
     """The ``attitude_controller`` node."""
 
     def __init__(self, **kwargs):
-        super().__init__(NODE_NAME, **kwargs)
+        # undeclared names reach our on-set check, which refuses them with a reason
+        super().__init__(NODE_NAME, allow_undeclared_parameters=True, **kwargs)
         self._p = declare_parameters(self, SPECS)  # ValueError on bad overrides
         # `mode:=off` arrived as false
         if self.get_parameter('mode').type_ != Parameter.Type.STRING:

@@ -32,7 +32,7 @@ from rigid_body_sim.bag.writer import BagWriter
 # where tf2_msgs is installed.
 DEFAULT_TOPICS = [
     'attitude', 'pose', 'transform', 'odometry', 'angular_velocity', 'angular_momentum',
-    'angular_momentum_body', 'kinetic_energy', 'torque_command', 'wrench_command',
+    'angular_momentum_body', 'kinetic_energy', 'imu', 'torque_command', 'wrench_command',
     'attitude_target', '/diagnostics', '/tf',
 ]
 # Messages taken per callback beyond the one the executor delivered (see _callback).

@@ -66,7 +66,8 @@ class Simulator(Node):
     """
 
     def __init__(self, **kwargs):
-        super().__init__(NODE_NAME, **kwargs)
+        # undeclared names reach our on-set check, which refuses them with a reason
+        super().__init__(NODE_NAME, allow_undeclared_parameters=True, **kwargs)
         try:
             self._p = declare_parameters(self, SPECS)
             self._engine = Engine(check_parameters(self._p), blocking_selection=False)

@@ -9,7 +9,13 @@ from geometry_msgs.msg import (PoseStamped, Quaternion, QuaternionStamped, Trans
                                Vector3, Vector3Stamped)
 from nav_msgs.msg import Odometry
 from rclpy.serialization import serialize_message
+from sensor_msgs.msg import Imu
 from std_msgs.msg import Float64
+
+# sensor_msgs/Imu conventions: the orientation and rate are the simulated truth, exact to
+# float64 round-off, so their covariance is that (a diagonal of TRUTH_VARIANCE; all zeros
+# would mean "unknown"); no acceleration is simulated: element 0 of its covariance is -1.
+TRUTH_VARIANCE = 1e-18
 
 
 class StateMessages:
@@ -18,6 +24,8 @@ class StateMessages:
     Frames (REP-103/105): attitude, pose, transform, odometry and the inertial angular
     momentum are in ``frame_id``; angular velocity and body angular momentum in
     ``child_frame_id``. The quaternion rotates child-frame vectors into ``frame_id``.
+    ``imu`` (sensor_msgs/Imu, ``child_frame_id``): the orientation and body rate as an ideal
+    IMU reports them (noise models come with the sensors).
     ``torque``: also a ``torque_command`` message (body frame) holding the sample's applied
     torque — for offline bags of controlled scenes, where no controller node publishes it.
     """
@@ -39,6 +47,11 @@ class StateMessages:
         self.angular_momentum = Vector3Stamped()
         self.angular_momentum_body = Vector3Stamped()
         self.kinetic_energy = Float64()
+        self.imu = Imu(orientation=self.quaternion, angular_velocity=self.omega)
+        for i in (0, 4, 8):
+            self.imu.orientation_covariance[i] = TRUTH_VARIANCE
+            self.imu.angular_velocity_covariance[i] = TRUTH_VARIANCE
+        self.imu.linear_acceleration_covariance[0] = -1.0
         self.torque = Vector3Stamped() if torque else None
         for msg in self.stamped():
             msg.header.stamp = self.stamp
@@ -47,7 +60,7 @@ class StateMessages:
     def stamped(self):
         extra = (self.torque,) if self.torque is not None else ()
         return (self.attitude, self.pose, self.transform, self.odometry, self.angular_velocity,
-                self.angular_momentum, self.angular_momentum_body) + extra
+                self.angular_momentum, self.angular_momentum_body, self.imu) + extra
 
     def topics(self):
         """(relative topic name, message) pairs, in publishing order."""
@@ -55,7 +68,7 @@ class StateMessages:
                ('odometry', self.odometry), ('angular_velocity', self.angular_velocity),
                ('angular_momentum', self.angular_momentum),
                ('angular_momentum_body', self.angular_momentum_body),
-               ('kinetic_energy', self.kinetic_energy))
+               ('kinetic_energy', self.kinetic_energy), ('imu', self.imu))
         return out + ((('torque_command', self.torque),) if self.torque is not None else ())
 
     def topic_types(self):
@@ -65,7 +78,7 @@ class StateMessages:
         for msg in (self.attitude, self.pose, self.transform, self.odometry,
                     self.angular_momentum):
             msg.header.frame_id = frame_id
-        for msg in (self.angular_velocity, self.angular_momentum_body) + \
+        for msg in (self.angular_velocity, self.angular_momentum_body, self.imu) + \
                 ((self.torque,) if self.torque is not None else ()):
             msg.header.frame_id = child_frame_id
         self.transform.child_frame_id = child_frame_id
