@@ -1,40 +1,47 @@
-"""Simulator + controller + recorder on a scene:
+"""Simulator (+ controller for controlled scenes) + recorder on a scene:
 
     ros2 launch rigid_body_sim sim.launch.py scene:=default
 
 Arguments:
-  scene       built-in scene name (config/<scene>.yaml) or an absolute params-file path
+  scene       built-in scene name (config/<scene>.yaml) or a params-file path; an unknown
+              name stops the launch at once with the list of scenes
   record      true/false: start the MCAP recorder (default true)
-  output      recorder bag directory (default: rigid_body_sim_<scene>)
-  controller  true/false: start the controller (default true; scenes without a
-              controller section simply leave it commanding zero torque in mode 'off')
-"""
-import os
+  output      recorder bag directory (default: rigid_body_sim_<scene name>)
+  controller  auto/true/false: auto (default) starts the controller only for scenes that
+              control the body, so a free-tumble scene receives no torque
 
-from ament_index_python.packages import get_package_share_directory
+The launch ends when the simulator exits (at the scene's ``duration``): every other node
+is then stopped with SIGINT, and the recorder finalises its bag. What starts is decided by
+``rigid_body_sim.launch_plan`` (plain Python, tested without ROS).
+"""
 from launch import LaunchDescription
-from launch.actions import DeclareLaunchArgument, OpaqueFunction
-from launch.conditions import IfCondition
+from launch.actions import (DeclareLaunchArgument, EmitEvent, LogInfo, OpaqueFunction,
+                            RegisterEventHandler)
+from launch.event_handlers import OnProcessExit
+from launch.events import Shutdown
 from launch.substitutions import LaunchConfiguration
 from launch_ros.actions import Node
 
+from rigid_body_sim.launch_plan import plan
+
 
 def _nodes(context):
-    scene = LaunchConfiguration('scene').perform(context)
-    params = scene if os.path.isabs(scene) else os.path.join(
-        get_package_share_directory('rigid_body_sim'), 'config', f'{scene}.yaml')
-    output = (LaunchConfiguration('output').perform(context)
-              or f'rigid_body_sim_{os.path.basename(scene)}')
-    return [
-        Node(package='rigid_body_sim', executable='simulator', name='attitude_simulator',
-             parameters=[params], output='screen'),
-        Node(package='rigid_body_sim', executable='controller', name='attitude_controller',
-             parameters=[params], output='screen',
-             condition=IfCondition(LaunchConfiguration('controller'))),
-        Node(package='rigid_body_sim', executable='recorder', name='mcap_recorder',
-             parameters=[{'output': output, 'scene': os.path.basename(scene)}], output='screen',
-             condition=IfCondition(LaunchConfiguration('record'))),
-    ]
+    def arg(name):
+        return LaunchConfiguration(name).perform(context)
+    # SceneError/ValueError here aborts the launch with its message (no node started)
+    planned, summary = plan(arg('scene'), arg('record'), arg('output'), arg('controller'))
+    actions = [LogInfo(msg=summary)]
+    nodes = {}
+    for p in planned:
+        nodes[p.executable] = Node(package='rigid_body_sim', executable=p.executable,
+                                   name=p.name, output='screen',
+                                   parameters=[*p.params_files, *([p.parameters]
+                                                                 if p.parameters else [])])
+        actions.append(nodes[p.executable])
+    actions.append(RegisterEventHandler(OnProcessExit(
+        target_action=nodes['simulator'],
+        on_exit=[EmitEvent(event=Shutdown(reason='the simulation ended'))])))
+    return actions
 
 
 def generate_launch_description():
@@ -44,7 +51,7 @@ def generate_launch_description():
         DeclareLaunchArgument('record', default_value='true',
                               description='start the MCAP recorder'),
         DeclareLaunchArgument('output', default_value='', description='recorder bag directory'),
-        DeclareLaunchArgument('controller', default_value='true',
-                              description='start the controller'),
+        DeclareLaunchArgument('controller', default_value='auto',
+                              description='auto: only for scenes that control the body'),
         OpaqueFunction(function=_nodes),
     ])

@@ -24,4 +24,17 @@ def _ensure_ament_prefix() -> None:
         os.environ['AMENT_PREFIX_PATH'] = os.pathsep.join(paths + [sys.prefix])
 
 
+def cli_command() -> str:
+    """How to call ``rigid-body-sim`` here, for hints the software prints: the bare name
+    if it is on PATH, the venv's own script (``make venv``) by its path, else the colcon
+    way (``ros2 run``; colcon installs it under lib/rigid_body_sim, not on PATH)."""
+    import shutil
+    if shutil.which('rigid-body-sim'):
+        return 'rigid-body-sim'
+    beside = os.path.join(os.path.dirname(sys.executable), 'rigid-body-sim')
+    if os.path.isfile(beside):
+        return beside
+    return 'ros2 run rigid_body_sim rigid-body-sim'
+
+
 _ensure_ament_prefix()

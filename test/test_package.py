@@ -125,17 +125,22 @@ def test_replay_help_and_bad_path_are_clean():
     assert textwrap.shorten(out.stderr, 200)  # one clear line
 
 
-def test_launch_file_compiles_and_starts_installed_executables():
-    """launch/ can't run here (no `launch` on PyPI): check its syntax and that every node it
-    starts is an entry point of this package and each scene it can name exists."""
+def test_launch_file_ends_with_the_simulation_and_follows_the_plan():
+    """launch/ can't run here (no `launch` on PyPI): its syntax, that it builds its nodes
+    from launch_plan.plan, and that it registers OnProcessExit on the simulator emitting
+    Shutdown (so the launch ends with the simulation and the recorder is stopped)."""
     import ast
     path = os.path.join(REPO, 'launch', 'sim.launch.py')
-    tree = ast.parse(open(path).read(), path)
-    executables = {kw.value.value for node in ast.walk(tree) if isinstance(node, ast.Call)
-                   for kw in node.keywords if kw.arg == 'executable'}
+    text = open(path).read()
+    tree = ast.parse(text, path)
+    calls = {n.func.id if isinstance(n.func, ast.Name) else n.func.attr: n
+             for n in ast.walk(tree) if isinstance(n, ast.Call)}
+    assert {'plan', 'OnProcessExit', 'EmitEvent', 'Shutdown', 'RegisterEventHandler',
+            'Node'} <= set(calls)
+    on_exit = calls['OnProcessExit']
+    target = next(kw.value for kw in on_exit.keywords if kw.arg == 'target_action')
+    assert ast.unparse(target) == "nodes['simulator']"
+    assert "default_value='auto'" in text and "default_value='default'" in text
     setup_text = open(os.path.join(REPO, 'setup.py')).read()
-    assert executables == {'simulator', 'controller', 'recorder'}
-    for exe in executables:
+    for exe in ('simulator', 'controller', 'recorder'):
         assert f"'{exe} = rigid_body_sim.nodes.{exe}:main'" in setup_text
-    assert "default_value='default'" in open(path).read()
-    assert os.path.isfile(os.path.join(REPO, 'config', 'default.yaml'))

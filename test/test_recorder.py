@@ -167,8 +167,11 @@ def test_sigkill_then_recover(ros_process, namespace, rclpy_node, tmp_path):
     wait_output(rec2, 'rigid-body-sim bag recover')
     assert f'rigid-body-sim bag recover {bag} ' in rec2.output()
 
-    res = subprocess.run([venv_exe('rigid-body-sim'), 'bag', 'recover', str(bag),
-                          str(tmp_path / 'fixed')], capture_output=True, text=True, timeout=60)
+    # the hint is a command that works as printed (PATH without the venv's bin, as here)
+    hint = next(line for line in rec2.output().splitlines() if 'bag recover' in line)
+    command = hint[hint.index('recover it with: ') + len('recover it with: '):].split()
+    command[-1] = str(tmp_path / 'fixed')
+    res = subprocess.run(command, capture_output=True, text=True, timeout=60)
     assert res.returncode == 0, res.stderr
     values = rosbags_values(tmp_path / 'fixed', namespace)
     energy = values['kinetic_energy']

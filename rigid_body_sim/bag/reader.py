@@ -62,7 +62,8 @@ class BagInfo:
 def recover_hint(path: str) -> str:
     out = re.sub(r'(\.mcap)?$', '_recovered.mcap', path.rstrip('/'), count=1) \
         if path.endswith('.mcap') else path.rstrip('/') + '_recovered'
-    return f'rigid-body-sim bag recover {path} {out}'
+    from .. import cli_command
+    return f'{cli_command()} bag recover {path} {out}'
 
 
 def bag_files(path: str) -> list[str]:

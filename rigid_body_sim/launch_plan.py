@@ -1,0 +1,54 @@
+"""What ``ros2 launch rigid_body_sim sim.launch.py`` starts, decided without ROS.
+
+The launch file only turns this plan into launch actions, so the decisions — which scene
+file, which nodes, with which parameters, and that the launch ends with the simulation —
+are plain Python that the tests run here (the ``launch`` package is not on PyPI).
+"""
+import os
+from dataclasses import dataclass, field
+from typing import Dict, List, Tuple
+
+from .scene import load, resolve
+
+CONTROLLER_CHOICES = ('auto', 'true', 'false')
+
+
+@dataclass(frozen=True)
+class PlannedNode:
+    """One node: executable of this package, node name, params files and values."""
+    executable: str
+    name: str
+    params_files: Tuple[str, ...] = ()
+    parameters: Dict[str, object] = field(default_factory=dict)
+
+
+def _flag(value: str, name: str, choices=('true', 'false')) -> str:
+    v = str(value).strip().lower()
+    if v not in choices:
+        raise ValueError(f'launch argument {name}:={value}: choose one of {", ".join(choices)}')
+    return v
+
+
+def plan(scene: str = 'default', record: str = 'true', output: str = '',
+         controller: str = 'auto') -> Tuple[List[PlannedNode], str]:
+    """(nodes, summary line). The scene is resolved and validated first, so an unknown
+    name or a bad file fails at once (SceneError listing the built-in scenes) instead of
+    starting nodes on defaults. ``controller``: auto = only for scenes that control the
+    body (a free-tumble scene gets no controller, hence no torque); true/false force it.
+    The simulator is the node whose exit ends the launch (the scene's ``duration``)."""
+    path = os.path.abspath(resolve(scene))
+    loaded = load(path)
+    use_controller = _flag(controller, 'controller', CONTROLLER_CHOICES)
+    with_controller = loaded.controlled if use_controller == 'auto' else use_controller == 'true'
+    nodes = [PlannedNode('simulator', 'attitude_simulator', (path,))]
+    if with_controller:
+        nodes.append(PlannedNode('controller', 'attitude_controller', (path,)))
+    if _flag(record, 'record') == 'true':
+        nodes.append(PlannedNode('recorder', 'mcap_recorder', (), {
+            'output': output or f'rigid_body_sim_{loaded.name}', 'scene': loaded.name}))
+    duration = loaded.simulator['duration']
+    ends = f'ends after {duration:g} s of sim time' if duration > 0 else \
+        'runs until stopped (duration 0)'
+    summary = (f'scene {loaded.name}: ' + ', '.join(n.executable for n in nodes)
+               + f'; {ends}, when the simulator exits')
+    return nodes, summary

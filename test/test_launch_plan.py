@@ -1,0 +1,72 @@
+"""What the launch file starts (rigid_body_sim.launch_plan), and those nodes run for real.
+
+The `launch` package is not on PyPI, so `ros2 launch` cannot run here; the launch file
+only turns this plan into actions (test_package checks that), and here the planned nodes
+are started as the launch would start them: same executables, names and params files.
+"""
+import os
+
+import pytest
+
+from ros_helpers import spin_until, venv_exe
+
+from rigid_body_sim.launch_plan import plan
+from rigid_body_sim.scene import SceneError, list_scenes, load
+
+
+@pytest.mark.parametrize('name', [n for n, _, _ in list_scenes()])
+def test_every_scene_plans_its_nodes(name):
+    nodes, summary = plan(name)
+    names = [n.executable for n in nodes]
+    assert names[0] == 'simulator' and names[-1] == 'recorder'
+    assert ('controller' in names) == load(name).controlled
+    assert all(os.path.isabs(f) and os.path.isfile(f) for n in nodes for f in n.params_files)
+    assert 'when the simulator exits' in summary
+    forced = [n.executable for n in plan(name, controller='true', record='false')[0]]
+    assert forced == ['simulator', 'controller']
+
+
+def test_unknown_scene_and_bad_arguments_fail_at_once():
+    with pytest.raises(SceneError, match="unknown scene 'bogus'; built-in scenes: default"):
+        plan('bogus')
+    with pytest.raises(ValueError, match='controller:=maybe'):
+        plan('default', controller='maybe')
+    with pytest.raises(ValueError, match='record:=yes please'):
+        plan('default', record='yes please')
+
+
+def test_free_tumble_scene_gets_no_torque_and_ends(ros_process, namespace, rclpy_node,
+                                                   tmp_path):
+    """tennis_racket as launched: no controller, zero torque commands while the simulator
+    runs, and the simulator exits by itself at the scene's duration (the launch's
+    shutdown trigger); the recorder then stops on SIGINT with a readable bag."""
+    from geometry_msgs.msg import QuaternionStamped, Vector3Stamped
+    from rigid_body_sim.bag.reader import read_info
+    nodes, _ = plan('tennis_racket', output=str(tmp_path / 'bag'))
+    assert [n.executable for n in nodes] == ['simulator', 'recorder']
+    torques, states = [], []
+    rclpy_node.create_subscription(Vector3Stamped, f'{namespace}/torque_command',
+                                   torques.append, 100)
+    rclpy_node.create_subscription(QuaternionStamped, f'{namespace}/attitude', states.append,
+                                   100)
+    procs = {}
+    for n in reversed(nodes):  # recorder first, as the demo does, so it sees the start
+        cmd = [venv_exe(n.executable), '--ros-args', '-r', f'__node:={n.name}',
+               '-r', f'__ns:={namespace}']
+        for f in n.params_files:
+            cmd += ['--params-file', f]
+        for k, v in n.parameters.items():
+            cmd += ['-p', f'{k}:={v}']
+        if n.executable == 'simulator':  # the scene's 10 s, 5x faster for the test
+            cmd += ['-p', 'real_time_factor:=5.0']
+        procs[n.executable] = ros_process(*cmd)
+    sim = procs['simulator']
+    assert spin_until(rclpy_node, lambda: len(states) > 50, 60.0), sim.output()[-2000:]
+    assert spin_until(rclpy_node, lambda: sim.poll() is not None, 60.0), 'simulator never ended'
+    assert sim.poll() == 0, sim.output()[-2000:]
+    assert torques == []
+    rec = procs['recorder']
+    rec.signal(2)  # what the launch's Shutdown does to the remaining processes
+    assert rec.wait(30) == 0, rec.output()[-2000:]
+    info = read_info(str(tmp_path / 'bag'))
+    assert info.message_count > 0
