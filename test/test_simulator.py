@@ -500,3 +500,28 @@ def test_imu_is_the_state_with_message_conventions(ros_process, namespace, rclpy
         for cov in (m.orientation_covariance, m.angular_velocity_covariance):
             assert np.all(np.diag(np.reshape(cov, (3, 3))) > 0.0)
             assert np.all(np.reshape(cov, (3, 3))[~np.eye(3, dtype=bool)] == 0.0)
+
+
+def test_missed_deadlines_mean_what_they_say(ros_process, namespace, rclpy_node):
+    """Stopping the process for 0.6 s makes the samples due meanwhile late by up to 0.6 s:
+    diagnostics then count the ones later than deadline_tolerance (0.1 s) and report the
+    worst lateness of the period; the stamps stay on the sample grid."""
+    sim = start_simulator(ros_process, namespace, integrator='splitting2', publish_rate=50.0,
+                          deadline_tolerance=0.1)
+    probe = Probe(rclpy_node, namespace, topics=('attitude',))
+    probe.wait_for(lambda: len(probe.msgs['attitude']) >= 20, 30.0, 'attitude')
+    sim.signal(signal.SIGSTOP)
+    time.sleep(0.6)
+    sim.signal(signal.SIGCONT)
+    probe.wait_diag(lambda d, s: int(d['missed_deadlines']) >= 20, 30.0,
+                    'the late samples counted')
+    periods = [{kv.key: kv.value for kv in s.values} for _, a in probe.msgs['diagnostics']
+               for s in a.status if s.hardware_id == f'{namespace}/{NODE}']
+    worst = max(float(d['worst_lateness_in_period']) for d in periods)
+    assert 0.45 <= worst <= 3.0, worst
+    # the samples due during the stop (30), not every sample since the start
+    assert int(periods[-1]['missed_deadlines']) <= 50 * (0.6 + 0.4)
+    assert all(float(d['deadline_tolerance']) == 0.1 for d in periods)
+    stamps = [m.header.stamp.sec * 1_000_000_000 + m.header.stamp.nanosec
+              for _, m in probe.msgs['attitude']]
+    assert all(b - a == 20_000_000 for a, b in zip(stamps, stamps[1:]) if b - a < 1e9)

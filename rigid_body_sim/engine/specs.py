@@ -56,6 +56,10 @@ SIMULATOR = (
               'commands stamped further than this in the future (vs. the stamps this node '
               'publishes) are rejected; a zero stamp is accepted', kind='float', unit='s',
               low=0.0, high=1e6),
+    ParamSpec('deadline_tolerance', 0.05,
+              'a sample published later than this (wall time) after it was due counts as a '
+              'missed deadline in diagnostics (real-time modes only)', kind='float', unit='s',
+              low=0.0, high=1e6),
     ParamSpec('qos', 'reliable', 'QoS of state topics and command subscriptions',
               kind='string', choices=QOS_CHOICES, read_only=True),
 )

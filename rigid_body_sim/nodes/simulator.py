@@ -10,8 +10,9 @@ in one way: with ``publish_clock: true`` the stamp is the sim time (and equals /
 otherwise it is the wall-clock time at which the run started plus sim time divided by
 ``real_time_factor`` (1 when running as fast as possible). Consecutive samples are
 therefore exactly one sample period apart whatever the load, and all topics of one sample
-share the stamp. A sample published later than one sample period (wall time) after its
-due time counts as a missed deadline in diagnostics; it never bends a stamp.
+share the stamp. A sample published later than ``deadline_tolerance`` (wall time) after
+its due time counts as a missed deadline in diagnostics, with the worst lateness of each
+diagnostics period; it never bends a stamp.
 
 Pacing. The engine processes its events (samples, command expiry) up to the sim time the
 wall clock allows; between those, the executor serves callbacks and the ``auto`` pilot
@@ -162,7 +163,7 @@ class Simulator(Node):
             if rtf > 0:
                 late = time.monotonic() - self._due_wall(t_ns)
                 self._worst_late = max(self._worst_late, late)
-                if late > self._engine.config.sample_period / rtf:
+                if late > self._p['deadline_tolerance']:
                     self._missed += 1
 
     def _catch_up(self, now=None):
@@ -288,7 +289,10 @@ class Simulator(Node):
         self._next_diag_wall = now + DIAGNOSTICS_PERIOD_S
         values = {**e.diagnostics(), 'real_time_factor_target': self._p['real_time_factor'],
                   'real_time_factor_achieved': achieved, **self._commands.counts(),
-                  'missed_deadlines': self._missed, 'worst_lateness': self._worst_late,
+                  'missed_deadlines': self._missed,
+                  'missed_deadlines_in_period': self._missed - self._missed_at_last_diag,
+                  'worst_lateness_in_period': self._worst_late,
+                  'deadline_tolerance': self._p['deadline_tolerance'],
                   'fault': self._fault or ''}
         missed = self._missed - self._missed_at_last_diag
         if self._fault:
@@ -296,11 +300,14 @@ class Simulator(Node):
         elif e.finished:
             level, message = 'OK', f'duration reached at t = {e.t:.6g} s'
         elif missed:
-            level, message = 'WARN', (f'{missed} missed deadlines in the last '
-                                      f'{now - wall0:.2g} s: cannot keep the real-time factor')
+            level, message = 'WARN', (
+                f'{missed} missed deadlines in the last {now - wall0:.2g} s (published up to '
+                f'{self._worst_late * 1e3:.0f} ms late, tolerance '
+                f'{self._p["deadline_tolerance"] * 1e3:.0f} ms)')
         else:
             level, message = 'OK', f'running, t = {e.t:.3f} s'
         self._missed_at_last_diag = self._missed
+        self._worst_late = 0.0  # worst lateness per diagnostics period
         array = DiagnosticArray(status=[diagnostic_status(
             f'{self.get_name()}: simulation', self.get_fully_qualified_name(), level, message,
             values)])
