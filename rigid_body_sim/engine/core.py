@@ -88,6 +88,20 @@ class Engine:
         now); sim time keeps running, so stamps and /clock stay monotonic."""
         self._start(self.t_ns)
 
+    def set_state(self, attitude, angular_velocity):
+        """Put the body in a new state now (attitude (x, y, z, w) body → inertial, ω body
+        frame, rad/s); sim time, torques and the method stay. ValueError if not finite or
+        not a rotation."""
+        q = rotation.validated(list(attitude), 'attitude')
+        w = np.asarray(angular_velocity, float).reshape(3)
+        if not np.all(np.isfinite(w)):
+            raise ValueError(f'angular velocity is not finite: {w.tolist()}')
+        self._q = self.body.attitude_to_principal(q)
+        self._m = self.body.principal_moments * self.body.to_principal(w)
+        self._anchor = None
+        self.fault = None
+        self._set_baseline()
+
     @property
     def t(self) -> float:
         return self.t_ns / NS

@@ -37,6 +37,7 @@ from ..scene import SceneError
 from .commands import CommandFilter
 from .common import (changed_values, declare_parameters, diagnostic_status, qos_profile,
                      validate_update)
+from .sim_services import AVAILABLE as SIM_SERVICES, SimulationServices
 from .state_messages import StateMessages
 
 try:  # /tf only where tf2_msgs exists (a full ROS install); the PyPI venv has none
@@ -95,6 +96,8 @@ class Simulator(Node):
         self.create_subscription(WrenchStamped, 'wrench_command', lambda m: self._on_command(
             m.header, m.wrench.torque, 'wrench_command'), qos)
         self.create_service(Trigger, '~/reset', self._on_reset)
+        self.paused = self._quit = False
+        self._sim_services = SimulationServices(self) if SIM_SERVICES else None
         self._fault = None
         self._missed = self._missed_at_last_diag = 0
         self._worst_late = 0.0
@@ -129,8 +132,9 @@ class Simulator(Node):
         return self._wall_anchor + (t_ns - self._sim_anchor) / (NS * self._p['real_time_factor'])
 
     # ------------------------------------------------------------------ loop
-    def _advance(self, until_ns: int, deadline: float):
-        """Engine events up to ``until_ns`` (or the deadline), publishing every sample."""
+    def _advance(self, until_ns: int, deadline: float, late: bool = True):
+        """Engine events up to ``until_ns`` (or the deadline), publishing every sample
+        (``late``: count lateness against the wall clock; not when stepping)."""
         engine = self._engine
         while not (self._fault or engine.finished):
             try:
@@ -139,7 +143,7 @@ class Simulator(Node):
                 return self._set_fault(f'integrator failed: {exc}')
             except Exception as exc:  # noqa: BLE001 - never die with a traceback on bad input
                 return self._set_fault(f'physics error: {type(exc).__name__}: {exc}')
-            self._publish(block)
+            self._publish(block, late)
             if engine.method != self._method:
                 self._method = engine.method
                 self._log.info(f'integrator {engine.method}, step {engine.step_max:.6g} s '
@@ -151,8 +155,8 @@ class Simulator(Node):
                            ' stopping')
             self._publish_diagnostics()
 
-    def _publish(self, block):
-        msgs, rtf = self._msgs, self._p['real_time_factor']
+    def _publish(self, block, late=True):
+        msgs, rtf = self._msgs, (self._p['real_time_factor'] if late else 0)
         for i in range(len(block)):
             t_ns = int(block.t_ns[i])
             msgs.fill(block, i, self.stamp_ns(t_ns))
@@ -169,7 +173,7 @@ class Simulator(Node):
     def _catch_up(self, now=None):
         """Real-time modes: process what is due by the wall clock."""
         rtf = self._p['real_time_factor']
-        if rtf == 0 or self._fault or self._engine.finished:
+        if rtf == 0 or self._fault or self._engine.finished or self.paused:
             return
         now = time.monotonic() if now is None else now
         target = self._sim_anchor + int((now - self._wall_anchor) * rtf * NS)
@@ -185,7 +189,7 @@ class Simulator(Node):
             self._next_refresh_wall = now + SUBSCRIBER_REFRESH_S
         engine, rtf = self._engine, self._p['real_time_factor']
         wait = 0.1
-        if not (self._fault or engine.finished):
+        if not (self._fault or engine.finished or self.paused):
             if rtf == 0:
                 self._advance(sys.maxsize, now + CHUNK_WALL_S)
                 wait = 0.0
@@ -212,7 +216,7 @@ class Simulator(Node):
         self._base_stamp(self.get_clock().now().nanoseconds)
         self._anchor()  # pace from the first turn of the loop, not from construction
         try:
-            while self.context.ok() and not self._engine.finished:
+            while self.context.ok() and not (self._engine.finished or self._quit):
                 executor.spin_once(timeout_sec=self.run_once())
         finally:
             executor.remove_node(self)
@@ -221,6 +225,51 @@ class Simulator(Node):
     @property
     def finished(self) -> bool:
         return self._engine.finished
+
+    # ------------------------------------------------------------------ simulation control
+    @property
+    def engine(self):
+        return self._engine
+
+    @property
+    def frames(self):
+        """(frame_id, child_frame_id): the inertial and the body frame."""
+        return self._p['frame_id'], self._p['child_frame_id']
+
+    def pause(self):
+        """Stop advancing sim time (what was due runs first)."""
+        if not self.paused:
+            self._catch_up()
+            self.paused = True
+
+    def play(self):
+        """Advance again, paced from now."""
+        self.paused = False
+        self._anchor()
+
+    def step(self, n: int):
+        """While paused: advance ``n`` sample periods, publishing each sample; a problem
+        text, or None."""
+        e = self._engine
+        if self._fault or e.finished:
+            return f'cannot step: {self._fault or "the run reached its duration"}'
+        p = e.config.sample_period_ns
+        self._advance((e.t_ns // p + n) * p, float('inf'), late=False)
+        return self._fault
+
+    def reset(self):
+        self._on_reset(None, Trigger.Response())
+
+    def set_state(self, attitude, angular_velocity):
+        """The body in a new state now (attitude body → frame_id, ω body frame)."""
+        self._catch_up()
+        self._engine.set_state(attitude, angular_velocity)
+        self._fault = None
+        self._log.info(f'state set at t = {self._engine.t:.6g} s')
+
+    def quit(self):
+        self._log.info('quitting on request (set_simulation_state QUITTING)')
+        self._quit = True
 
     # ------------------------------------------------------------------ inputs
     def _on_command(self, header, vector, source):
