@@ -6,7 +6,29 @@ Each subcommand lives in its own module exposing ``add_arguments(parser)`` and
 import argparse
 import importlib
 import importlib.util
+import math
+import os
 import sys
+
+
+def number(low=-math.inf, high=math.inf, low_open=False, integer=False):
+    """An argparse ``type`` for a finite number in a range; argparse names the option in
+    its error ("argument --duration: must be a finite number > 0, got 'inf'")."""
+    def parse(text):
+        try:
+            value = int(text) if integer else float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(
+                f'must be {"an integer" if integer else "a number"}, got {text!r}') from None
+        bounds = [f'{">" if low_open else ">="} {low:g}' if low > -math.inf else '',
+                  f'<= {high:g}' if high < math.inf else '']
+        wanted = ' and '.join(b for b in bounds if b)
+        if not math.isfinite(value) or value < low or (low_open and value == low) \
+                or value > high:
+            raise argparse.ArgumentTypeError(
+                f'must be a finite number{" " + wanted if wanted else ""}, got {text!r}')
+        return value
+    return parse
 
 # name -> (module, one-line help)
 SUBCOMMANDS = {
@@ -44,6 +66,10 @@ def main(argv=None) -> int:
         return int(args._run(args) or 0)
     except KeyboardInterrupt:
         return 130
+    except BrokenPipeError:  # the reader went away (`| head`): stop quietly, as SIGPIPE would
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())  # no second error when Python flushes at exit
+        return 141
 
 
 if __name__ == '__main__':

@@ -189,8 +189,9 @@ def _overrides_file(scene, out) -> str:
 def add_arguments(parser):
     parser.add_argument('--scene', default='default',
                         help='scene name or params file (default: default)')
-    parser.add_argument('--duration', type=float,
-                        default=float(os.environ.get('DEMO_DURATION', 30)),
+    from .cli import number
+    parser.add_argument('--duration', type=number(0.0, 1e9, low_open=True),
+                        default=os.environ.get('DEMO_DURATION', '30'),
                         help='wall seconds to run (default: $DEMO_DURATION or 30)')
     parser.add_argument('--out', default=os.path.join('out', 'demo'),
                         help='output directory (default out/demo)')

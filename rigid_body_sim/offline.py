@@ -117,7 +117,21 @@ def engine_for(scene: SceneFile, duration=None, integrator=None, step=None, accu
         raise SceneError(f'{scene.path}: {exc}') from None
     if integrator_options:
         config = config.replace(integrator_options=dict(integrator_options))
-    return Engine(config)
+    engine = Engine(config)
+    _check_stability(engine)
+    return engine
+
+
+def _check_stability(engine) -> None:
+    """Refuse (SceneError) or warn (stderr) before the run when an explicit method's step
+    is outside its stability limits (physics.stability)."""
+    from .physics.stability import check_step
+    verdict, message = check_step(engine.method, engine.dynamics, engine.principal_state[1],
+                                  engine.step_max, engine.config.duration)
+    if verdict == 'refuse':
+        raise SceneError(message)
+    if verdict == 'warn':
+        print(f'warning: {message}', file=sys.stderr)
 
 
 def simulate(scene: SceneFile, duration=None, integrator=None, step=None, accuracy=None,
@@ -184,14 +198,20 @@ class BagSink:
 
 
 def add_arguments(parser):
+    from .cli import number
+    from .engine import specs
     from .physics import INTEGRATORS
+    spec = {s.name: s for s in specs.SIMULATOR}
     parser.add_argument('scene', help='built-in scene name (see `rigid-body-sim scenes`) or a '
                         'params file')
-    parser.add_argument('--duration', type=float, help='simulated seconds (default: the scene\'s)')
+    parser.add_argument('--duration', type=number(0.0, 1e12, low_open=True),
+                        help='simulated seconds (default: the scene\'s)')
     parser.add_argument('--integrator', choices=('auto',) + tuple(INTEGRATORS),
-                        help='integrator (default: the scene\'s)')
-    parser.add_argument('--step', type=float, help='largest physics step, s')
-    parser.add_argument('--accuracy', type=float, help='attitude-error budget for auto, rad')
+                        help='integrator (default: the scene\'s): %(choices)s')
+    parser.add_argument('--step', type=number(spec['step'].low, spec['step'].high),
+                        help='largest physics step, s')
+    parser.add_argument('--accuracy', type=number(spec['accuracy'].low, spec['accuracy'].high),
+                        help='attitude-error budget for auto, rad')
     parser.add_argument('--out', help='output directory (default: out/<scene>)')
     parser.add_argument('--json', action='store_true',
                         help='print one JSON object with the results')

@@ -20,18 +20,21 @@ def parse_args(argv: list[str]) -> argparse.Namespace:
     parser = argparse.ArgumentParser(prog='replay', description='Publish a recorded bag again.',
                                      epilog=USAGE_EPILOG)
     parser.add_argument('path', help='bag directory or .mcap file')
-    parser.add_argument('--rate', type=float, default=1.0, help='playback speed factor')
+    from ..cli import number
+    parser.add_argument('--rate', type=number(0.0, 1e6, low_open=True), default=1.0,
+                        help='playback speed factor')
     parser.add_argument('--loop', action='store_true', help='play again when the bag ends')
-    parser.add_argument('--start-offset', type=float, default=0.0, metavar='S',
+    parser.add_argument('--start-offset', type=number(0.0), default=0.0, metavar='S',
                         help='skip the first S seconds of the bag')
     parser.add_argument('--topics', nargs='+', metavar='TOPIC', help='only these topics')
     parser.add_argument('--remap', action='append', default=[], metavar='OLD:=NEW',
                         help='publish topic OLD as NEW (repeatable)')
-    parser.add_argument('--clock', nargs='?', type=float, const=100.0, default=0.0,
+    parser.add_argument('--clock', nargs='?', type=number(0.0, 1e6), const=100.0, default=0.0,
                         metavar='HZ', help='publish /clock from log time (default 100 Hz)')
-    parser.add_argument('--delay', type=float, default=0.5, metavar='S',
+    parser.add_argument('--delay', type=number(0.0, 3600.0), default=0.5, metavar='S',
                         help='wait S seconds after creating publishers so subscribers match')
-    parser.add_argument('--wait-for-subscribers', type=float, default=0.0, metavar='S',
+    parser.add_argument('--wait-for-subscribers', type=number(0.0, 1e6), default=0.0,
+                        metavar='S',
                         help='wait up to S seconds until every replayed topic has a subscriber')
     args = parser.parse_args(argv)
     if args.rate <= 0:
