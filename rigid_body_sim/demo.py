@@ -174,6 +174,11 @@ def _plots_from_bag(bag, scene, out_dir):
     return write_plots(samples, body, out_dir, f'{scene.name} (live)', free_end)
 
 
+def _interrupt(signum, frame):
+    """SIGTERM ends the demo like Ctrl-C: nodes stopped, bag finished, summary printed."""
+    raise KeyboardInterrupt
+
+
 def _overrides_file(scene, out) -> str:
     """The scene's values after --set, as a params file read after the scene's own."""
     import yaml
@@ -227,15 +232,20 @@ def run(args) -> int:
     print(f'demo: logs and output in {out}; stopping after {args.duration:g} s '
           '(Ctrl-C stops earlier)')
 
-    procs = [_Process('recorder',
-                      ['--ros-args', '-p', f'output:={bag}', '-p', f'scene:={scene.name}'], out)]
-    rclpy.init()
-    node = Node('demo_status')
-    watcher = _Watcher(node, target)
-    executor = SingleThreadedExecutor()
-    executor.add_node(node)
-    interrupted = False
+    # Ctrl-C and SIGTERM raise KeyboardInterrupt here (rclpy's own handler would shut the
+    # context down under the loop instead); the nodes run in their own sessions and are
+    # stopped below, whatever ends the demo.
+    from rclpy.signals import SignalHandlerOptions
+    previous_term = signal.signal(signal.SIGTERM, _interrupt)
+    procs, node, executor, watcher, interrupted = [], None, None, None, False
     try:
+        procs.append(_Process('recorder', ['--ros-args', '-p', f'output:={bag}',
+                                           '-p', f'scene:={scene.name}'], out))
+        rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
+        node = Node('demo_status')
+        watcher = _Watcher(node, target)
+        executor = SingleThreadedExecutor()
+        executor.add_node(node)
         # Give the recorder a moment to be discovered so it sees the first messages.
         deadline = time.monotonic() + 2.0
         while time.monotonic() < deadline:
@@ -257,26 +267,35 @@ def run(args) -> int:
     except KeyboardInterrupt:
         interrupted = True
     finally:
+        # A second Ctrl-C while closing must not leave nodes running or the bag unfinished:
+        # the shutdown runs with SIGINT and SIGTERM ignored.
+        previous_int = signal.signal(signal.SIGINT, signal.SIG_IGN)
+        signal.signal(signal.SIGTERM, signal.SIG_IGN)
         if sys.stdout.isatty():
             print()
+        if interrupted:
+            print('demo: interrupted; stopping the nodes (the recorder finishes its bag)',
+                  flush=True)
         codes = {p.name: p.stop() for p in procs[1:]}
-        end = time.monotonic() + 1.0  # let the recorder take the last messages
-        try:
-            while time.monotonic() < end:
-                executor.spin_once(timeout_sec=0.05)
-        except KeyboardInterrupt:
-            pass
-        codes['recorder'] = procs[0].stop()
-        node.destroy_node()
+        end = time.monotonic() + (0.2 if interrupted else 1.0)  # the last messages
+        while executor is not None and time.monotonic() < end:
+            executor.spin_once(timeout_sec=0.05)
+        if procs:
+            codes['recorder'] = procs[0].stop()
+        if node is not None:
+            node.destroy_node()
         rclpy.try_shutdown()
+        signal.signal(signal.SIGINT, previous_int)
+        signal.signal(signal.SIGTERM, previous_term)
 
     failed = {n: c for n, c in codes.items() if c not in (0, None, -signal.SIGINT)}
     print('demo: summary' + (' (interrupted)' if interrupted else ''))
-    print(f'  final pointing error: {watcher.error_deg():.4f}° '
-          f'(target {np.round(target, 6).tolist()})')
-    print(f'  free phase: {len(watcher.free["T"])} samples, '
-          f'relative drift T {_drift(watcher.free["T"]):.2e}, '
-          f'|L| {_drift(watcher.free["L"]):.2e}')
+    if watcher is not None:
+        print(f'  final pointing error: {watcher.error_deg():.4f}° '
+              f'(target {np.round(target, 6).tolist()})')
+        print(f'  free phase: {len(watcher.free["T"])} samples, '
+              f'relative drift T {_drift(watcher.free["T"]):.2e}, '
+              f'|L| {_drift(watcher.free["L"]):.2e}')
     try:
         info = read_info(bag)
         print(f'  messages recorded: {info.message_count} on {len(info.topics)} topics, '
@@ -290,4 +309,4 @@ def run(args) -> int:
     if failed:
         print(f'  node exit codes: {failed} (logs in {out})')
         return 1
-    return 0
+    return 130 if interrupted else 0

@@ -2,8 +2,13 @@
 readable bag."""
 import os
 import re
+import signal
 import subprocess
+import sys
+import time
 from pathlib import Path
+
+import pytest
 
 REPO = Path(__file__).resolve().parent.parent
 
@@ -39,3 +44,36 @@ def test_make_demo_runs_the_live_graph_and_records_a_bag(tmp_path):
     assert counts.get('/attitude', 0) > 300 and counts.get('/kinetic_energy', 0) > 300, counts
     assert any(any(t) for t in torques) and any(not any(t) for t in torques)
     assert os.path.isfile(tmp_path / 'simulator.log')
+
+
+def _descendants_alive(marker):
+    """Processes whose command line contains ``marker`` (the demo's output directory)."""
+    out = subprocess.run(['pgrep', '-f', marker], capture_output=True, text=True)
+    return [int(p) for p in out.stdout.split()]
+
+
+@pytest.mark.parametrize('signals', [(signal.SIGINT, signal.SIGINT), (signal.SIGTERM,)])
+def test_interrupting_the_demo_stops_everything_and_keeps_the_bag(tmp_path, signals):
+    """Ctrl-C (twice, as impatient users and `timeout -s INT` do) or SIGTERM mid-run: the
+    demo exits 130 within seconds with its summary and no traceback, every node it started
+    is gone, and the bag is finished (bag info reads it without recover)."""
+    cli = os.path.join(os.path.dirname(sys.executable), 'rigid-body-sim')
+    proc = subprocess.Popen([cli, 'demo', '--duration', '120', '--out', str(tmp_path)],
+                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    deadline = time.monotonic() + 90
+    while time.monotonic() < deadline and not (tmp_path / 'simulator.log').exists():
+        time.sleep(0.2)
+    time.sleep(3.0)  # the graph is running
+    t0 = time.monotonic()
+    for sig in signals:
+        proc.send_signal(sig)
+        time.sleep(0.2)
+    out, _ = proc.communicate(timeout=60)
+    assert time.monotonic() - t0 < 20
+    assert proc.returncode == 130, out[-3000:]
+    assert 'Traceback' not in out and 'summary (interrupted)' in out, out[-3000:]
+    assert _descendants_alive(str(tmp_path)) == []
+    info = subprocess.run([cli, 'bag', 'info', str(tmp_path / 'bag')], capture_output=True,
+                          text=True, timeout=60)
+    assert info.returncode == 0 and 'recover' not in info.stdout + info.stderr, \
+        info.stdout + info.stderr
