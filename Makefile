@@ -11,6 +11,8 @@ DEMO_DURATION ?= 30
 DEMO_OUT    ?= out/demo
 PYTEST_ARGS ?=
 NODES       := simulator controller recorder replay
+# tf2_msgs and simulation_interfaces, built into the venv by .ci/build_interfaces.sh
+INTERFACES  := $(wildcard interfaces/* interfaces/*/* interfaces/*/*/*)
 
 .PHONY: demo test check venv bench clean
 .DEFAULT_GOAL := demo
@@ -30,9 +32,11 @@ bench: venv
 
 venv: $(STAMP)
 
-# Rebuilt only when a dependency pin or the package metadata changes; code is an
-# editable install, and config/ and launch/ are linked, so edits need no reinstall.
-$(STAMP): requirements.txt setup.py setup.cfg package.xml .ci/make_venv.sh
+# Rebuilt only when a dependency pin, the package metadata or an interface definition
+# changes; code is an editable install, and config/ and launch/ are linked, so edits need no
+# reinstall. The interface build skips itself when its inputs are unchanged.
+$(STAMP): requirements.txt setup.py setup.cfg package.xml .ci/make_venv.sh \
+          .ci/build_interfaces.sh .ci/wheel_cmake_paths.cmake $(INTERFACES)
 	sh .ci/make_venv.sh $(VENV)
 	$(VENV)/bin/pip install --disable-pip-version-check -q -r requirements.txt
 	$(VENV)/bin/pip install --disable-pip-version-check -q --no-deps --no-build-isolation -e .
@@ -42,6 +46,7 @@ $(STAMP): requirements.txt setup.py setup.cfg package.xml .ci/make_venv.sh
 	ln -sfn $(CURDIR)/config $(VENV)/share/rigid_body_sim/config
 	ln -sfn $(CURDIR)/launch $(VENV)/share/rigid_body_sim/launch
 	for exe in $(NODES); do ln -sfn ../../bin/$$exe $(VENV)/lib/rigid_body_sim/$$exe; done
+	sh .ci/build_interfaces.sh $(VENV)
 	@echo "compiling the step kernels (numba, cached on disk; once)"
 	$(PY) -c "from rigid_body_sim.physics import kernels; kernels.warm()"
 	touch $@
