@@ -525,3 +525,24 @@ def test_missed_deadlines_mean_what_they_say(ros_process, namespace, rclpy_node)
     stamps = [m.header.stamp.sec * 1_000_000_000 + m.header.stamp.nanosec
               for _, m in probe.msgs['attitude']]
     assert all(b - a == 20_000_000 for a, b in zip(stamps, stamps[1:]) if b - a < 1e9)
+
+
+def test_tf_carries_the_attitude(ros_process, namespace, rclpy_node):
+    """/tf (tf2_msgs, built into the venv by make venv; apt's on a full install): world →
+    body transform per sample, rotation = the attitude sample with the same stamp."""
+    from tf2_msgs.msg import TFMessage
+    body = namespace.strip('/') + '_body'  # /tf is global: our frame tells our messages
+    start_simulator(ros_process, namespace, integrator='splitting2', publish_rate=50.0,
+                    child_frame_id=body)
+    tf = []
+    rclpy_node.create_subscription(
+        TFMessage, '/tf', lambda m: tf.extend(t for t in m.transforms
+                                             if t.child_frame_id == body),
+        QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE))
+    probe = Probe(rclpy_node, namespace, topics=('attitude',), diagnostics=False)
+    probe.wait_for(lambda: len(tf) >= 10 and len(probe.msgs['attitude']) >= 10, 30.0, '/tf')
+    att = {stamp_s(m): m for _, m in probe.msgs['attitude']}
+    common = [t for t in tf if stamp_s(t) in att]
+    assert common and all(t.header.frame_id == 'world' for t in tf)
+    for t in common:
+        assert np.array_equal(quat(t.transform.rotation), quat(att[stamp_s(t)].quaternion))

@@ -61,13 +61,27 @@ class SimulationServices:
                 (ResetSimulation, 'reset_simulation', self._reset),
                 (GetEntityState, 'get_entity_state', self._get_entity),
                 (SetEntityState, 'set_entity_state', self._set_entity)):
-            sim.create_service(srv, f'~/{name}', handler)
+            sim.create_service(srv, f'~/{name}', self._guarded(handler))
+
+    def _guarded(self, handler):
+        """A failing request answers RESULT_OPERATION_FAILED; it never stops the node."""
+        def call(request, response):
+            try:
+                return handler(request, response)
+            except Exception as exc:  # noqa: BLE001 - report to the caller, keep simulating
+                self.sim.get_logger().error(f'{handler.__name__}: {type(exc).__name__}: {exc}')
+                if hasattr(response, 'result'):
+                    return _result(response, Result.RESULT_OPERATION_FAILED,
+                                   f'{type(exc).__name__}: {exc}')
+                return response
+        return call
 
     # ------------------------------------------------------------------ simulation
     def _features(self, request, response):
-        response.features = [getattr(SimulatorFeatures, f) for f in self.FEATURES]
-        response.custom_info = ('one rigid body (entity named after child_frame_id); a step '
-                                'is one sample period (1/publish_rate); reset keeps sim time')
+        response.features.features = [getattr(SimulatorFeatures, f) for f in self.FEATURES]
+        response.features.custom_info = (
+            'one rigid body (entity named after child_frame_id); a step is one sample period '
+            '(1/publish_rate); reset keeps sim time')
         return response
 
     def _get_state(self, request, response):
