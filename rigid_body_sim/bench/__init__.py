@@ -142,8 +142,10 @@ def _run(args) -> int:
             + (f' (dop853 rtol 1e-13 differs from it by {ref[3]:.2g} rad)' if ref[2] == 'exact'
                else f' (own error estimate {ref[3]:.2g} rad)')
             + f' [{time.process_time() - c:.1f} s]')
-        wp_rows += workprecision.sweep_ours(scene, ref, budget['ours'], quick, log)
-        wp_rows += workprecision.sweep_peers(scene, peer_methods, ref, budget['peer'], quick, log)
+        scale = 1.0 if quick else scene.budget_scale
+        wp_rows += workprecision.sweep_ours(scene, ref, budget['ours'] * scale, quick, log)
+        wp_rows += workprecision.sweep_peers(scene, peer_methods, ref, budget['peer'] * scale,
+                                             quick, log)
     _write_csv(os.path.join(out, 'work_precision.csv'), workprecision.FIELDS, wp_rows)
     _print_wp(wp_rows, scenes, log)
 
