@@ -16,6 +16,8 @@ Numeric parameters are declared with ``dynamic_typing`` so that a params file ma
 ``1`` where ``1.0`` is meant (a classic ROS 2 trap); :meth:`ParamSpec.coerce` then accepts
 integers and doubles, rejects everything else, and checks the range with a readable reason.
 """
+import contextlib
+import signal
 import sys
 from typing import Any, Dict, Iterable, List, Mapping, Sequence, Tuple
 
@@ -211,6 +213,19 @@ def changed_values(specs: Sequence[ParamSpec], current: Mapping[str, Any],
                    parameters: Iterable[Parameter]) -> Dict[str, Any]:
     """{name: new value} for the parameters whose coerced value differs from ``current``."""
     return {k: v for k, v in coerce_parameters(specs, parameters).items() if current.get(k) != v}
+
+
+# --- shutdown ----------------------------------------------------------------------------
+
+@contextlib.contextmanager
+def signals_ignored():
+    """SIGINT and SIGTERM ignored from here to the end of the process: a second Ctrl-C
+    (impatient users, `timeout -s INT`, launch escalating) must not interrupt a recorder
+    finishing its bag, nor kill a node that has already shut down cleanly (its exit code
+    stays 0). Used around each node's shutdown, the last thing its process does."""
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(sig, signal.SIG_IGN)
+    yield
 
 
 # --- time ------------------------------------------------------------------------------

@@ -39,7 +39,8 @@ from geometry_msgs.msg import QuaternionStamped, Vector3Stamped
 from .. import control
 from ..engine import ControlLaw, ControlSettings, specs
 from .common import (changed_values, coerce_parameters, declare_parameters, diagnostic_status,
-                     frame_id_problem, qos_profile, stamp_to_seconds, validate_update)
+                     frame_id_problem, qos_profile, signals_ignored, stamp_to_seconds,
+                     validate_update)
 
 NODE_NAME = 'attitude_controller'
 DIAGNOSTICS_PERIOD_S = 1.0  # wall clock
@@ -318,12 +319,13 @@ def main(args=None):
             return 0
         raise
     finally:
-        if node is not None:
-            try:
-                node.destroy_node()
-            except Exception:  # noqa: BLE001 - context already gone; nothing left to release
-                pass
-        rclpy.try_shutdown()
+        with signals_ignored():  # a second Ctrl-C while shutting down: no traceback
+            if node is not None:
+                try:
+                    node.destroy_node()
+                except Exception:  # noqa: BLE001 - context already gone; nothing left to release
+                    pass
+            rclpy.try_shutdown()
 
 
 if __name__ == '__main__':

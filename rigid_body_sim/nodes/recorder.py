@@ -26,6 +26,7 @@ from rigid_body_sim.bag.recover import unfinished_files
 from rigid_body_sim.bag.reader import recover_hint
 from rigid_body_sim.bag.schema import TypeNotFound, message_class, qos_to_dict, qos_yaml
 from rigid_body_sim.bag.writer import BagWriter
+from rigid_body_sim.nodes.common import signals_ignored
 
 # What the simulator and controller publish (relative names resolve in our namespace).
 # /clock is left out: replay --clock regenerates it from the log time. /tf appears only
@@ -259,14 +260,15 @@ def main(argv: list[str] | None = None) -> int:
         print(f'error: {exc}', file=sys.stderr)
         code = 1
     finally:
-        if node is not None:
-            try:
-                node.close()
-            except BagError as exc:
-                print(f'error: {exc}', file=sys.stderr)
-                code = 1
-            node.destroy_node()
-        rclpy.try_shutdown()
+        with signals_ignored():  # the bag is finished even if Ctrl-C comes again
+            if node is not None:
+                try:
+                    node.close()
+                except BagError as exc:
+                    print(f'error: {exc}', file=sys.stderr)
+                    code = 1
+                node.destroy_node()
+            rclpy.try_shutdown()
     return code
 
 

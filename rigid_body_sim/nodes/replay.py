@@ -184,8 +184,10 @@ def main(argv: list[str] | None = None) -> int:
             print(f'error: {type(exc).__name__}: {exc}', file=sys.stderr)
             code = 1
     finally:
-        node.destroy_node()
-        rclpy.try_shutdown()
+        from .common import signals_ignored
+        with signals_ignored():
+            node.destroy_node()
+            rclpy.try_shutdown()
     return code
 
 

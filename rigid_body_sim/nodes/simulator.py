@@ -36,7 +36,7 @@ from ..physics import IntegrationError
 from ..scene import SceneError
 from .commands import CommandFilter
 from .common import (changed_values, declare_parameters, diagnostic_status, qos_profile,
-                     validate_update)
+                     signals_ignored, validate_update)
 from .sim_services import AVAILABLE as SIM_SERVICES, SimulationServices
 from .state_messages import StateMessages
 
@@ -382,9 +382,10 @@ def main(args=None):
         rclpy.logging.get_logger(NODE_NAME).fatal(f'invalid parameters: {exc}')
         return 2
     finally:
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown()
+        with signals_ignored():  # a second Ctrl-C while shutting down: no traceback
+            if node is not None:
+                node.destroy_node()
+            rclpy.try_shutdown()
 
 
 if __name__ == '__main__':
