@@ -259,3 +259,38 @@ def test_records_simulator_if_available(ros_process, namespace, tmp_path):
     info = read_info(str(bag))
     assert info.topics[f'{namespace}/attitude'].count > 0
     assert info.run_configuration.get('simulator_parameters')
+
+
+LIMITED = ('import os, resource, sys; n = int(sys.argv[1]); '
+           'resource.setrlimit(resource.RLIMIT_FSIZE, (n, n)); '
+           'os.execv(sys.argv[2], sys.argv[2:])')
+
+
+def test_full_disk_stops_recording_with_a_clear_error(ros_process, namespace, rclpy_node,
+                                                      tmp_path):
+    """The bag file hits a size limit (RLIMIT_FSIZE, as a full disk would refuse it): the
+    recorder says which file and why, exits 1 without a traceback, the simulator keeps
+    publishing, and the printed recover command keeps what was written before."""
+    from geometry_msgs.msg import QuaternionStamped
+    bag = tmp_path / 'bag'
+    sim = ros_process(venv_exe('simulator'), '--ros-args', '-r', f'__ns:={namespace}',
+                      '-p', 'publish_rate:=200.0')
+    seen = []
+    rclpy_node.create_subscription(QuaternionStamped, f'{namespace}/attitude', seen.append, 100)
+    assert spin_until(rclpy_node, lambda: seen, 60.0)
+    rec = ros_process(sys.executable, '-c', LIMITED, '300000', venv_exe('recorder'),
+                      '--ros-args', '-r', f'__ns:={namespace}', '-p', f'output:={bag}',
+                      '-p', 'flush_period:=0.2')
+    assert rec.wait(120) == 1, rec.output()[-3000:]
+    out = rec.output()
+    assert f'cannot write {bag}/bag_0.mcap: File too large' in out, out[-3000:]
+    assert 'Traceback' not in out
+    n = len(seen)
+    assert spin_until(rclpy_node, lambda: len(seen) > n + 100, 30.0)  # still publishing
+    assert sim.poll() is None
+    hint = next(line for line in out.splitlines() if 'bag recover' in line)
+    command = hint[hint.index(' kept: ') + len(' kept: '):].split()
+    res = subprocess.run(command, capture_output=True, text=True, timeout=120)
+    assert res.returncode == 0, res.stderr
+    recovered = read_info(command[-1])
+    assert recovered.message_count > 1000, recovered.message_count

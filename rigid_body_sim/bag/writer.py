@@ -112,6 +112,7 @@ class BagWriter:
         self._file: _File | None = None
         self._last_flush = time.monotonic()
         self._since_size_check = 0
+        self._broken: str | None = None  # set by a failed write (disk full, size limit)
         self._open_next()
 
     # --- public API ------------------------------------------------------------------
@@ -149,9 +150,28 @@ class BagWriter:
         self._topics[topic] = md.TopicStats(topic, type_name, offered_qos_profiles, type_hash)
         self._register(self._file, topic)
 
+    def _failed(self, exc: OSError) -> BagError:
+        """A write failed (disk full, file size limit, I/O error): stop writing; the
+        chunks already on disk stay recoverable (``bag recover``)."""
+        path = os.path.join(self.directory, self._file.stats.path) if self._file else \
+            self.directory
+        self._broken = path
+        return BagError(f'cannot write {path}: {exc.strerror or exc} (errno {exc.errno}); '
+                        f'recording stopped after {self.message_count} messages')
+
     def write(self, topic: str, data: bytes, log_time_ns: int,
               publish_time_ns: int | None = None) -> None:
-        """Append one serialized message; ``log_time_ns`` is the receive time (ns)."""
+        """Append one serialized message; ``log_time_ns`` is the receive time (ns).
+        BagError naming the file if the disk refuses the data (then nothing more is
+        written)."""
+        try:
+            self._write(topic, data, log_time_ns, publish_time_ns)
+        except OSError as exc:
+            raise self._failed(exc) from None
+
+    def _write(self, topic, data, log_time_ns, publish_time_ns) -> None:
+        if self._broken:
+            raise BagError(f'{self._broken}: the bag stopped after a write error')
         f = self._file
         if f is None:
             raise BagError('bag writer is closed')
@@ -176,8 +196,14 @@ class BagWriter:
 
     def flush(self) -> None:
         """Close the current chunk and hand it to the OS (fsync too when ``fsync=True``)."""
+        try:
+            self._flush()
+        except OSError as exc:
+            raise self._failed(exc) from None
+
+    def _flush(self) -> None:
         self._last_flush = time.monotonic()
-        if self._file is None:
+        if self._file is None or self._broken:
             return
         self._file.mcap.flush()
         if self.fsync:
@@ -207,10 +233,26 @@ class BagWriter:
         return md.bag_metadata(self._files, list(self._topics.values()))
 
     def close(self) -> None:
-        """Finish the open file (summary, indexes, footer) and write ``metadata.yaml``."""
+        """Finish the open file (summary, indexes, footer) and write ``metadata.yaml``.
+        After a write error the file cannot be finished in place: BagError with the
+        command that recovers everything written before the error."""
         if self._file is None:
             return
-        self._finish_file()
+        if not self._broken:
+            try:
+                self._finish_file()
+            except OSError as exc:
+                self._failed(exc)
+        if self._broken:
+            f, self._file = self._file, None
+            if f is not None:
+                try:
+                    f.stream.close()
+                except OSError:
+                    pass
+            from .reader import recover_hint
+            raise BagError(f'{self._broken} is unfinished after the write error; the messages '
+                           f'written before it are kept: {recover_hint(self.directory)}')
         md.write_metadata_yaml(self.directory, self.metadata())
 
     def __enter__(self) -> 'BagWriter':
@@ -250,7 +292,7 @@ class BagWriter:
             {'offered_qos_profiles': t.offered_qos_profiles, 'topic_type_hash': t.type_hash})
 
     def _finish_file(self) -> None:
-        f, self._file = self._file, None
+        f = self._file
         if f is None:
             return
         # rosbag2 reads the last "rosbag2" record of a bare .mcap; it must be complete v9.
@@ -260,6 +302,7 @@ class BagWriter:
         if self.fsync:
             os.fsync(f.stream.fileno())
         f.stream.close()
+        self._file = None
 
     def _split(self) -> _File:
         self._finish_file()
