@@ -53,6 +53,7 @@ SUBSCRIBER_REFRESH_S = 0.25  # how often matched-subscriber counts are re-read
 DIAGNOSTICS_PERIOD_S = 1.0   # wall clock
 MAX_LAG_S = 1.0              # behind the wall-clock target by more: drop the backlog
 PILOT_SLICE_S = 0.002        # least time for auto's pilot per loop turn (as fast as possible)
+QUIT_GRACE_S = 0.5           # a quit request's reply goes out before the node goes away
 STATE_DEPTH = 100            # history of state topics: reliable delivery survives short stalls
 
 
@@ -96,7 +97,8 @@ class Simulator(Node):
         self.create_subscription(WrenchStamped, 'wrench_command', lambda m: self._on_command(
             m.header, m.wrench.torque, 'wrench_command'), qos)
         self.create_service(Trigger, '~/reset', self._on_reset)
-        self.paused = self._quit = False
+        self.paused = False
+        self._quit_at = None  # wall time at which a requested quit ends the loop
         self._sim_services = SimulationServices(self) if SIM_SERVICES else None
         self._fault = None
         self._missed = self._missed_at_last_diag = 0
@@ -216,7 +218,8 @@ class Simulator(Node):
         self._base_stamp(self.get_clock().now().nanoseconds)
         self._anchor()  # pace from the first turn of the loop, not from construction
         try:
-            while self.context.ok() and not (self._engine.finished or self._quit):
+            while self.context.ok() and not self._engine.finished and not (
+                    self._quit_at is not None and time.monotonic() >= self._quit_at):
                 executor.spin_once(timeout_sec=self.run_once())
         finally:
             executor.remove_node(self)
@@ -268,8 +271,9 @@ class Simulator(Node):
         self._log.info(f'state set at t = {self._engine.t:.6g} s')
 
     def quit(self):
+        """End the run loop shortly: the reply to the request still reaches the caller."""
         self._log.info('quitting on request (set_simulation_state QUITTING)')
-        self._quit = True
+        self._quit_at = time.monotonic() + QUIT_GRACE_S
 
     # ------------------------------------------------------------------ inputs
     def _on_command(self, header, vector, source):
