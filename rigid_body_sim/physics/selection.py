@@ -148,12 +148,10 @@ class _Scene:
         return self.integrators[c.name]
 
     def order(self, c, h):
-        """The effective order of c at h (exact: that of its splitting with the damping or
-        torque)."""
+        """The effective order of c at h (``Integrator.effective_order``)."""
         key = ('order', c.name, h)
         if key not in self.memo:
-            self.memo[key] = 2 if c.name == 'exact' else \
-                self.integrator(c).effective_order(self.m, h)
+            self.memo[key] = self.integrator(c).effective_order(self.m, h)
         return self.memo[key]
 
     def snap(self, h):
