@@ -183,7 +183,7 @@ class Engine:
                       f'auto: {sel.reason}; evaluated at sample and event instants only')
             return
         work = selecting(*state, **kw)
-        if self.blocking_selection:
+        if self.blocking_selection or torque:  # with torque the choice is a priori: at once
             self._selection = work
             self.work()
         else:
