@@ -41,6 +41,7 @@ class RunResult:
     body: object = None
     bag: Optional[str] = None
     plots: list = field(default_factory=list)
+    pilot_steps: int = 0  # steps auto's pilot ran (a deterministic measure of its cost)
 
     def summary(self) -> dict:
         keep = ('attitude', 'angular_velocity', 'angular_momentum', 'kinetic_energy')
@@ -48,6 +49,7 @@ class RunResult:
                 'duration': self.duration, 'step': self.step, 'steps': self.steps,
                 'samples': self.sample_count, 'cpu_seconds': round(self.cpu_seconds, 6),
                 'selection_cpu_seconds': round(self.selection_cpu_seconds, 6),
+                'pilot_steps': self.pilot_steps,
                 'initial': {k: self.initial[k] for k in keep},
                 'final': {k: self.final[k] for k in keep}, 'bag': self.bag, 'plots': self.plots}
 
@@ -166,7 +168,8 @@ def simulate(scene: SceneFile, duration=None, integrator=None, step=None, accura
     return RunResult(scene.name, engine.method, engine.reason, engine.config.duration,
                      engine.step_max, engine.steps + engine.evaluations,
                      cpu - engine.selection_cpu, engine.selection_cpu, samples, first, last,
-                     count, engine.body)
+                     count, engine.body,
+                     pilot_steps=engine.selected.pilot_steps if engine.selected else 0)
 
 
 class BagSink:

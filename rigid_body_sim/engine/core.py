@@ -58,6 +58,7 @@ class Engine:
         self.steps = 0
         self.evaluations = 0   # closed-form evaluations (exact, torque-free)
         self.selection_cpu = 0.0
+        self.selected = None  # auto's last Selection (method, step, predicted error, pilot)
         self._next_sample = 0
         self._start(0)
 
@@ -148,11 +149,25 @@ class Engine:
 
     # ------------------------------------------------------------------ methods
     def _max_step(self) -> float:
+        """The event spacing (sample and control period); a fixed method's ``step`` too.
+        ``auto`` is not capped by ``step``: it picks its own, dividing the spacing."""
         c = self.config
-        h = min(c.step, c.sample_period)
+        h = c.sample_period if c.integrator == AUTO else min(c.step, c.sample_period)
         if c.control is not None:
             h = min(h, c.control.period_ns / NS)
         return h
+
+    def _torque_rate(self) -> float:
+        """Rate scale (1/s) of the torque auto must expect: the in-process control law's
+        bandwidth, else that of the largest command, √(√3·max_torque/I_min)."""
+        c = self.config
+        moments = self.body.principal_moments
+        if c.control is not None:
+            cfg = c.control.config
+            i = cfg.body.principal_moments
+            return float(max(np.max(np.sqrt(cfg.kp_principal / i)), np.max(cfg.kd_principal / i),
+                             np.max(cfg.rate_gain_principal / i)))
+        return math.sqrt(math.sqrt(3.0) * c.max_torque / moments.min())
 
     def _use(self, name, h_max, reason, **options):
         if name != self.method or options:
@@ -171,20 +186,26 @@ class Engine:
                       **dict(c.integrator_options))
             return
         torque = self._torque_seen
-        kw = dict(torque=torque, accuracy=c.accuracy, duration=c.duration,
-                  max_step=self._max_step())
+        # the budget covers the rest of the run (what went before was exact or is done)
+        left = (self.end_ns - self.t_ns) / NS if c.duration_ns > 0 else 0.0
+        kw = dict(torque=torque, accuracy=c.accuracy, duration=left, max_step=self._max_step(),
+                  torque_rate=self._torque_rate() if torque else 0.0)
+        state = (self.body, c.dissipation, self.attitude, self.angular_velocity)
         if not torque and not c.dissipation.active:
-            sel = select(self.body, c.dissipation, self.attitude, self.angular_velocity, **kw)
+            sel = select(*state, **kw)
             self._use(sel.name, kw['max_step'],
                       f'auto: {sel.reason}; evaluated at sample and event instants only')
             return
-        work = selecting(self.body, c.dissipation, self.attitude, self.angular_velocity, **kw)
-        if self.blocking_selection:
+        work = selecting(*state, **kw)
+        if self.blocking_selection or torque:  # with torque the choice is a priori: at once
             self._selection = work
             self.work()
         else:
-            self._use('splitting2', kw['max_step'],
-                      'auto: provisional splitting2 while the selection pilot runs')
+            cpu0 = time.process_time()
+            sel = select(*state, prior_only=True, **kw)
+            self.selection_cpu += time.process_time() - cpu0
+            self._use(sel.name, sel.step, f'auto: provisional a-priori choice while the '
+                      f'selection pilot runs: {sel.reason}')
             self._selection = work
 
     @property
@@ -204,12 +225,13 @@ class Engine:
         except StopIteration as done:
             sel = done.value
             self._selection = None
+            self.selected = sel
             self._use(sel.name, min(sel.step, self._max_step()) if sel.step > 0
                       else self._max_step(), f'auto: {sel.reason}')
         except (ValueError, IntegrationError) as exc:
             self._selection = None
-            self._use('splitting2', self._max_step(),
-                      f'auto: selection failed ({exc}); splitting2 as the safe default')
+            self._use('splitting2', min(self.config.step, self._max_step()),
+                      f'auto: selection failed ({exc}); splitting2 at the scene\'s step')
         finally:
             self.selection_cpu += time.process_time() - cpu0
         return self._selection is not None

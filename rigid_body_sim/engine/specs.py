@@ -32,8 +32,9 @@ SIMULATOR = (
               'integration method, or auto (chosen from the scene and accuracy)',
               kind='string', choices=(AUTO,) + tuple(INTEGRATORS),
               note='may change while running'),
-    ParamSpec('step', 0.001, 'largest physics step (each interval between events is split '
-              'into equal steps no longer than this; auto may choose a smaller one)',
+    ParamSpec('step', 0.001, 'physics step of a fixed integrator (each interval between events '
+              'is split into equal steps no longer than this); auto picks its own, up to '
+              'the sample and control period',
               kind='float', unit='s', low=1e-9, high=1e7),
     ParamSpec('accuracy', 1e-6, 'attitude-error budget used by integrator auto', kind='float',
               unit='rad', low=1e-15, high=1.0),

@@ -28,6 +28,11 @@ class Exact(Splitting2):
         super().__init__(dynamics)
         self.reset()
 
+    def effective_order(self, m, h) -> int:
+        """2: the order of its splitting with torque or dissipation (measured by the tests).
+        Without either it has no stepping error, and ``auto`` never steps it then."""
+        return 2
+
     def run(self, q, m, h, n, torque=None, t0=0.0):
         """Step by step (each step is a closed-form evaluation, not the splitting loop)."""
         for k in range(n):

@@ -1,0 +1,121 @@
+"""``integrator: auto``: its candidates, its pilot's states and growth law, what it costs."""
+import math
+import time
+
+import numpy as np
+import pytest
+
+from rigid_body_sim.engine import Engine
+from rigid_body_sim.offline import engine_for, simulate
+from rigid_body_sim.physics import INTEGRATORS, Dissipation, Dynamics, RigidBody, create, pilot
+from rigid_body_sim.physics.selection import CANDIDATES, select
+from rigid_body_sim.scene import load
+
+EXPLORER_I = np.array([0.04, 0.2, 0.2])
+EXPLORER_W = np.array([62.83185307179586, 0.21934681498568484, 0.0])  # 10 rev/s, 1° nutation
+EXPLORER_D = Dissipation('double_bracket', 1.0678e-05)
+Q_ID = np.array([0.0, 0.0, 0.0, 1.0])
+
+
+def _finish(gen):
+    while True:
+        try:
+            next(gen)
+        except StopIteration as done:
+            return done.value
+
+
+def test_every_candidate_is_a_registered_method_with_its_tested_order():
+    """Each candidate is an integrator whose order the tests measure per kind of scene
+    (test_integrators); auto uses ``effective_order``, e.g. exact's splitting is order 2."""
+    names = [c.name for c in CANDIDATES]
+    assert set(names) <= set(INTEGRATORS) and len(names) == len(set(names))
+    assert {'splitting2', 'splitting4', 'splitting6', 'rk4', 'exact'} <= set(names)
+    dyn = Dynamics(EXPLORER_I, EXPLORER_D)
+    assert create('exact', dyn).effective_order(EXPLORER_I * EXPLORER_W, 0.01) == 2
+
+
+def test_pilot_states_follow_the_exponential_path_of_the_nutation():
+    """Double-bracket damping takes tan β (β from the minor axis) as exp(κt), κ the
+    dissipation stiffness: over Explorer 1's orbit from 1° to ~90°, over 30 s barely."""
+    dyn = Dynamics(EXPLORER_I, EXPLORER_D)
+    m = EXPLORER_I * EXPLORER_W
+    kappa = pilot.path_rate(dyn, float(np.linalg.norm(m)))
+    assert kappa == pytest.approx(dyn.dissipation_stiffness(float(np.linalg.norm(m))))
+    assert kappa == pytest.approx(1.349e-3, rel=1e-3)  # the scene file's calibration
+    long = pilot.levels(dyn, Q_ID, m, 6900.0, 62.8, periods=True)
+    betas = [lv.beta_deg for lv in long]
+    assert betas[0] == pytest.approx(1.0) and 89.0 < betas[-1] < 90.0 and len(long) == 6
+    u = np.log(np.tan(np.radians(betas)))
+    assert np.allclose(np.diff(u), np.diff(u)[0])  # evenly spaced in ln tan β
+    assert u[-1] - u[0] == pytest.approx(kappa * 6900.0, rel=0.05)
+    # each pilot resolves its polhode: ≥ 4 turns and a nutation period (long near 90°)
+    assert all(lv.horizon >= min(4 * 2 * math.pi / 62.8, 6900.0) for lv in long)
+    assert long[-1].horizon > 10.0
+    assert len(pilot.levels(dyn, Q_ID, m, 30.0, 62.8, periods=False)) == 1
+
+
+def test_pilot_growth_law_linear_bounded_and_drift():
+    """Explorer 1's initial state, pilot spanning ≥ 2 nutation periods: splitting2's phase
+    error grows linearly (extrapolated ∝ T); exact's splitting with the weak damping errs a
+    bounded offset that comes back every nutation period (far below linear); RK4's energy
+    drift is extrapolated as T² at least."""
+    dyn = Dynamics(EXPLORER_I, EXPLORER_D)
+    m = EXPLORER_I * EXPLORER_W
+    level = pilot.levels(dyn, Q_ID, m, 100.0, 62.8, periods=True)[0]
+    span = pilot.steps_for(level, 0.0078125) * 0.0078125
+    assert span >= 2 * level.period
+    lin, g = _finish(pilot.error(create('splitting2', dyn), 2, level, 0.0078125, 100.0))
+    one, _ = _finish(pilot.error(create('splitting2', dyn), 2, level, 0.0078125, span))
+    assert 1.5 < g <= 2.5 and lin == pytest.approx(one * 100.0 / span, rel=0.3)
+    bounded, _ = _finish(pilot.error(create('exact', dyn), 2, level, 0.0078125, 100.0))
+    offset, _ = _finish(pilot.error(create('exact', dyn), 2, level, 0.0078125, span))
+    assert bounded < 0.1 * offset * 100.0 / span
+    drift, _ = _finish(pilot.error(create('rk4', dyn), 4, level, 0.0078125, 100.0, least=2.0))
+    base, _ = _finish(pilot.error(create('rk4', dyn), 4, level, 0.0078125, span, least=2.0))
+    assert drift >= base * (100.0 / span) ** 2 * 0.999
+
+
+@pytest.mark.parametrize('name', ['slew', 'detumble', 'default'])
+def test_controlled_scenes_choose_a_priori_at_the_control_period(name):
+    """Commanded torque: no pilot (it cannot know the commands); a splitting at the control
+    period or half of it, not the scene's 2 ms step; choosing costs well under a ms."""
+    scene = load(name)
+    engine = engine_for(scene, duration=scene.simulator['duration'])
+    engine.advance(engine.end_ns)  # the law's first torque triggers the choice
+    while not engine.finished:
+        engine.advance(engine.end_ns)
+    sel = engine.selected
+    period = 1.0 / scene.controller['control_rate']
+    assert sel is not None and sel.pilot_steps == 0 and sel.name.startswith('splitting')
+    assert period / 2 <= sel.step <= period and 'a priori' in sel.reason
+    assert sel.predicted_error <= scene.simulator['accuracy']
+    assert engine.selection_cpu < 0.01
+
+
+def test_live_engine_runs_the_a_priori_choice_while_the_pilot_is_pending():
+    """The node's engine (non-blocking) steps with the a-priori choice meanwhile (a bound, so
+    it meets the budget), then switches when ``work`` has fed the pilot to its end."""
+    config = engine_for(load('explorer1'), duration=600.0).config
+    engine = Engine(config, blocking_selection=False)
+    assert engine.selection_pending and 'provisional a-priori' in engine.reason
+    provisional = engine.method, engine.step_max
+    assert provisional[1] < 1.0 / 62.8  # hΩ ≤ 1, not the 1 s sample period
+    slices = 0
+    while engine.work(deadline=time.monotonic() + 1e-4):  # slices as the node feeds them
+        slices += 1
+    assert slices > 3 and not engine.selection_pending and engine.selected.pilot_steps > 0
+    assert engine.step_max >= provisional[1] and engine.selection_cpu > 0.0
+
+
+def test_selection_costs_little_at_a_budget_below_double_precision():
+    """1e-9 rad over 100 s of a 10 rev/s spin is 1.6e-13 of the angle turned: the pilot took
+    57–113 CPU s for a ~1 s run. Now it is at most 10 % of the run it selects for, and the
+    a-priori bound says which budgets its round-off floor puts out of reach."""
+    result = simulate(load('explorer1'), duration=100.0, accuracy=1e-9)
+    assert result.selection_cpu_seconds <= 0.1 * result.cpu_seconds
+    assert result.pilot_steps <= 0.1 * result.steps
+    body = RigidBody.from_inertia(EXPLORER_I)
+    sel = select(body, EXPLORER_D, Q_ID, EXPLORER_W, torque=False, accuracy=1e-13,
+                 duration=100.0, max_step=1.0, prior_only=True)
+    assert 'none meets the budget' in sel.reason and sel.predicted_error > 1e-13
