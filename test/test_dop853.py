@@ -4,13 +4,13 @@ It must take scipy's steps on the same right-hand side, reach order 8, continue 
 calls without restarting, agree with its uncompiled run, and name method, step and time
 when it fails. Standard scene (Hairer–Lubich–Wanner VII.5) as in test_integrators.
 """
-import json
 import os
 import subprocess
 import sys
 
 import numpy as np
 import pytest
+from jit_modes import run_both
 from scipy.integrate import solve_ivp
 
 from rigid_body_sim.physics import (Dissipation, Dynamics, IntegrationError, create,
@@ -138,13 +138,7 @@ print(json.dumps(out))
 
 
 def test_compiled_and_plain_python_agree():
-    runs = []
-    for disable in ('0', '1'):
-        out = subprocess.run([sys.executable, '-c', _SCRIPT], capture_output=True, text=True,
-                             env=dict(os.environ, NUMBA_DISABLE_JIT=disable), timeout=600)
-        assert out.returncode == 0, out.stderr[-3000:]
-        runs.append(json.loads(out.stdout))
-    compiled, plain = runs
+    compiled, plain = run_both(_SCRIPT)
     assert compiled.pop('compiled') is True and plain.pop('compiled') is False
     for key, (q, m, nfev) in compiled.items():
         np.testing.assert_allclose(q, plain[key][0], rtol=0, atol=1e-13, err_msg=key)

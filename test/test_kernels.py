@@ -11,6 +11,7 @@ import sys
 
 import numpy as np
 import pytest
+from jit_modes import run_both
 
 from rigid_body_sim.physics import Dissipation, Dynamics, IntegrationError, create, kernels
 
@@ -43,16 +44,8 @@ print(json.dumps(out))
 ''' % (MOMENTS, Q0, M0, TAU)
 
 
-def _run(disable_jit):
-    env = dict(os.environ, NUMBA_DISABLE_JIT='1' if disable_jit else '0')
-    out = subprocess.run([sys.executable, '-c', _SCRIPT, json.dumps(CASES)], env=env,
-                         capture_output=True, text=True, timeout=600)
-    assert out.returncode == 0, out.stderr[-3000:]
-    return json.loads(out.stdout)
-
-
 def test_compiled_and_plain_python_agree():
-    compiled, plain = _run(False), _run(True)
+    compiled, plain = run_both(_SCRIPT, json.dumps(CASES))
     assert compiled.pop('compiled') is True and plain.pop('compiled') is False
     for key, (q, m, nfev) in compiled.items():
         q2, m2, nfev2 = plain[key]
@@ -162,12 +155,7 @@ print(json.dumps(out))
 
 def test_control_law_compiled_and_plain_python_agree():
     """The control law kernel: same torques, flags and error angles in both modes."""
-    runs = []
-    for disable in ('0', '1'):
-        out = subprocess.run([sys.executable, '-c', _CONTROL], capture_output=True, text=True,
-                             env=dict(os.environ, NUMBA_DISABLE_JIT=disable), timeout=600)
-        assert out.returncode == 0, out.stderr[-3000:]
-        runs.append(np.array(json.loads(out.stdout), dtype=float))
+    runs = [np.array(r, dtype=float) for r in run_both(_CONTROL)]
     assert runs[0].shape == (180, 6) and runs[0][:, 3].any()  # some saturate
     np.testing.assert_allclose(runs[0], runs[1], rtol=0, atol=1e-13)
 
