@@ -48,7 +48,7 @@ $(STAMP): requirements.txt setup.py setup.cfg package.xml .ci/make_venv.sh \
 	for exe in $(NODES); do ln -sfn ../../bin/$$exe $(VENV)/lib/rigid_body_sim/$$exe; done
 	sh .ci/build_interfaces.sh $(VENV)
 	@echo "compiling the step kernels (numba, cached on disk; once)"
-	$(PY) -c "from rigid_body_sim.physics import kernels; kernels.warm()"
+	$(PY) -m rigid_body_sim.compiled
 	touch $@
 
 clean:

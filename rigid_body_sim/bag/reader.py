@@ -10,7 +10,7 @@ from dataclasses import dataclass, field
 from typing import Any, Iterable, Iterator
 
 from rigid_body_sim.bag import metadata as md
-from rigid_body_sim.bag.errors import BagError
+from rigid_body_sim.bag.errors import BagError, recover_hint  # noqa: F401 (re-exported)
 from rigid_body_sim.bag.writer import RUN_CONFIGURATION, decode_run_configuration
 
 MAGIC = b'\x89MCAP0\r\n'
@@ -57,13 +57,6 @@ class BagInfo:
     @property
     def duration_s(self) -> float:
         return (self.end_ns - self.start_ns) / 1e9
-
-
-def recover_hint(path: str) -> str:
-    out = re.sub(r'(\.mcap)?$', '_recovered.mcap', path.rstrip('/'), count=1) \
-        if path.endswith('.mcap') else path.rstrip('/') + '_recovered'
-    from .. import cli_command
-    return f'{cli_command()} bag recover {path} {out}'
 
 
 def bag_files(path: str) -> list[str]:

@@ -21,6 +21,7 @@ from mcap.writer import CompressionType, Writer
 
 import rigid_body_sim
 from rigid_body_sim.bag import metadata as md
+from rigid_body_sim.bag.errors import recover_hint
 from rigid_body_sim.bag.errors import BagError
 from rigid_body_sim.bag.schema import DEFAULT_QOS_YAML, TypeNotFound, message_definition
 from rigid_body_sim.bag.schema import type_hash as installed_type_hash
@@ -250,7 +251,6 @@ class BagWriter:
                     f.stream.close()
                 except OSError:
                     pass
-            from .reader import recover_hint
             raise BagError(f'{self._broken} is unfinished after the write error; the messages '
                            f'written before it are kept: {recover_hint(self.directory)}')
         md.write_metadata_yaml(self.directory, self.metadata())

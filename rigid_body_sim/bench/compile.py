@@ -16,8 +16,8 @@ import json, time
 t0 = time.perf_counter()
 import numba  # noqa: F401
 t1 = time.perf_counter()
-from rigid_body_sim.physics import kernels
-kernels.warm()
+import rigid_body_sim.compiled as compiled
+compiled.warm()
 t2 = time.perf_counter()
 print(json.dumps({"numba_import_s": t1 - t0, "kernels_s": t2 - t1, "total_s": t2 - t0}))
 '''

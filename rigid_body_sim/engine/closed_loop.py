@@ -143,15 +143,3 @@ def closed_loop_run(q, m, t_ns, t_stop_ns, control_ns, period_ns, h_max, method,
 # it calls the step loops and the law from their own files (see kernels.depends_on)
 closed_loop_run = depends_on(closed_loop_run, kernels, control_kernel)
 
-
-def warm():
-    """Compile (or load from the cache) the closed-loop kernel, through a short controlled
-    run so that it sees the argument types the engine passes (read-only model arrays)."""
-    from .config import EngineConfig
-    from .core import Engine
-    for method in ('splitting2', 'rk4'):
-        config = EngineConfig.from_parameters(
-            {'integrator': method, 'duration': 0.1, 'publish_rate': 20.0},
-            {'mode': 'slew', 'target_attitude': [0.0, 0.0, 0.6, 0.8]})
-        for _ in Engine(config).run():
-            pass

@@ -382,8 +382,8 @@ def rk4_steps(q, m, h, n, moments, tau, model, coefficient, scratch):
 
 
 def warm():
-    """Compile (or load from the cache) every kernel on representative arguments, the
-    batch loop's and the control law's included."""
+    """Compile (or load from the cache) this module's step loops on representative
+    arguments; ``rigid_body_sim.compiled.warm`` warms every kernel module."""
     q = np.array([0.0, 0.0, 0.0, 1.0])
     m = np.array([0.1, 1.0, 0.2])
     moments = np.array([1.0, 2.0, 3.0])
@@ -393,14 +393,4 @@ def warm():
                       1, 0.1, inner)
     rk4_run(q, m, 1e-3, 1, moments, tau, 0, 0.0)
     euler_run(q, m, 1e-3, 1, moments, tau, 0, 0.0)
-    from .batch_kernels import warm as warm_batch
-    warm_batch()
-    from .implicit_kernel import warm as warm_implicit
-    warm_implicit()
-    from ..control_kernel import warm as warm_control
-    warm_control()
-    from ..engine.closed_loop import warm as warm_closed_loop
-    warm_closed_loop()
-    from .dop853_kernel import warm as warm_dop853
-    warm_dop853()
     return COMPILED
