@@ -481,14 +481,15 @@ def test_imu_is_the_state_with_message_conventions(ros_process, namespace, rclpy
                     child_frame_id='craft')
     probe = Probe(rclpy_node, namespace, topics=('imu', 'attitude', 'angular_velocity'),
                   diagnostics=False)
-    probe.wait_for(lambda: len(probe.msgs['imu']) >= 10, 30.0, 'imu messages')
-    imu = {stamp_s(m): m for _, m in probe.msgs['imu']}
-    probe.wait_for(lambda: set(imu) & {stamp_s(m) for _, m in probe.msgs['attitude']},
-                   30.0, 'attitude at an imu stamp')
-    att = {stamp_s(m): m for _, m in probe.msgs['attitude']}
-    rate = {stamp_s(m): m for _, m in probe.msgs['angular_velocity']}
-    common = set(imu) & set(att) & set(rate)
-    assert common
+    def by_stamp(topic):
+        return {stamp_s(m): m for _, m in probe.msgs[topic]}
+
+    def common_stamps():
+        return set(by_stamp('imu')) & set(by_stamp('attitude')) & \
+            set(by_stamp('angular_velocity'))
+    probe.wait_for(lambda: len(common_stamps()) >= 10, 30.0, 'the three topics at one stamp')
+    imu, att, rate = by_stamp('imu'), by_stamp('attitude'), by_stamp('angular_velocity')
+    common = common_stamps()
     for t in common:
         m = imu[t]
         assert m.header.frame_id == 'craft'
