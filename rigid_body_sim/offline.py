@@ -86,20 +86,16 @@ class Decimated:
         idx = np.flatnonzero((self.seen + np.arange(len(block))) % self.stride == 0)
         self.seen += len(block)
         if idx.size:
-            self.blocks.append(SampleBlock(*(getattr(block, k)[idx] for k in _FIELDS)))
+            self.blocks.append(block.take(idx))
             self.count += idx.size
         if self.count > self.limit:
             whole = SampleBlock.concatenate(self.blocks)
             keep = np.arange(0, len(whole), 2)
-            self.blocks = [SampleBlock(*(getattr(whole, k)[keep] for k in _FIELDS))]
+            self.blocks = [whole.take(keep)]
             self.count, self.stride = len(keep), self.stride * 2
 
     def block(self) -> SampleBlock:
         return SampleBlock.concatenate(self.blocks)
-
-
-_FIELDS = ('t_ns', 'attitude', 'angular_velocity', 'angular_momentum', 'angular_momentum_body',
-           'kinetic_energy', 'torque')
 
 
 def engine_for(scene: SceneFile, duration=None, integrator=None, step=None, accuracy=None,

@@ -5,6 +5,8 @@ thousand offline). Every front end consumes blocks: the node turns each row into
 messages, the offline run into bag records and plot points, the bench into errors.
 """
 from dataclasses import dataclass
+from functools import cached_property
+from typing import Optional
 
 import numpy as np
 
@@ -15,19 +17,21 @@ FIELDS = ('t_ns', 'attitude', 'angular_velocity', 'angular_momentum', 'angular_m
           'kinetic_energy', 'torque')
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class SampleBlock:
     """n samples. Frames: attitude (x, y, z, w) body → inertial; angular_velocity (rad/s)
     and angular_momentum_body (kg·m²/s) in the body frame; angular_momentum (kg·m²/s) in
     the inertial frame; kinetic_energy (J); torque (N·m, body frame) is the total held
-    torque applied from that instant on. t_ns: sim time, integer nanoseconds."""
+    torque applied from that instant on. t_ns: sim time, integer nanoseconds.
+
+    It holds the principal-frame state (q principal → inertial, m) and converts it to the
+    user's frames on first use of each field, so a consumer that reads only the end state
+    (the bench, campaigns) pays nothing for the others."""
     t_ns: np.ndarray
-    attitude: np.ndarray
-    angular_velocity: np.ndarray
-    angular_momentum: np.ndarray
-    angular_momentum_body: np.ndarray
-    kinetic_energy: np.ndarray
+    q: np.ndarray
+    m: np.ndarray
     torque: np.ndarray
+    body: Optional[RigidBody]
 
     def __len__(self):
         return len(self.t_ns)
@@ -41,21 +45,54 @@ class SampleBlock:
         """Sim time in seconds (for plots; keep t_ns for anything exact)."""
         return self.t_ns / 1e9
 
+    @cached_property
+    def attitude(self) -> np.ndarray:
+        if not len(self):
+            return np.zeros((0, 4))
+        a = self.body.attitude_to_body(self.q)
+        return a / np.linalg.norm(a, axis=-1, keepdims=True)
+
+    @cached_property
+    def angular_velocity(self) -> np.ndarray:
+        if not len(self):
+            return np.zeros((0, 3))
+        return self.body.to_body(self.m / self.body.principal_moments)
+
+    @cached_property
+    def angular_momentum(self) -> np.ndarray:
+        return rotation.rotate(self.q, self.m) if len(self) else np.zeros((0, 3))
+
+    @cached_property
+    def angular_momentum_body(self) -> np.ndarray:
+        return self.body.to_body(self.m) if len(self) else np.zeros((0, 3))
+
+    @cached_property
+    def kinetic_energy(self) -> np.ndarray:
+        if not len(self):
+            return np.zeros(0)
+        return 0.5 * np.sum(self.m * self.m / self.body.principal_moments, axis=-1)
+
     def row(self, i):
         """Sample i as a dict of Python values."""
         return {k: getattr(self, k)[i].tolist() for k in FIELDS}
 
+    def take(self, index) -> 'SampleBlock':
+        """The samples at ``index`` (an index array or a slice)."""
+        return SampleBlock(self.t_ns[index], self.q[index], self.m[index], self.torque[index],
+                           self.body)
+
     @staticmethod
     def concatenate(blocks) -> 'SampleBlock':
-        blocks = list(blocks)
+        blocks = [b for b in blocks if len(b)]
         if not blocks:
             return empty_block()
-        return SampleBlock(*(np.concatenate([getattr(b, k) for b in blocks]) for k in FIELDS))
+        return SampleBlock(*(np.concatenate([getattr(b, k) for b in blocks])
+                             for k in ('t_ns', 'q', 'm', 'torque')), blocks[0].body)
 
 
 def empty_block() -> SampleBlock:
     return SampleBlock(np.zeros(0, np.int64), np.zeros((0, 4)), np.zeros((0, 3)),
-                       np.zeros((0, 3)), np.zeros((0, 3)), np.zeros(0), np.zeros((0, 3)))
+                       np.zeros((0, 3)), None)
 
 
 class BlockBuilder:
@@ -89,13 +126,8 @@ class BlockBuilder:
         self.n += k
 
     def block(self) -> SampleBlock:
-        n, body = self.n, self.body
-        q, m = self._q[:n], self._m[:n]
-        moments = body.principal_moments
-        attitude = body.attitude_to_body(q)
-        attitude /= np.linalg.norm(attitude, axis=-1, keepdims=True)
-        out = SampleBlock(self._t[:n].copy(), attitude, body.to_body(m / moments),
-                          rotation.rotate(q, m), body.to_body(m),
-                          0.5 * np.sum(m * m / moments, axis=-1), self._tau[:n].copy())
+        n = self.n
+        out = SampleBlock(self._t[:n].copy(), self._q[:n].copy(), self._m[:n].copy(),
+                          self._tau[:n].copy(), self.body)
         self.n = 0
         return out
