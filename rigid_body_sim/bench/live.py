@@ -39,7 +39,8 @@ def simulator(quick, log=print):
     try:
         # 1 kHz physics as the target states: splitting2 steps every 1 ms (auto would pick the
         # exact flow and evaluate it only at publish instants)
-        proc = subprocess.run([sys.executable, '-m', mod, '--integrator', 'splitting2'],
+        proc = subprocess.run([sys.executable, '-m', mod, '--integrator', 'splitting2',
+                               '--subscribe'],
                               capture_output=True, text=True, timeout=600)
     except subprocess.TimeoutExpired:
         return {'status': f'not measured ({mod} timed out after 600 s)'}

@@ -50,6 +50,11 @@ def _start(ns, integrator, rtf):
                             start_new_session=True)
 
 
+def _rss_mb(pid):
+    with open(f'/proc/{pid}/status') as f:
+        return next(int(line.split()[1]) for line in f if line.startswith('VmRSS:')) / 1024.0
+
+
 def _cpu_seconds(pid):
     with open(f'/proc/{pid}/stat') as f:
         fields = f.read().rsplit(')', 1)[1].split()
@@ -76,19 +81,25 @@ def run(integrator='auto', subscribe=False, seconds=6.0) -> dict:
                 lambda a: diags.extend(s for s in a.status
                                        if s.hardware_id == f'{ns}/{NODE_NAME}'),
                 10)
-            subs = []
+            subs, first = [], []
+            from geometry_msgs.msg import QuaternionStamped as _Q
+            subs.append(probe.create_subscription(
+                _Q, f'{ns}/attitude', lambda m: first or first.append(time.monotonic()), 10))
             if subscribe:
                 from geometry_msgs.msg import (PoseStamped, QuaternionStamped, TransformStamped,
                                                Vector3Stamped)
                 from nav_msgs.msg import Odometry
+                from sensor_msgs.msg import Imu
                 from std_msgs.msg import Float64
                 for topic, t in (('attitude', QuaternionStamped), ('pose', PoseStamped),
+                                 ('imu', Imu),
                                  ('transform', TransformStamped), ('odometry', Odometry),
                                  ('angular_velocity', Vector3Stamped),
                                  ('angular_momentum', Vector3Stamped),
                                  ('angular_momentum_body', Vector3Stamped),
                                  ('kinetic_energy', Float64)):
                     subs.append(probe.create_subscription(t, f'{ns}/{topic}', lambda m: None, 10))
+            started = time.monotonic()
             proc = _start(ns, integrator, rtf)
             try:
                 deadline = time.monotonic() + 20
@@ -111,7 +122,9 @@ def run(integrator='auto', subscribe=False, seconds=6.0) -> dict:
                     'cpu_percent_of_one_core': 100.0 * cpu,
                     'integrator_used': values[-1]['integrator'] if values else None,
                     'step_used_s': float(values[-1]['step']) if values else None,
-                    'missed_deadlines': int(values[-1]['missed_deadlines']) if values else None}
+                    'missed_deadlines': int(values[-1]['missed_deadlines']) if values else None,
+                    'first_message_s': first[0] - started if first else None,
+                    'rss_mb': _rss_mb(proc.pid)}
                 if values:
                     result['step_cost_us'].setdefault(values[-1]['integrator'], None)
             finally:
@@ -152,6 +165,13 @@ def main(argv=None):
     for name, cost in r['step_cost_us'].items():
         print(f'  Propagator.step {name}: {cost["free"]:.1f} us torque-free, '
               f'{cost["torque"]:.1f} us with torque')
+    import json
+    fast, real = r.get('rtf0', {}), r.get('rtf1', {})
+    cpu = real.get('cpu_percent_of_one_core')
+    print(json.dumps({'real_time_factor': fast.get('achieved_real_time_factor'),
+                      'cpu_share_at_real_time': None if cpu is None else cpu / 100.0,
+                      'first_message_s': real.get('first_message_s'),
+                      'rss_mb': real.get('rss_mb'), 'subscribed': args.subscribe}))
     return 0
 
 
