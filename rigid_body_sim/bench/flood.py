@@ -38,7 +38,7 @@ def main(argv=None) -> int:
     for c, m in msgs.items():
         m.header.frame_id = 'wrong_frame' if c == 'wrong_frame' else 'base_link'
         m.vector.z = math.nan if c == 'non_finite' else 1e-3
-    msgs['future_stamp'].header.stamp.sec = 4_000_000_000 - 1  # far ahead of any clock
+    msgs['future_stamp'].header.stamp.sec = 2_100_000_000   # years ahead (int32 seconds)
     msgs['stale_stamp'].header.stamp.sec = 1                   # far behind
     sent = dict.fromkeys(CLASSES, 0)
     garbage = CLASSES[1:]
