@@ -222,6 +222,9 @@ def add_arguments(parser):
     parser.add_argument('--no-bag', action='store_true', help='skip writing the bag')
     parser.add_argument('--no-plots', action='store_true', help='skip the PNG plots')
     add_set_argument(parser)
+    parser.add_argument('--namespace', default='/', metavar='NS',
+                        help='the nodes\' namespace, for params files whose sections name it '
+                             '(/NS/attitude_simulator), as -r __ns:=NS runs them')
 
 
 def add_set_argument(parser):
@@ -235,7 +238,7 @@ def run(args) -> int:
     from .bag.errors import BagError
     bag = None
     try:
-        scene = load(args.scene, args.set)
+        scene = load(args.scene, args.set, args.namespace)
         out = args.out or os.path.join('out', scene.name)
         if not args.no_bag:
             bag_dir = os.path.join(out, 'bag')

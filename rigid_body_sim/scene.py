@@ -88,8 +88,11 @@ CONTROLLER_NODE = '/attitude_controller'
 META_KEYS = SCENE_KEYS + ('use_sim_time',)  # declared by every node (rclpy) or metadata
 
 
-def load(scene: str, overrides=()) -> SceneFile:
+def load(scene: str, overrides=(), namespace: str = '/') -> SceneFile:
     """Load and validate a built-in scene (by name) or a params file (by path).
+
+    ``namespace``: the nodes' namespace, for files whose sections name it
+    (``/sat1/attitude_simulator``), as ``-r __ns:=/sat1`` would run them.
 
     ``overrides``: ``KEY=VALUE`` texts (``--set``) applied after the file, to each node of
     the scene that declares KEY; an unknown KEY fails with the closest valid one.
@@ -103,30 +106,32 @@ def load(scene: str, overrides=()) -> SceneFile:
     from .engine.params import coerce_all
     from . import params_file
     path = resolve(scene)
+    sim_node = params_file.fully_qualified('attitude_simulator', namespace)
+    ctl_node = params_file.fully_qualified('attitude_controller', namespace)
     sim_names = {s.name for s in specs.SIMULATOR} | set(META_KEYS)
     ctl_names = {s.name for s in specs.CONTROLLER} | set(META_KEYS)
     try:
         file_sections = params_file.sections(path)
         for section, _ in file_sections:
-            if not (params_file.matches(section, SIMULATOR_NODE)
-                    or params_file.matches(section, CONTROLLER_NODE)):
+            if not (params_file.matches(section, sim_node)
+                    or params_file.matches(section, ctl_node)):
                 raise SceneError(f'{path}: {section}: this section applies to neither '
-                                 f'{SIMULATOR_NODE} nor {CONTROLLER_NODE} (node keys are '
+                                 f'{sim_node} nor {ctl_node} (node keys are '
                                  'matched as rcl matches them: attitude_simulator, '
                                  '/**/attitude_simulator, /**, ...)')
-        problems = (params_file.unknown_keys(path, SIMULATOR_NODE, sim_names,
+        problems = (params_file.unknown_keys(path, sim_node, sim_names,
                                              sim_names | ctl_names)
-                    + params_file.unknown_keys(path, CONTROLLER_NODE, ctl_names,
+                    + params_file.unknown_keys(path, ctl_node, ctl_names,
                                                sim_names | ctl_names))
         if problems:
             raise SceneError(problems[0])
-        sim_raw = params_file.node_parameters(path, SIMULATOR_NODE)
-        ctl_raw = params_file.node_parameters(path, CONTROLLER_NODE)
+        sim_raw = params_file.node_parameters(path, sim_node)
+        ctl_raw = params_file.node_parameters(path, ctl_node)
     except params_file.ParamsFileError as exc:
         raise SceneError(str(exc)) from None
     # controlled: some section is for the controller and not for the simulator
-    controlled = any(params_file.matches(k, CONTROLLER_NODE)
-                     and not params_file.matches(k, SIMULATOR_NODE) for k, _ in file_sections)
+    controlled = any(params_file.matches(k, ctl_node)
+                     and not params_file.matches(k, sim_node) for k, _ in file_sections)
     try:
         for text in overrides:
             key, value = params_file.parse_override(text)
@@ -156,8 +161,8 @@ def load(scene: str, overrides=()) -> SceneFile:
                 raise SceneError(f'{where}: {exc}') from None
         return coerce_all(node_specs, own, node)
 
-    sim = values(sim_raw, sim_names, specs.SIMULATOR, SIMULATOR_NODE)
-    ctl = values(ctl_raw, ctl_names, specs.CONTROLLER, CONTROLLER_NODE) if controlled else {}
+    sim = values(sim_raw, sim_names, specs.SIMULATOR, sim_node)
+    ctl = values(ctl_raw, ctl_names, specs.CONTROLLER, ctl_node) if controlled else {}
     try:
         EngineConfig.from_parameters(sim, ctl or None)
     except ValueError as exc:

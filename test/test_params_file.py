@@ -117,22 +117,25 @@ SCENE_BODY = ('    inertia: [1.0, 2.0, 3.0]\n    initial_angular_velocity: [0.1,
 
 
 @pytest.mark.parametrize('key', ['attitude_simulator', '/attitude_simulator',
-                                 '/**/attitude_simulator', '/**'])
+                                 '/**/attitude_simulator', '/**', '/NS/attitude_simulator'])
 def test_a_file_runs_offline_and_starts_the_node(tmp_path, key, ros_process, namespace,
                                                  rclpy_node):
     """The same file through the offline loader and a real simulator process
     (--params-file): both take the file's values (the node's first angular_velocity
     message is the file's initial rate), and ``rigid-body-sim run`` runs it."""
     from geometry_msgs.msg import Vector3Stamped
+    key = key.replace('/NS', namespace)  # a section for the node in our test namespace
     path = _write(tmp_path, 'scene.yaml', f'{key}:\n  ros__parameters:\n{SCENE_BODY}')
-    loaded = scene.load(path)
+    named_ns = key.startswith(namespace)
+    loaded = scene.load(path, namespace=namespace if named_ns else '/')
     assert loaded.simulator['accuracy'] == 1e-06 and loaded.simulator['step'] == 1.0
     assert loaded.simulator['initial_angular_velocity'] == [0.1, 0.7, -0.2]
     out = subprocess.run([venv_exe('rigid-body-sim'), 'run', path, '--duration', '1',
-                          '--json', '--no-bag', '--no-plots', '--out', str(tmp_path / 'o')],
+                          '--json', '--no-bag', '--no-plots', '--out', str(tmp_path / 'o')]
+                         + (['--namespace', namespace] if named_ns else []),
                          capture_output=True, text=True, timeout=300)
     assert out.returncode == 0, out.stderr
-    if key.startswith('/**'):
+    if key.startswith('/**') or named_ns:
         ns_args = ['-r', f'__ns:={namespace}']
     else:  # a key without wildcard names the node in the root namespace
         ns_args, namespace = [], ''
