@@ -259,6 +259,9 @@ def main(argv: list[str] | None = None) -> int:
     except BagError as exc:
         print(f'error: {exc}', file=sys.stderr)
         code = 1
+    except Exception:
+        if rclpy.ok():  # not a shutdown by SIGINT/SIGTERM in the middle of a call
+            raise
     finally:
         with signals_ignored():  # the bag is finished even if Ctrl-C comes again
             if node is not None:

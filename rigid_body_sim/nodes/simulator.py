@@ -385,10 +385,17 @@ def main(args=None):
     except SceneError as exc:
         rclpy.logging.get_logger(NODE_NAME).fatal(f'invalid parameters: {exc}')
         return 2
+    except Exception:
+        if not rclpy.ok():  # SIGINT/SIGTERM shut the context down in the middle of a call
+            return 0
+        raise
     finally:
         with signals_ignored():  # a second Ctrl-C while shutting down: no traceback
             if node is not None:
-                node.destroy_node()
+                try:
+                    node.destroy_node()
+                except Exception:  # noqa: BLE001 - context already gone; nothing to release
+                    pass
             rclpy.try_shutdown()
 
 
