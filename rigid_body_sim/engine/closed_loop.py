@@ -7,7 +7,8 @@ stretch between two samples instead: at each control instant it evaluates the sa
 (``control_kernel.control_torque``) with the same mission schedule and clip, then steps the
 same compiled integrator loop (``physics.kernels``) to the next instant, with the step
 split exactly as :meth:`Engine._integrate` splits it. The trajectory is the one the
-event-by-event path computes (the tests compare both).
+event-by-event path computes (the tests compare both). :func:`advance` is the engine's
+side: it decides when the kernel applies, packs its arguments and takes its results back.
 
 Frames: q is principal → inertial and m the principal-frame momentum (what the
 integrators advance); the law sees the body frame (attitude body → inertial, ω body), as
@@ -19,9 +20,13 @@ import math
 import numpy as np
 
 from .. import control_kernel
-from ..control_kernel import control_torque
+from ..control_kernel import MODE_CODES, control_torque
+from ..physics import IntegrationError
 from ..physics import kernels
 from ..physics.kernels import depends_on, jit
+from . import specs
+from .config import NS
+from .sources import NEVER
 
 MODEL_CODES = kernels.MODEL_CODES
 METHOD_CODES = {'splitting2': 0, 'splitting4': 0, 'splitting6': 0, 'rk4': 1, 'euler': 2}
@@ -143,3 +148,49 @@ def closed_loop_run(q, m, t_ns, t_stop_ns, control_ns, period_ns, h_max, method,
 # it calls the step loops and the law from their own files (see kernels.depends_on)
 closed_loop_run = depends_on(closed_loop_run, kernels, control_kernel)
 
+
+def advance(engine, until_ns: int) -> None:
+    """The control law's instants up to the next sample (or the end) in one compiled
+    kernel, when only the law acts (no held command) and the method has a compiled
+    loop; otherwise nothing (``Engine.advance`` goes event by event)."""
+    law, c = engine._law, engine.config
+    stop = min(engine._next_sample, engine.end_ns)
+    if (stop > until_ns or law.next_t >= stop or engine._selection is not None
+            or engine.command.torque is not None or engine.command.expiry != NEVER
+            or engine.method not in METHOD_CODES
+            or not (engine._torque_seen or c.integrator != specs.AUTO)):
+        return
+    spec = engine._integ.loop_spec()
+    if spec is None:
+        return
+    settings, ctl, mission = law.settings, law.controller, law.mission
+    cfg, model_body = ctl.config, ctl.config.body
+    if mission.start is None:
+        mission.start = law.next_t / NS
+    d = engine.dynamics.dissipation
+    q, m = engine._q.copy(), engine._m.copy()
+    tau = np.zeros(3) if law.torque is None else np.array(law.torque, float)
+    out = np.zeros(6, dtype=np.int64)
+    out[2] = law.free
+    h = closed_loop_run(
+        q, m, engine.t_ns, stop, law.next_t, settings.period_ns, engine.step_max,
+        METHOD_CODES[engine.method], spec[0], spec[1], engine.dynamics.moments,
+        MODEL_CODES[d.model] if d.active else 0, d.coefficient,
+        engine.body.principal_axes, engine.body.principal_to_body, MODE_CODES[ctl.mode],
+        ctl.target, model_body.principal_axes, model_body.principal_moments,
+        cfg.kp_principal, cfg.kd_principal, cfg.rate_gain_principal, cfg.rate_limit,
+        cfg.torque_limit, cfg.gyroscopic_compensation, model_body.inertia, law.clip,
+        mission.start, mission.free_time, mission.detumble_exit_rate, tau, out)
+    next_control, mode, free, steps, evals, failed = (int(v) for v in out)
+    engine.steps += steps
+    engine._integ.nfev += evals
+    if failed >= 0:
+        engine.fault = 'state became non-finite (the method diverged)'
+        raise IntegrationError(engine.method, h, (next_control + (failed + 1) * h * NS) / NS,
+                               engine.fault)
+    engine._q, engine._m, engine.t_ns = q, m, stop
+    law.next_t, law.free, law.last = next_control, bool(free), None
+    if mode != MODE_CODES[ctl.mode]:
+        ctl.set_mode(next(k for k, v in MODE_CODES.items() if v == mode))
+    law.torque = tau if tau.any() else None
+    engine._update_torque()

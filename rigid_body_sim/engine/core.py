@@ -21,7 +21,6 @@ import numpy as np
 
 from ..physics import Dynamics, IntegrationError, create, rotation
 from ..physics.exact import TorqueFreeSolution
-from ..control_kernel import MODE_CODES
 from ..physics.selection import select, selecting
 from . import closed_loop
 from .config import NS, EngineConfig
@@ -330,7 +329,7 @@ class Engine:
         p = self.config.sample_period_ns
         while not (self.finished or self.fault) and b.n < cap:
             if self._law is not None and self.compiled_loop:
-                self._closed_loop(until_ns)  # to the next sample or the end, if it applies
+                closed_loop.advance(self, until_ns)  # to the next sample or end, if it applies
             t_src = min(s.next_event() for s in self.sources)
             end = self.end_ns
             t_event = min(self._next_sample, t_src, end)
@@ -362,52 +361,6 @@ class Engine:
             if deadline is not None and time.monotonic() > deadline:
                 break
         return b.block()
-
-    def _closed_loop(self, until_ns: int) -> None:
-        """The control law's instants up to the next sample (or the end) in one compiled
-        kernel, when only the law acts (no held command) and the method has a compiled
-        loop; otherwise nothing (the event-by-event path below does it)."""
-        law, c = self._law, self.config
-        stop = min(self._next_sample, self.end_ns)
-        if (stop > until_ns or law.next_t >= stop or self._selection is not None
-                or self.command.torque is not None or self.command.expiry != NEVER
-                or self.method not in closed_loop.METHOD_CODES
-                or not (self._torque_seen or c.integrator != AUTO)):
-            return
-        spec = self._integ.loop_spec()
-        if spec is None:
-            return
-        settings, ctl, mission = law.settings, law.controller, law.mission
-        cfg, model_body = ctl.config, ctl.config.body
-        if mission.start is None:
-            mission.start = law.next_t / NS
-        d = self.dynamics.dissipation
-        q, m = self._q.copy(), self._m.copy()
-        tau = np.zeros(3) if law.torque is None else np.array(law.torque, float)
-        out = np.zeros(6, dtype=np.int64)
-        out[2] = law.free
-        h = closed_loop.closed_loop_run(
-            q, m, self.t_ns, stop, law.next_t, settings.period_ns, self.step_max,
-            closed_loop.METHOD_CODES[self.method], spec[0], spec[1], self.dynamics.moments,
-            closed_loop.MODEL_CODES[d.model] if d.active else 0, d.coefficient,
-            self.body.principal_axes, self.body.principal_to_body, MODE_CODES[ctl.mode],
-            ctl.target, model_body.principal_axes, model_body.principal_moments,
-            cfg.kp_principal, cfg.kd_principal, cfg.rate_gain_principal, cfg.rate_limit,
-            cfg.torque_limit, cfg.gyroscopic_compensation, model_body.inertia, law.clip,
-            mission.start, mission.free_time, mission.detumble_exit_rate, tau, out)
-        next_control, mode, free, steps, evals, failed = (int(v) for v in out)
-        self.steps += steps
-        self._integ.nfev += evals
-        if failed >= 0:
-            self.fault = 'state became non-finite (the method diverged)'
-            raise IntegrationError(self.method, h, (next_control + (failed + 1) * h * NS) / NS,
-                                   self.fault)
-        self._q, self._m, self.t_ns = q, m, stop
-        law.next_t, law.free, law.last = next_control, bool(free), None
-        if mode != MODE_CODES[ctl.mode]:
-            ctl.set_mode(next(k for k, v in MODE_CODES.items() if v == mode))
-        law.torque = tau if tau.any() else None
-        self._update_torque()
 
     def run(self, until_ns: Optional[int] = None) -> Iterator[SampleBlock]:
         """Blocks of samples up to ``until_ns`` (default: the end of the run), as a stream:
