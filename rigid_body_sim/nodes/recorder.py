@@ -75,6 +75,16 @@ class Recorder(Node):
                                 max_bag_size=int(get('max_bag_size').value),
                                 flush_period=float(get('flush_period').value),
                                 compression=get('compression').value)
+        try:
+            self._start(get)
+        except BaseException:
+            # Ctrl-C during start-up (rclpy shuts the context down under a call, which then
+            # raises) must still leave a finished bag, not an MCAP without its summary
+            with signals_ignored():
+                self.writer.close()
+            raise
+
+    def _start(self, get) -> None:
         self.get_logger().info(f'recording to {self.writer.directory} '
                                f'({"all topics" if self._all else sorted(self._wanted)})')
         self._subs: dict[str, Any] = {}
