@@ -259,7 +259,7 @@ def run(args) -> int:
             from .plots import free_until, write_plots
             s = result.samples
             result.plots = [os.path.abspath(pth) for pth in write_plots(
-                s, result.body, out, scene.name, free_until(s.t, s.torque))]
+                s, result.body, out, scene.name, free_until(s.t, s.torque), scene)]
     except (SceneError, ValueError, IntegrationError, BagError) as exc:
         print(f'error: {exc}', file=sys.stderr)
         return 2
