@@ -7,7 +7,7 @@
 VENV        ?= .venv
 PY          := $(VENV)/bin/python
 STAMP       := $(VENV)/.rigid_body_sim-installed
-DEMO_DURATION ?= 30
+DEMO_DURATION ?= 40
 DEMO_OUT    ?= out/demo
 PYTEST_ARGS ?=
 NODES       := simulator controller recorder replay
