@@ -129,3 +129,19 @@ def test_control_figures_follow_the_prediction(name, tmp_path):
     else:
         measured, predicted = v['detumble_rate']
         assert measured == pytest.approx(predicted, rel=0.02)
+
+
+def test_bench_chart_never_plots_the_reference_against_itself(tmp_path):
+    from types import SimpleNamespace
+
+    from rigid_body_sim.bench import charts
+    rows = [dict(scene='s', method=m, family='ours', status='ok', cpu_s=c, attitude_error=e)
+            for m, c, e in (('exact', 1e-4, 1e-17), ('exact', 2e-4, 1e-17),
+                            ('rk4', 1e-3, 1e-6), ('rk4', 1e-2, 1e-10),
+                            ('dop853', 1e-3, 1e-8), ('dop853', 1e-1, 0.0))]
+    assert charts.plotted_methods(rows, 's', 'exact') == ['rk4', 'dop853']
+    assert charts.plotted_methods(rows, 's', 'dop853 rtol 1e-13') == ['exact', 'rk4', 'dop853']
+    scene = SimpleNamespace(name='s', title='S', description='d')
+    path = tmp_path / 'wp.png'
+    charts.work_precision(rows, scene, str(path), reference_label='exact')
+    assert path.stat().st_size > 10_000

@@ -264,7 +264,7 @@ def _run(args) -> int:
         for scene in scenes:
             charts.work_precision(wp_rows, scene,
                                   os.path.join(out, f'work_precision_{scene.name}.png'),
-                                  machine_text)
+                                  machine_text, refs[scene.name][2])
         charts.stability(st_rows, os.path.join(out, 'stability.png'))
         charts.long_horizon(lh_rows, os.path.join(out, 'long_horizon.png'))
     except Exception as exc:  # noqa: BLE001 - charts are a convenience; the CSVs carry the data
