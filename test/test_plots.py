@@ -145,3 +145,22 @@ def test_bench_chart_never_plots_the_reference_against_itself(tmp_path):
     path = tmp_path / 'wp.png'
     charts.work_precision(rows, scene, str(path), reference_label='exact')
     assert path.stat().st_size > 10_000
+
+
+def test_tour_writes_five_small_thumbnails_that_the_readme_shows(tmp_path):
+    import subprocess
+    import sys
+
+    from rigid_body_sim.tour import MAX_BYTES, TOUR, thumbnail_name
+    cli = os.path.join(os.path.dirname(sys.executable), 'rigid-body-sim')
+    out = subprocess.run([cli, 'tour', '--out', str(tmp_path)], capture_output=True, text=True,
+                         timeout=300)
+    assert out.returncode == 0, out.stderr
+    readme = open(os.path.join(REPO, 'README.md'), encoding='utf-8').read()
+    assert len(TOUR) == 5
+    for _, scene_name, figure in TOUR:
+        name = thumbnail_name(scene_name, figure)
+        assert 10_000 < (tmp_path / name).stat().st_size <= MAX_BYTES, name
+        committed = os.path.join(REPO, 'docs', 'tour', name)
+        assert os.path.getsize(committed) <= MAX_BYTES and f'docs/tour/{name}' in readme
+        assert f'rigid-body-sim run {scene_name}' in readme
