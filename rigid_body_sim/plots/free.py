@@ -41,8 +41,8 @@ def invariants(s, out_dir, title, unit, scale):
         if np.max(np.abs(d)) < CONSERVED_RTOL:
             ax.plot(ts, d, lw=0.9)
             ax.set_ylabel(f'{rel} − 1 [1]')
-            ax.text(0.01, 0.92, f'{name}₀ = {y[0]:.9g} {u}, conserved', transform=ax.transAxes,
-                    fontsize=8, va='top')
+            ax.text(0.01, 0.04, f'{name}₀ = {y[0]:.9g} {u}, conserved', transform=ax.transAxes,
+                    fontsize=8, va='bottom', bbox={'facecolor': 'white', 'alpha': 0.8, 'lw': 0})
         else:
             ax.plot(ts, y, lw=0.9)
             ax.set_ylabel(f'{name} [{u}]')

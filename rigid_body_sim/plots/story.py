@@ -142,8 +142,9 @@ def nutation(s, body, out_dir, title, unit, scale, coefficient):
     axes[1].set_ylabel('T [J]')
     axes[2].plot(t / scale, drift(G), lw=0.9)
     axes[2].set_ylabel('|L|/|L₀| − 1 [1]')
-    axes[2].text(0.01, 0.9, f'|L₀| = {G[0]:.9g} kg·m²/s: internal dissipation keeps it',
-                 transform=axes[2].transAxes, fontsize=8, va='top')
+    axes[2].text(0.01, 0.04, f'|L₀| = {G[0]:.9g} kg·m²/s: internal dissipation keeps it',
+                 transform=axes[2].transAxes, fontsize=8, va='bottom',
+                 bbox={'facecolor': 'white', 'alpha': 0.8, 'lw': 0})
     axes[2].set_xlabel(f't [{unit}] (sim time)')
     for ax in axes:
         ax.grid(alpha=0.3)
