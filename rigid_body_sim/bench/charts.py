@@ -43,6 +43,11 @@ def work_precision(rows, scene, path, machine='', reference_label=''):
         err = np.maximum([r['attitude_error'] for r in rs], 1e-17)
         ax.loglog([r['cpu_s'] for r in rs], err, ('--' if peer else '-') + ('s' if peer else 'o'),
                   ms=3.5, lw=1.3, label=method + (' (peer)' if peer else ''), color=f'C{i % 10}')
+    ref = [r['cpu_s'] for r in rows if r['scene'] == scene.name and r['status'] == 'ok'
+           and r['method'] == 'exact' and reference_label == 'exact']
+    if ref:  # where it sits on the CPU axis, without an error against itself
+        ax.axvline(min(ref), color='k', lw=0.8, ls=':',
+                   label=f'exact: the reference ({min(ref):.2g} s; no error against itself)')
     ax.set_xlabel('CPU seconds (process time, includes Python overhead)')
     ax.set_ylabel('final attitude error (rad)')
     ref_note = ''
@@ -114,3 +119,35 @@ def long_horizon(rows, path):
 def ensure_dir(path):
     os.makedirs(path, exist_ok=True)
     return path
+
+
+def redraw_work_precision(directory):
+    """Redraw the work-precision charts of a finished bench run from its CSV (no rerun):
+    ``python -m rigid_body_sim.bench.charts docs/bench``. The reference follows
+    bench.common.reference: the closed form for torque-free scenes, else dop853 rtol 1e-13."""
+    import csv
+
+    from .scenes import SCENE_BY_NAME
+    with open(os.path.join(directory, 'work_precision.csv'), newline='') as f:
+        rows = [dict(r, cpu_s=float(r['cpu_s']), attitude_error=float(r['attitude_error']))
+                for r in csv.DictReader(f)]
+    machine = ''
+    targets = os.path.join(directory, 'targets.md')
+    if os.path.exists(targets):
+        with open(targets) as f:
+            first = f.readline().strip()
+        machine = first.partition('Measured on: ')[2]
+    written = []
+    for name in dict.fromkeys(r['scene'] for r in rows):
+        scene = SCENE_BY_NAME[name]
+        label = 'exact' if scene.torque_free else 'dop853 rtol 1e-13'
+        path = os.path.join(directory, f'work_precision_{name}.png')
+        work_precision(rows, scene, path, machine, label)
+        written.append(path)
+    return written
+
+
+if __name__ == "__main__":
+    import sys
+    for p in redraw_work_precision(sys.argv[1] if len(sys.argv) > 1 else 'docs/bench'):
+        print(p)
