@@ -66,6 +66,7 @@ class _Watcher:
         self.t0 = None  # first stamp: the status shows time since the simulation started
         self.time_scale = time_scale  # sim seconds per stamp second (rtf without /clock)
         self.phase = None  # the controller's mission phase (free, detumble, slew), if any
+        self.slew_start = None  # sim time at which the controller reported the slew
         self.rtf = math.nan
         self.torque_seen = False
         self.free = {'T': [], 'L': []}  # T and |L| while no torque has been commanded yet
@@ -109,6 +110,8 @@ class _Watcher:
             if status.name.startswith('attitude_controller'):
                 for kv in status.values:
                     if kv.key == 'mission_phase':
+                        if kv.value == 'slew' and self.phase != 'slew':
+                            self.slew_start = self.t
                         self.phase = kv.value
             if status.name.startswith('attitude_simulator'):
                 for kv in status.values:
@@ -145,8 +148,16 @@ class _Watcher:
 
 def _phase_hint(watcher, scene):
     """Why the pointing error is still large, when the run ended before the slew."""
-    if not scene.controlled or watcher.ended_in() in ('slew', 'off'):
+    if not scene.controlled or watcher.ended_in() == 'off':
         return ''
+    if watcher.ended_in() == 'slew':
+        from .control import critical_settling_time
+        wn = np.mean(scene.controller.get('natural_frequency', 0.5))
+        settle = critical_settling_time(wn)
+        if watcher.slew_start is None or watcher.t - watcher.slew_start >= settle:
+            return ''
+        return (f' — the slew began at t ≈ {watcher.slew_start:.1f} s and settles to 2 % in '
+                f'5.83/ω_n = {settle:.1f} s (try a longer --duration)')
     free = scene.controller.get('mission.free_time', 0.0)
     return (f' — the slew had not begun: the free phase lasts {free:g} s, then the detumble; '
             'the error is the tumble\'s, not the controller\'s (try a longer --duration)')

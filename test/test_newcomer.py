@@ -75,3 +75,18 @@ def test_make_venv_skips_a_pyenv_shim_of_a_missing_version_quietly(tmp_path):
     assert out.returncode == 0, out.stderr
     assert 'pyenv' not in out.stderr + out.stdout and 'chose python3' in out.stdout
     assert 'chose python3.12' not in out.stdout
+
+
+def test_demo_summary_explains_an_unfinished_run():
+    import numpy as np
+
+    from rigid_body_sim.demo import _phase_hint, _Watcher
+    from rigid_body_sim.scene import load
+    scene = load(os.path.join(REPO, 'config', 'default.yaml'))
+    w = _Watcher(_FakeNode(), np.array([0.0, 0.0, 0.0, 1.0]))
+    w.t = 10.0
+    assert 'free phase lasts 17 s' in _phase_hint(w, scene)
+    w.phase, w.slew_start, w.t = 'slew', 20.0, 24.0
+    assert 'settles to 2 % in 5.83/ω_n = 7.3 s' in _phase_hint(w, scene)
+    w.t = 40.0
+    assert _phase_hint(w, scene) == ''
