@@ -1,6 +1,7 @@
 # Two commands for users:  make demo   (set up, then run the live demo)
 #                          make test   (set up, then run the whole test suite)
 # For developers:          make check  (physics, engine and lint only: under a minute)
+#                          make tour   (the README's tour thumbnails, into docs/tour)
 # Setup is a .venv in the repo that is also an ament prefix for this package,
 # so `ros2 run`-style lookups (lib/rigid_body_sim/<exe>, ament index) work in it.
 
