@@ -92,9 +92,24 @@ def precession(s, body, out_dir, title, unit, scale):
     ax.grid(alpha=0.3)
     ax = axes[1]
     turns = []
-    for name, meas, pred, x, y in (('body cone', body_meas, body_pred, w_p[:, a], w_p[:, b]),
-                                   ('space cone', space_meas, space_pred, axis_in @ u1,
-                                    axis_in @ u2)):
+    period = 2 * np.pi / abs(body_pred)
+    if long_run:  # the wobble itself: the pole's x against time, and the prediction
+        arcsec = np.degrees(1.0) * 3600
+        x = w_p[:, a] / w_p[:, ax_s] * arcsec
+        r = np.hypot(x[0], (w_p[0, b] / w_p[0, ax_s]) * arcsec)
+        phi0 = np.arctan2(w_p[0, b], w_p[0, a])
+        ax.plot(t / scale, x, lw=2.5, alpha=0.5, label='pole x (simulated)')
+        ax.plot(t / scale, r * np.cos(phi0 + np.sign(body_meas) * (t - t[0]) * abs(body_pred)),
+                'k--', lw=0.8, label=f'predicted, period A/(C − A) = {period / scale:.2f} {unit}')
+        for k in range(1, int((t[-1] - t[0]) / period) + 1):
+            ax.axvline(k * period / scale, color='r', lw=0.8, ls=':')
+        ax.set(xlabel=f't [{unit}] (sim time)', ylabel='pole x [arcsec] (body frame)')
+        ax.set_title(f'the free (Euler) wobble: measured period '
+                     f'{2 * np.pi / abs(body_meas) / scale:.2f} {unit}', fontsize=9)
+    cones = [] if long_run else [
+        ('body cone', body_meas, body_pred, w_p[:, a], w_p[:, b]),
+        ('space cone', space_meas, space_pred, axis_in @ u1, axis_in @ u2)]
+    for name, meas, pred, x, y in cones:
         rate, phase = phase_rate(t, x, y)
         if np.isnan(rate) or abs(pred) * np.min(np.diff(t)) > np.pi / 2:
             continue  # sampled too slowly to follow (the Earth's daily space cone)
@@ -103,22 +118,20 @@ def precession(s, body, out_dir, title, unit, scale):
                 label=f'{name}: measured {meas:.6g} rad/s')
         ax.plot(t / scale, pred * np.sign(meas) * (t - t[0]) / (2 * np.pi), 'k--', lw=0.8,
                 label=f'{name}: predicted {pred:.6g} rad/s')
-    period = 2 * np.pi / abs(body_pred)
-    if long_run:
-        for k in range(1, int((t[-1] - t[0]) / period) + 1):
-            ax.axvline(k * period / scale, color='r', lw=0.8, ls=':')
-        ax.text(0.02, 0.95, f'free (Euler) wobble A/(C − A) = {period / scale:.2f} {unit}',
-                transform=ax.transAxes, color='r', va='top', fontsize=9)
-    ax.set(xlabel=f't [{unit}] (sim time)', ylabel='turns [rev]')
-    ax.set_title('angle turned: |I_s − I_t|ω_s/I_t (body) and |L|/I_t (space)', fontsize=9)
-    ax.legend(fontsize=7, loc='lower right')
+    if not long_run:
+        ax.set(xlabel=f't [{unit}] (sim time)', ylabel='turns [rev]')
+        ax.set_title('angle turned: |I_s − I_t|ω_s/I_t (body) and |L|/I_t (space)',
+                     fontsize=9)
+    ax.legend(fontsize=7, loc='best' if long_run else 'lower right')
     ax.grid(alpha=0.3)
     fig.suptitle(f'{title}: free precession')
     return save(fig, out_dir, 'precession.png', 'body and space cones with predicted rates',
                 plt, {'body_cone_rate': (abs(body_meas), abs(body_pred)),
                       'wobble_period': (2 * np.pi / abs(body_meas), period),
                       **({'space_cone_rate': (abs(space_meas), space_pred)}
-                         if 'space cone' in turns else {})})
+                         if 'space cone' in turns else {}),
+                      **({'body_cone_rate': (abs(body_meas), abs(body_pred))}
+                         if 'body cone' in turns or long_run else {})})
 
 
 def nutation(s, body, out_dir, title, unit, scale, coefficient):
