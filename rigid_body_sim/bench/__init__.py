@@ -37,7 +37,10 @@ def add_arguments(parser):
                         help='also measure MuJoCo and Basilisk if installed '
                              f'({peers.INSTALL_HINT})')
     parser.add_argument('--scenes', default='', metavar='A,B',
-                        help='comma-separated subset of scenes for the work-precision section')
+                        help='comma-separated subset of scenes for the work-precision section: '
+                             + ', '.join(SCENE_BY_NAME))
+    parser.epilog = ('CPU times are process seconds; errors are attitude angles in rad against '
+                     'the reference each chart names; drifts are relative (value/initial − 1).')
 
 
 def machine():
