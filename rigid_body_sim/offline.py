@@ -206,10 +206,9 @@ def add_arguments(parser):
     from .engine import specs
     from .physics import INTEGRATORS
     spec = {s.name: s for s in specs.SIMULATOR}
-    parser.add_argument('scene', help='built-in scene name (see `rigid-body-sim scenes`) or a '
-                        'params file')
+    parser.add_argument('scene', help='built-in scene name (listed below) or a params file')
     parser.add_argument('--duration', type=number(0.0, 1e12, low_open=True),
-                        help='simulated seconds (default: the scene\'s)')
+                        help='simulated seconds, s (default: the scene\'s)')
     parser.add_argument('--integrator', choices=('auto',) + tuple(INTEGRATORS),
                         help='integrator (default: the scene\'s): %(choices)s')
     parser.add_argument('--step', type=number(spec['step'].low, spec['step'].high),
@@ -228,10 +227,26 @@ def add_arguments(parser):
 
 
 def add_set_argument(parser):
+    """--set, and an epilog listing the choices a newcomer needs (with their units)."""
+    parser.epilog = choices_epilog()
     parser.add_argument('--set', action='append', default=[], metavar='KEY=VALUE',
                         help='override a scene parameter after the file (repeatable), typed '
                              'as in a params file: --set accuracy=1e-9 --set '
                              'initial_angular_velocity=[0.1,2.0,0.0]')
+
+
+def choices_epilog() -> str:
+    from .physics import DISSIPATION_MODELS, INTEGRATORS
+    from .scene import list_scenes
+    try:
+        scenes = ', '.join(name for name, _, _ in list_scenes())
+    except (OSError, SceneError):
+        scenes = '(config/ not found)'
+    return (f'scenes: {scenes}. integrators (--set integrator=NAME): auto, '
+            f'{", ".join(INTEGRATORS)}. dissipation models (--set dissipation.model=NAME, '
+            f'dissipation.coefficient in s/(kg·m²) for double_bracket, N·m·s for viscous): '
+            f'{", ".join(DISSIPATION_MODELS)}. Units are SI: s, rad, rad/s, kg·m², N·m, J; '
+            'quaternions (x, y, z, w).')
 
 
 def run(args) -> int:
@@ -259,7 +274,7 @@ def run(args) -> int:
             from .plots import free_until, write_plots
             s = result.samples
             result.plots = [os.path.abspath(pth) for pth in write_plots(
-                s, result.body, out, scene.name, free_until(s.t, s.torque))]
+                s, result.body, out, scene.name, free_until(s.t, s.torque), scene)]
     except (SceneError, ValueError, IntegrationError, BagError) as exc:
         print(f'error: {exc}', file=sys.stderr)
         return 2
