@@ -10,7 +10,7 @@ STAMP       := $(VENV)/.rigid_body_sim-installed
 DEMO_DURATION ?= 30
 DEMO_OUT    ?= out/demo
 PYTEST_ARGS ?=
-NODES       := simulator controller recorder replay
+NODES       := simulator controller recorder replay viewer
 # tf2_msgs and simulation_interfaces, built into the venv by .ci/build_interfaces.sh
 INTERFACES  := $(wildcard interfaces/* interfaces/*/* interfaces/*/*/*)
 

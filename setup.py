@@ -29,6 +29,7 @@ setup(
             'controller = rigid_body_sim.nodes.controller:main',
             'recorder = rigid_body_sim.nodes.recorder:main',
             'replay = rigid_body_sim.nodes.replay:main',
+            'viewer = rigid_body_sim.nodes.viewer:main',
         ],
     },
 )
