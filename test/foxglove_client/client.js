@@ -115,8 +115,8 @@ async function main() {
     for (let i = 0; i < args.clients; i++) all.push(session(args, args.seconds, `client${i}`));
     out = { sessions: await Promise.all(all) };
   }
-  process.stdout.write(JSON.stringify(out) + "\n");
-  process.exit(0);
+  // exit only once the pipe has taken everything (a large result spans many writes)
+  process.stdout.write(JSON.stringify(out) + "\n", () => process.exit(0));
 }
 
 main().catch((e) => {
