@@ -100,3 +100,13 @@ def test_trace_keeps_the_last_points_in_order_and_skips_small_steps():
     np.testing.assert_array_equal(trace.ordered()[:, 0], (2.0, 3.0, 4.0, 5.0))
     trace.clear()
     assert trace.ordered().shape == (0, 3)
+
+
+def test_rotate_vector_is_the_physics_rotation():
+    rng = np.random.default_rng(5)
+    for _ in range(100):
+        q = rng.normal(size=4)
+        q /= np.linalg.norm(q)
+        v = rng.normal(size=3)
+        np.testing.assert_allclose(geometry.rotate_vector(q, v), rotation.rotate(q, v),
+                                   rtol=0, atol=1e-15 * 4 * np.linalg.norm(v))

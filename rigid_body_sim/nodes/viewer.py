@@ -5,16 +5,17 @@ simulator's state and serves it with the Foxglove SDK's WebSocket server (defaul
 ws://127.0.0.1:8765) on the channels described in :mod:`rigid_body_sim.viewer.view`.
 
 Topics (relative names, remappable):
-    sub ``attitude`` (geometry_msgs/QuaternionStamped, base_link → world),
-        ``angular_velocity`` (Vector3Stamped, base_link), ``angular_momentum``
-        (Vector3Stamped, world), ``attitude_target`` (QuaternionStamped), ``/diagnostics``.
+    sub ``imu`` (sensor_msgs/Imu: the attitude base_link → world and ω in base_link of one
+        sample, one stamp; the simulator's ideal IMU, the same values as its ``attitude``
+        and ``angular_velocity``), ``attitude_target`` (QuaternionStamped), ``/diagnostics``.
     pub ``/diagnostics`` (this node's status: subscriptions, samples served, client
         messages refused by reason).
 
 The body (for the inertia box, T and the energy ellipsoid) comes from the simulator's
 ``inertia`` parameter, asked over its parameter service; the pointing error's target from
-the controller's ``target_attitude`` or the latest ``attitude_target`` message. Samples are
-joined across topics by their identical header stamps.
+the controller's ``target_attitude`` or the latest ``attitude_target`` message. L (world) is
+R(q)·Iω from the same sample, equal to the simulator's ``angular_momentum`` to round-off: one
+subscription instead of three keeps the viewer's cost low (see ``bench/viewer.py``).
 """
 import sys
 import time
@@ -25,7 +26,8 @@ from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 
 from diagnostic_msgs.msg import DiagnosticArray
-from geometry_msgs.msg import QuaternionStamped, Vector3Stamped
+from geometry_msgs.msg import QuaternionStamped
+from sensor_msgs.msg import Imu
 
 from ..physics.body import RigidBody
 from ..viewer import view as fox
@@ -73,17 +75,13 @@ class Viewer(Node):
                  f'(app or https://app.foxglove.dev): Open connection → Foxglove WebSocket'
                  + (f'; also writing {p["mcap_output"]}' if self.mcap else ''))
         qos = qos_profile(p['qos'], 100)
-        self.create_subscription(QuaternionStamped, 'attitude', self._on_attitude, qos)
-        self.create_subscription(Vector3Stamped, 'angular_velocity',
-                                 lambda m: self._on_part(m, 1), qos)
-        self.create_subscription(Vector3Stamped, 'angular_momentum',
-                                 lambda m: self._on_part(m, 2), qos)
+        # one topic carries q and ω of a sample (one stamp, no joining): the cheapest to take
+        self.create_subscription(Imu, 'imu', self._on_imu, qos)
         self.create_subscription(QuaternionStamped, 'attitude_target', self._on_target, qos)
         self.create_subscription(DiagnosticArray, '/diagnostics', self._on_diagnostics,
                                  qos_profile('reliable', 100))
         self._diag_pub = self.create_publisher(DiagnosticArray, '/diagnostics',
                                                qos_profile('reliable', 10))
-        self.pending = {}   # stamp ns -> [q, ω, L]: the sample being joined
         self.target = None
         self.samples = self.transforms = 0
         self.last_stamp_ns = 0
@@ -98,32 +96,18 @@ class Viewer(Node):
         self.create_timer(DIAGNOSTICS_PERIOD_S, self._diagnostics)
 
     # --- state ---------------------------------------------------------------------------
-    def _on_attitude(self, msg):
+    def _on_imu(self, msg):
         s = msg.header.stamp
         stamp = s.sec * 1_000_000_000 + s.nanosec
-        o = msg.quaternion
+        o = msg.orientation
         q = (o.x, o.y, o.z, o.w)
         self.view.transform(stamp, q)
         self.transforms += 1
         self.last_stamp_ns = stamp
-        self._join(stamp, 0, q)
-
-    def _on_part(self, msg, slot):
-        s = msg.header.stamp
-        v = msg.vector
-        self._join(s.sec * 1_000_000_000 + s.nanosec, slot, (v.x, v.y, v.z))
-
-    def _join(self, stamp, slot, value):
-        parts = self.pending.setdefault(stamp, [None, None, None])
-        parts[slot] = value
-        if all(x is not None for x in parts):
-            del self.pending[stamp]
-            for old in [k for k in self.pending if k < stamp]:  # never completed: dropped
-                del self.pending[old]
+        if self.view.body is not None:
+            w = msg.angular_velocity
             self.samples += 1
-            self.view.sample(stamp, parts[0], parts[1], parts[2], self.target)
-        elif len(self.pending) > 100:  # a topic stopped: keep memory bounded
-            del self.pending[min(self.pending)]
+            self.view.sample(stamp, q, (w.x, w.y, w.z), self.target)
 
     def _on_target(self, msg):
         o = msg.quaternion
@@ -135,7 +119,7 @@ class Viewer(Node):
                 time.monotonic() - self.started > WAIT_NOTICE_S:
             self.said_waiting = True
             self.get_logger().info(
-                f'waiting for the simulator: no state on {self.resolve_topic_name("attitude")} '
+                f'waiting for the simulator: no state on {self.resolve_topic_name("imu")} '
                 'yet (serving Foxglove meanwhile)')
         for name, client in self._params.items():
             if name not in self._asked and client.services_are_ready():
@@ -216,6 +200,8 @@ def main(args=None):
         except fox.PortInUse as exc:
             rclpy.logging.get_logger(NODE_NAME).fatal(str(exc))
             return 1
+        # not rclpy.experimental.EventsExecutor: it halves the per-message cost, but in rclpy
+        # 7.1 it busy-loops beside the parameter client and ignores SIGINT
         rclpy.spin(node)
         return 0
     except (KeyboardInterrupt, ExternalShutdownException):

@@ -96,6 +96,17 @@ def arrow_rotation(direction):
     return _shortest_rotation(np.array((1.0, 0.0, 0.0)), d / n)
 
 
+def rotate_vector(q, v):
+    """``v`` rotated by the unit quaternion ``q`` (x, y, z, w), for one vector in plain floats:
+    v + 2w(u × v) + 2u × (u × v), u = (x, y, z). ``physics.rotation.rotate`` does the same on
+    arrays; for a single vector per sample its numpy overhead is most of the viewer's cost."""
+    x, y, z, w = (float(c) for c in q)
+    vx, vy, vz = (float(c) for c in v)
+    tx, ty, tz = 2.0 * (y * vz - z * vy), 2.0 * (z * vx - x * vz), 2.0 * (x * vy - y * vx)
+    return np.array((vx + w * tx + y * tz - z * ty, vy + w * ty + z * tx - x * tz,
+                     vz + w * tz + x * ty - y * tx))
+
+
 class Trace:
     """A bounded polyline: the last ``capacity`` points (m) kept, a new point appended only
     when it is at least ``min_step`` from the last one (a slow trace does not fill the buffer

@@ -5,7 +5,7 @@ plain numbers.
 Channels (all stamped with the state's stamp, which is also the log time):
 - ``/tf`` (foxglove.FrameTransform): ``world`` → ``base_link``, every sample;
 - ``/tf_poinsot`` (foxglove.FrameTransforms): ``world`` → ``poinsot`` (a fixed offset beside
-  the body) and ``poinsot`` → ``poinsot_body`` (the body's attitude), every sample;
+  the body) and ``poinsot`` → ``poinsot_body`` (the body's attitude), at ``scene_rate``;
 - ``/scene`` (foxglove.SceneUpdate), at ``scene_rate``: the body as its inertia box, the ω
   (body) and L (world) arrows; Poinsot's construction: the energy ellipsoid with its polhode
   (``poinsot_body``), the invariable plane with the herpolhode and the contact point
@@ -21,7 +21,14 @@ import logging
 import math
 import threading
 
+import foxglove
 import numpy as np
+from foxglove import Channel
+from foxglove.channels import (FrameTransformChannel, FrameTransformsChannel,
+                               SceneUpdateChannel)
+from foxglove.messages import (ArrowPrimitive, Color, CubePrimitive, FrameTransform,
+                               FrameTransforms, LinePrimitive, Point3, Pose, Quaternion,
+                               SceneEntity, SceneUpdate, SpherePrimitive, Timestamp, Vector3)
 
 from . import geometry
 
@@ -81,23 +88,19 @@ class Rejections(logging.Handler):
 
 
 def _time(stamp_ns: int):
-    from foxglove.messages import Timestamp
     sec, nsec = divmod(int(stamp_ns), 1_000_000_000)
     return Timestamp(sec=sec, nsec=nsec)
 
 
 def _quat(q):
-    from foxglove.messages import Quaternion
     return Quaternion(x=float(q[0]), y=float(q[1]), z=float(q[2]), w=float(q[3]))
 
 
 def _vec(v):
-    from foxglove.messages import Vector3
     return Vector3(x=float(v[0]), y=float(v[1]), z=float(v[2]))
 
 
 def _color(r, g, b, a=1.0):
-    from foxglove.messages import Color
     return Color(r=r, g=g, b=b, a=a)
 
 
@@ -106,7 +109,6 @@ def start_server(host: str, port: int, name: str = 'rigid_body_sim', on_reject=N
     """The SDK's WebSocket server on ``host``:``port``, with refused client messages counted.
     Returns (server, Rejections). PortInUse naming the port and the ``port`` parameter when
     it cannot bind."""
-    import foxglove
     rejections = Rejections(on_reject)
     sdk_log = logging.getLogger('foxglove')
     sdk_log.addHandler(rejections)
@@ -128,9 +130,6 @@ class View:
 
     def __init__(self, frame_id='world', child_frame_id='base_link', body_size=1.0,
                  trace_length=600, scene_period_ns=100_000_000):
-        from foxglove import Channel
-        from foxglove.channels import (FrameTransformChannel, FrameTransformsChannel,
-                                       SceneUpdateChannel)
         self.frame_id, self.child_frame_id = frame_id, child_frame_id
         self.body_size = float(body_size)
         self.tf = FrameTransformChannel('/tf')
@@ -163,29 +162,35 @@ class View:
     # --- every sample ----------------------------------------------------------------------
     def transform(self, stamp_ns: int, q):
         """``world`` → ``base_link`` (q rotates base_link vectors into world)."""
-        from foxglove.messages import FrameTransform, FrameTransforms
-        t = _time(stamp_ns)
-        rot = _quat(q)
-        self.tf.log(FrameTransform(timestamp=t, parent_frame_id=self.frame_id,
-                                   child_frame_id=self.child_frame_id, rotation=rot),
+        if not self.tf.has_sinks():
+            return  # nobody subscribed and no MCAP: build nothing
+        self.tf.log(FrameTransform(timestamp=_time(stamp_ns), parent_frame_id=self.frame_id,
+                                   child_frame_id=self.child_frame_id, rotation=_quat(q)),
                     log_time=stamp_ns)
-        offset = (0.0, 2.5 * self.body_size, 0.0)  # the Poinsot view beside the body
+
+    def _poinsot_frames(self, stamp_ns, q):
+        """``world`` → ``poinsot`` (fixed, beside the body) → ``poinsot_body`` (the attitude),
+        at the scene's rate: the Poinsot view moves with its entities."""
+        t = _time(stamp_ns)
+        offset = (0.0, 2.5 * self.body_size, 0.0)
         self.tf_poinsot.log(FrameTransforms(transforms=[
             FrameTransform(timestamp=t, parent_frame_id=self.frame_id,
                            child_frame_id=POINSOT_FRAME, translation=_vec(offset),
                            rotation=_quat((0.0, 0.0, 0.0, 1.0))),
             FrameTransform(timestamp=t, parent_frame_id=POINSOT_FRAME,
-                           child_frame_id=POINSOT_BODY_FRAME, rotation=rot)]),
+                           child_frame_id=POINSOT_BODY_FRAME, rotation=_quat(q))]),
             log_time=stamp_ns)
 
-    def sample(self, stamp_ns: int, q, omega, L_world, target=None):
-        """One complete sample: ω (base_link, rad/s), L (world, kg·m²/s), q (base_link →
-        world); plot channel now, scene at ``scene_rate``. T = ½ ω·Iω from the body."""
+    def sample(self, stamp_ns: int, q, omega, target=None):
+        """One sample: q (base_link → world), ω (base_link, rad/s); plot channel now, scene at
+        ``scene_rate``. From the body: L = R(q)·Iω (world, kg·m²/s) and T = ½ ω·Iω (J)."""
         if self.body is None:
             return
+        q = np.asarray(q, float)
         omega = np.asarray(omega, float)
-        L_world = np.asarray(L_world, float)
-        T = 0.5 * float(omega @ self.body.inertia @ omega)
+        L_body = self.body.inertia @ omega
+        L_world = geometry.rotate_vector(q, L_body)
+        T = 0.5 * float(omega @ L_body)
         L = float(np.linalg.norm(L_world))
         if self.T0 is None:
             self.T0, self.L0 = T, L
@@ -209,20 +214,20 @@ class View:
         }
         if not math.isnan(error):  # no target known: no point on the plot
             row['pointing_error_deg'] = error
-        self.state.log(row, log_time=stamp_ns)
+        if self.state.has_sinks():
+            self.state.log(row, log_time=stamp_ns)
         # traces every sample (cheap), drawn at scene rate
-        from ..physics import rotation
         self.polhode.add(omega * self.scale)
-        self.herpolhode.add(rotation.rotate(np.asarray(q, float), omega) * self.scale)
+        self.herpolhode.add(geometry.rotate_vector(q, omega) * self.scale)
         if self.next_scene_ns is None or stamp_ns >= self.next_scene_ns:
             self.next_scene_ns = stamp_ns + self.scene_period_ns
-            self._scene(stamp_ns, q, omega, L_world, T)
+            if self.tf_poinsot.has_sinks():
+                self._poinsot_frames(stamp_ns, q)
+            if self.scene.has_sinks():
+                self._scene(stamp_ns, q, omega, L_world, T)
 
     # --- the 3D scene ----------------------------------------------------------------------
     def _scene(self, stamp_ns, q, omega, L_world, T):
-        from foxglove.messages import (ArrowPrimitive, CubePrimitive, LinePrimitive, Point3,
-                                       Pose, SceneEntity, SceneUpdate, SpherePrimitive)
-        from ..physics import rotation
         t = _time(stamp_ns)
         size = self.body_size
         origin = _vec((0.0, 0.0, 0.0))
@@ -271,8 +276,8 @@ class View:
                           orientation=_quat(geometry.plane_rotation(normal))),
                 size=_vec((plane, plane, 0.002 * size)), color=_color(0.3, 0.6, 1.0, 0.25))]))
             entities.append(entity(POINSOT_FRAME, 'contact', spheres=[SpherePrimitive(
-                pose=Pose(position=_vec(rotation.rotate(np.asarray(q, float), omega)
-                                        * self.scale), orientation=_quat((0, 0, 0, 1))),
+                pose=Pose(position=_vec(geometry.rotate_vector(q, omega) * self.scale),
+                          orientation=_quat((0, 0, 0, 1))),
                 size=_vec((0.05 * size,) * 3), color=_color(1.0, 0.3, 0.2))]))
             if self.herpolhode.count > 1:
                 entities.append(entity(POINSOT_FRAME, 'herpolhode', lines=[line(
