@@ -35,6 +35,17 @@ def _free_port():
         return s.getsockname()[1]
 
 
+def _wait_port(port, timeout=60.0):
+    """Until the viewer's server accepts connections (its start-up imports take seconds)."""
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        with socket.socket() as s:
+            if s.connect_ex(('127.0.0.1', port)) == 0:
+                return
+        time.sleep(0.2)
+    raise AssertionError(f'nothing listens on port {port} after {timeout} s')
+
+
 @pytest.fixture(scope='session')
 def client_js():
     """The npm client, installed from the lockfile if not yet there (.ci/run does it too)."""
@@ -199,7 +210,7 @@ def test_channels_transform_rate_and_scene(live, client_js):
     d = np.linalg.norm((centre['x'], centre['y'], centre['z']))
     assert d == pytest.approx(2.0 * T / L * scale, rel=1e-9)
     assert ents['polhode']['frameId'] == 'poinsot_body'
-    assert len(ents['polhode']['lines'][0]['points']) > 2
+    assert ents['polhode']['lines'][0]['points'] > 2  # the client reports the count
 
 
 def test_reconnecting_client_gets_the_stream_again(live, client_js):
@@ -297,3 +308,42 @@ def test_waits_for_the_simulator_then_serves_and_writes_mcap(client_js, tmp_path
     assert len(rows) > RATE
     for log_time, row in rows:
         assert log_time == row['timestamp']['sec'] * 1_000_000_000 + row['timestamp']['nsec']
+
+
+def test_explorer1_energy_ellipsoid_shrinks_as_energy_dissipates(client_js):
+    """Explorer 1 (double-bracket dissipation at 200× real time): T falls at constant |L|,
+    and the ellipsoid's semi-axes follow √(2T/I_i) at each scene update's stamp."""
+    ns = unique_namespace('viewer_explorer1')
+    port = _free_port()
+    scene = os.path.join(os.path.dirname(__file__), '..', 'config', 'explorer1.yaml')
+    sim = NodeProcess([venv_exe('simulator'), '--ros-args', '-r', f'__ns:={ns}',
+                       '--params-file', scene])
+    viewer = NodeProcess(_viewer_cmd() + ['--ros-args', '-r', f'__ns:={ns}',
+                                          '-p', f'port:={port}'])
+    try:
+        _wait_port(port)
+        (s,) = run_client(client_js, port, 14.0, '--subscribe', '/scene,/state',
+                          '--dump', '/scene,/state')
+    finally:
+        sim.stop()
+        viewer.stop()
+    moments = np.array([0.04, 0.2, 0.2])
+    T = {r['timestamp']['sec'] * 1_000_000_000 + r['timestamp']['nsec']: r['kinetic_energy']
+         for r in s['dumped']['/state']}
+    L = [r['angular_momentum_norm'] for r in s['dumped']['/state']]
+    rows = []
+    for update in s['dumped'].get('/scene', []):
+        for e in update['entities']:
+            if e['id'] == 'energy_ellipsoid':
+                size = e['spheres'][0]['size']
+                rows.append((_stamp(e['timestamp']), np.array((size['x'], size['y'],
+                                                               size['z']))))
+    rows = [(t, size) for t, size in rows if t in T]
+    assert len(rows) >= 50, (len(rows), sim.output(), viewer.output())
+    # (size_i/2)² = (2T/I_i)·scale²: size_i²·I_i/T is one constant over axes and time
+    c = np.array([size ** 2 * moments / T[t] for t, size in rows])
+    np.testing.assert_allclose(c, c[0, 0], rtol=1e-9)
+    largest = np.array([size.max() for _, size in rows])
+    assert np.all(np.diff(largest) <= 1e-12 * largest[0])   # T only falls
+    assert largest[-1] < 0.98 * largest[0], (largest[0], largest[-1])
+    assert max(L) - min(L) <= 1e-6 * max(L)                  # |L| kept (double bracket)

@@ -93,6 +93,9 @@ function session(args, seconds, label) {
         seen.errors.push(`decode ${t}: ${e.message}`);
         return;
       }
+      if (msg && msg.entities) {  // scene updates: keep the polylines' lengths, not points
+        for (const e of msg.entities) for (const l of e.lines || []) l.points = l.points.length;
+      }
       if (args.dump.includes(t)) (seen.dumped[t] = seen.dumped[t] || []).push(msg);
       else seen.last[t] = msg;
     });
