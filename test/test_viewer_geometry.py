@@ -110,3 +110,28 @@ def test_rotate_vector_is_the_physics_rotation():
         v = rng.normal(size=3)
         np.testing.assert_allclose(geometry.rotate_vector(q, v), rotation.rotate(q, v),
                                    rtol=0, atol=1e-15 * 4 * np.linalg.norm(v))
+
+
+def test_shipped_foxglove_layout_is_the_built_one_and_names_our_channels():
+    import json
+    from rigid_body_sim.viewer import layout, view
+    with open(layout.PATH) as f:
+        shipped = f.read()
+    assert shipped == layout.text(), 'run python -m rigid_body_sim.viewer.layout'
+    found = []
+
+    def walk(node):
+        if isinstance(node, dict):
+            if node.get('panelType') == 'Plot':
+                found.extend(p['value'] for p in node['config']['paths'])
+            for v in node.values():
+                walk(v)
+        elif isinstance(node, list):
+            for v in node:
+                walk(v)
+    walk(json.loads(shipped))
+    fields = set(view.STATE_SCHEMA['properties'])
+    assert found and all(v.startswith('/state.') for v in found)
+    assert {v.split('.')[1] for v in found} <= fields
+    assert {'omega', 'kinetic_energy', 'angular_momentum_norm', 'pointing_error_deg'} <= \
+        {v.split('.')[1] for v in found}
