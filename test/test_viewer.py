@@ -347,3 +347,21 @@ def test_explorer1_energy_ellipsoid_shrinks_as_energy_dissipates(client_js):
     assert np.all(np.diff(largest) <= 1e-12 * largest[0])   # T only falls
     assert largest[-1] < 0.98 * largest[0], (largest[0], largest[-1])
     assert max(L) - min(L) <= 1e-6 * max(L)                  # |L| kept (double bracket)
+
+
+def test_demo_starts_the_viewer_and_prints_its_url(client_js, tmp_path):
+    port = _free_port()
+    cli = os.path.join(os.path.dirname(sys.executable), 'rigid-body-sim')
+    demo = subprocess.Popen([cli, 'demo', '--duration', '25', '--out', str(tmp_path),
+                             '--viewer-port', str(port)], stdout=subprocess.PIPE,
+                            stderr=subprocess.STDOUT, text=True, start_new_session=True)
+    try:
+        _wait_port(port, 90.0)
+        (s,) = run_client(client_js, port, 4.0, '--subscribe', '/tf,/state')
+    finally:
+        out, _ = demo.communicate(timeout=120)
+    assert demo.returncode == 0, out[-3000:]
+    assert f'open ws://127.0.0.1:{port} in Foxglove' in out
+    assert s['counts'].get('/tf', 0) > 0 and s['counts'].get('/state', 0) > 0, s['counts']
+    log = (tmp_path / 'viewer.log').read_text()
+    assert 'Traceback' not in log and 'body: principal moments' in log, log
