@@ -170,7 +170,8 @@ def test_channels_transform_rate_and_scene(live, client_js):
     assert ch['/tf'] == ('protobuf', 'foxglove.FrameTransform')
     assert ch['/tf_poinsot'] == ('protobuf', 'foxglove.FrameTransforms')
     assert ch['/scene'] == ('protobuf', 'foxglove.SceneUpdate')
-    assert ch['/state'][0] == 'json' and ch['/diagnostics'][0] == 'json'
+    assert ch['/state'][0] == 'json'
+    assert ch['/diagnostics'] == ('cdr', 'diagnostic_msgs/msg/DiagnosticArray')
 
     tfs = s['dumped']['/tf']
     stamps = [_stamp(t['timestamp']) for t in tfs]
@@ -305,6 +306,18 @@ def test_waits_for_the_simulator_then_serves_and_writes_mcap(client_js, tmp_path
         assert topics['/scene'] == 'foxglove.SceneUpdate'
         rows = [(m.log_time, json.loads(m.data))
                 for _, c, m in reader.iter_messages(topics=['/state'])]
+        # /diagnostics as ROS 2 CDR, decoded by mcap-ros2-support from the ros2msg schema
+        from mcap_ros2.decoder import DecoderFactory
+        with open(path, 'rb') as g:
+            statuses = [s for _, _, _, msg in make_reader(
+                g, decoder_factories=[DecoderFactory()]).iter_decoded_messages(
+                    topics=['/diagnostics']) for s in msg.status]
+    assert topics['/diagnostics'] == 'diagnostic_msgs/msg/DiagnosticArray'
+    names = {s.name.split(':')[0] for s in statuses}
+    assert {'attitude_viewer', 'attitude_simulator'} <= names, names
+    own = [s for s in statuses if s.name.startswith('attitude_viewer')]
+    assert {kv.key for kv in own[-1].values} >= {'rejected_invalid_message',
+                                                  'rejected_unknown_channel', 'subscriptions'}
     assert len(rows) > RATE
     for log_time, row in rows:
         assert log_time == row['timestamp']['sec'] * 1_000_000_000 + row['timestamp']['nsec']

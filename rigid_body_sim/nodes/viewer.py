@@ -37,7 +37,6 @@ from .common import declare_parameters, diagnostic_status, qos_profile, signals_
 NODE_NAME = 'attitude_viewer'
 DIAGNOSTICS_PERIOD_S = 1.0   # wall clock
 WAIT_NOTICE_S = 2.0          # no state after this long: say once that we wait
-LEVEL_NAMES = {0: 'OK', 1: 'WARN', 2: 'ERROR', 3: 'STALE'}
 
 
 class Listener:
@@ -69,8 +68,10 @@ class Viewer(Node):
         self.server_port = self.server.port
         self.mcap = foxglove.open_mcap(p['mcap_output'], allow_overwrite=True) \
             if p['mcap_output'] else None
+        from ..bag.schema import message_definition
         self.view = fox.View(body_size=p['body_size'], trace_length=p['trace_length'],
-                             scene_period_ns=round(1e9 / p['scene_rate']))
+                             scene_period_ns=round(1e9 / p['scene_rate']),
+                             diagnostics_definition=message_definition(fox.DIAGNOSTICS_TYPE))
         log.info(f'Foxglove: ws://{p["host"]}:{self.server_port} — open in Foxglove '
                  f'(app or https://app.foxglove.dev): Open connection → Foxglove WebSocket'
                  + (f'; also writing {p["mcap_output"]}' if self.mcap else ''))
@@ -78,8 +79,9 @@ class Viewer(Node):
         # one topic carries q and ω of a sample (one stamp, no joining): the cheapest to take
         self.create_subscription(Imu, 'imu', self._on_imu, qos)
         self.create_subscription(QuaternionStamped, 'attitude_target', self._on_target, qos)
+        # raw: forwarded as the CDR bytes received (this node's own status comes back too)
         self.create_subscription(DiagnosticArray, '/diagnostics', self._on_diagnostics,
-                                 qos_profile('reliable', 100))
+                                 qos_profile('reliable', 100), raw=True)
         self._diag_pub = self.create_publisher(DiagnosticArray, '/diagnostics',
                                                qos_profile('reliable', 10))
         self.target = None
@@ -146,14 +148,9 @@ class Viewer(Node):
             self.target = tuple(q / np.linalg.norm(q))
 
     # --- diagnostics -----------------------------------------------------------------------
-    def _on_diagnostics(self, msg):
-        stamp = self.last_stamp_ns or msg.header.stamp.sec * 1_000_000_000
-        self.view.publish_diagnostics(stamp, [
-            {'name': s.name, 'level': LEVEL_NAMES.get(int.from_bytes(s.level, 'little')
-                                                      if isinstance(s.level, bytes)
-                                                      else int(s.level), str(s.level)),
-             'message': s.message, 'values': {kv.key: kv.value for kv in s.values}}
-            for s in msg.status])
+    def _on_diagnostics(self, cdr):
+        # logged at the latest state's stamp, so it lines up with the state in playback
+        self.view.publish_diagnostics(self.last_stamp_ns or time.time_ns(), cdr)
 
     def _diagnostics(self):
         counts = self.rejections.snapshot()

@@ -7,7 +7,7 @@ shipped file is what this builds.
 
 Left, the 3D panel in ``world``: the body box, ω and L arrows and Poinsot's construction
 beside it. Right, plots of ω (body), T and |L|, their relative drift, and the pointing
-error, all from the viewer's ``/state`` channel; under them the diagnostics.
+error, all from the viewer's ``/state`` channel; under them the diagnostics summary.
 """
 import os
 import sys
@@ -36,8 +36,9 @@ def build() -> 'fl.Layout':
                                    ('angular_momentum_drift', '|L| drift'))),
         fl.SplitItem(content=_plot('pointing error (°)',
                                    ('pointing_error_deg', 'pointing error'))),
-        fl.SplitItem(content=fl.RawMessagesPanel(title='diagnostics', config=fl.RawMessagesConfig(
-            topic_path='/diagnostics.status'))),
+        fl.SplitItem(content=fl.DiagnosticsSummaryPanel(
+            title='diagnostics', config=fl.DiagnosticsSummaryConfig(
+                topic_to_render='/diagnostics'))),
     ])
     return fl.Layout(content=fl.SplitContainer(direction='row', items=[
         fl.SplitItem(proportion=3, content=three_d), fl.SplitItem(proportion=2, content=plots)]))

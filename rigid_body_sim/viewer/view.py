@@ -11,7 +11,8 @@ Channels (all stamped with the state's stamp, which is also the log time):
   (``poinsot_body``), the invariable plane with the herpolhode and the contact point
   (``poinsot``);
 - ``/state`` (JSON): ω, |ω|, T, |L|, their drift, the pointing error, for Plot panels;
-- ``/diagnostics`` (JSON): the ROS graph's diagnostics, and this viewer's own.
+- ``/diagnostics`` (diagnostic_msgs/msg/DiagnosticArray, ROS 2 CDR as received): the ROS
+  graph's diagnostics, this viewer's own included, for Foxglove's Diagnostics panels.
 
 Client messages the server refuses (not JSON, unknown opcodes, a subscribe to an unknown
 channel) are answered by the SDK with a status message; :class:`Rejections` counts them from
@@ -50,10 +51,7 @@ STATE_SCHEMA = {
         'pointing_error_deg': {'type': 'number', 'description': 'angle to the target, °'},
     },
 }
-DIAGNOSTICS_SCHEMA = {
-    'type': 'object',
-    'properties': {'timestamp': {'type': 'object'}, 'status': {'type': 'array'}},
-}
+DIAGNOSTICS_TYPE = 'diagnostic_msgs/msg/DiagnosticArray'
 
 
 class PortInUse(RuntimeError):
@@ -129,14 +127,17 @@ class View:
     then :meth:`transform` for each attitude and :meth:`sample` for each complete sample."""
 
     def __init__(self, frame_id='world', child_frame_id='base_link', body_size=1.0,
-                 trace_length=600, scene_period_ns=100_000_000):
+                 trace_length=600, scene_period_ns=100_000_000, diagnostics_definition=''):
+        """``diagnostics_definition``: the ros2msg text of DiagnosticArray (from the ROS
+        install; ``bag.schema.message_definition``), the schema of ``/diagnostics``."""
         self.frame_id, self.child_frame_id = frame_id, child_frame_id
         self.body_size = float(body_size)
         self.tf = FrameTransformChannel('/tf')
         self.tf_poinsot = FrameTransformsChannel('/tf_poinsot')
         self.scene = SceneUpdateChannel('/scene')
         self.state = Channel('/state', schema=STATE_SCHEMA)
-        self.diagnostics = Channel('/diagnostics', schema=DIAGNOSTICS_SCHEMA)
+        self.diagnostics = Channel('/diagnostics', message_encoding='cdr', schema=foxglove.Schema(
+            name=DIAGNOSTICS_TYPE, encoding='ros2msg', data=diagnostics_definition.encode()))
         self.scene_period_ns = int(scene_period_ns)
         self.body = None
         self.polhode = geometry.Trace(trace_length, 0.0)
@@ -284,8 +285,7 @@ class View:
                     self.herpolhode.ordered(), _color(0.2, 0.5, 1.0))]))
         self.scene.log(SceneUpdate(entities=entities), log_time=stamp_ns)
 
-    def publish_diagnostics(self, stamp_ns: int, statuses):
-        """``statuses``: [{'name', 'level', 'message', 'values': {key: text}}]."""
-        sec, nsec = divmod(int(stamp_ns), 1_000_000_000)
-        self.diagnostics.log({'timestamp': {'sec': sec, 'nsec': nsec}, 'status': statuses},
-                             log_time=stamp_ns)
+    def publish_diagnostics(self, stamp_ns: int, cdr: bytes):
+        """A DiagnosticArray as ROS 2 serialized it (CDR), forwarded untouched."""
+        if self.diagnostics.has_sinks():
+            self.diagnostics.log(cdr, log_time=stamp_ns)
