@@ -378,3 +378,18 @@ def test_demo_starts_the_viewer_and_prints_its_url(client_js, tmp_path):
     assert s['counts'].get('/tf', 0) > 0 and s['counts'].get('/state', 0) > 0, s['counts']
     log = (tmp_path / 'viewer.log').read_text()
     assert 'Traceback' not in log and 'body: principal moments' in log, log
+
+
+@pytest.mark.parametrize('override, reason', [
+    ('port:=70000', 'parameter port'), ('portt:=8765', 'unknown parameter'),
+    ('scene_rate:=0.0', 'parameter scene_rate')])
+def test_bad_parameters_stop_the_viewer_with_the_reason(override, reason):
+    proc = NodeProcess(_viewer_cmd() + ['--ros-args', '-r',
+                                        f'__ns:={unique_namespace("viewer_bad")}',
+                                        '-p', override])
+    try:
+        code = proc.wait(60)
+    finally:
+        proc.stop()
+    out = proc.output()
+    assert code == 2 and reason in out and 'Traceback' not in out, out
