@@ -12,7 +12,7 @@ DEMO_DURATION ?= 40
 DEMO_OUT    ?= out/demo
 PYTEST_ARGS ?=
 SETUP_LOG   ?= out/setup.log
-NODES       := simulator controller recorder replay
+NODES       := simulator controller recorder replay viewer
 # tf2_msgs and simulation_interfaces, built into the venv by .ci/build_interfaces.sh
 INTERFACES  := $(wildcard interfaces/* interfaces/*/* interfaces/*/*/*)
 

@@ -250,6 +250,10 @@ def add_arguments(parser):
                         help='output directory (default out/demo)')
     from .offline import add_set_argument
     add_set_argument(parser)
+    parser.add_argument('--no-viewer', dest='viewer', action='store_false',
+                        help='do not start the Foxglove viewer node')
+    parser.add_argument('--viewer-port', type=int, default=8765,
+                        help='port of the Foxglove viewer (default 8765)')
 
 
 def run(args) -> int:
@@ -303,6 +307,13 @@ def run(args) -> int:
         procs.append(_Process('simulator', params, out))
         if scene.controlled:
             procs.append(_Process('controller', params, out))
+        if getattr(args, 'viewer', False):  # its own process: a viewer problem stops nothing
+            procs.append(_Process('viewer', ['--ros-args', '-p', f'port:={args.viewer_port}'],
+                                  out))
+            url = f'ws://127.0.0.1:{args.viewer_port}'
+            print(f'demo: live 3D view: open {url} in Foxglove (app: Open connection → '
+                  f'Foxglove WebSocket; web: https://app.foxglove.dev/?ds=foxglove-websocket'
+                  f'&ds.url={url}); layout: config/foxglove_layout.json')
         tty = sys.stdout.isatty()
         start, last_print = time.monotonic(), 0.0
         while watcher.t0 is None or watcher.t < args.duration:
@@ -342,6 +353,8 @@ def run(args) -> int:
         signal.signal(signal.SIGINT, previous_int)
         signal.signal(signal.SIGTERM, previous_term)
 
+    if codes.get('viewer') not in (0, None, -signal.SIGINT):  # reported, not a demo failure
+        print(f'  viewer: exited with {codes.pop("viewer")} (log: {out}/viewer.log)')
     failed = {n: c for n, c in codes.items() if c not in (0, None, -signal.SIGINT)}
     print('demo: summary' + (' (interrupted)' if interrupted else ''))
     if watcher is not None:
