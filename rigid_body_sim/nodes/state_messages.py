@@ -9,7 +9,7 @@ from geometry_msgs.msg import (PoseStamped, Quaternion, QuaternionStamped, Trans
                                Vector3, Vector3Stamped)
 from nav_msgs.msg import Odometry
 from rclpy.serialization import serialize_message
-from sensor_msgs.msg import Imu
+from sensor_msgs.msg import Imu, JointState
 from std_msgs.msg import Float64
 
 # sensor_msgs/Imu conventions: the orientation and rate are the simulated truth, exact to
@@ -31,7 +31,7 @@ class StateMessages:
     """
 
     def __init__(self, frame_id: str = 'world', child_frame_id: str = 'base_link',
-                 torque: bool = False):
+                 torque: bool = False, actuators=None):
         self.stamp = Time()
         self.quaternion = Quaternion()
         self.omega = Vector3()
@@ -53,12 +53,21 @@ class StateMessages:
             self.imu.angular_velocity_covariance[i] = TRUTH_VARIANCE
         self.imu.linear_acceleration_covariance[0] = -1.0
         self.torque = Vector3Stamped() if torque else None
+        # wheels / CMGs (an engine ActuatorConfig): one joint per wheel (velocity: speed
+        # relative to the body, rad/s; no position) and per gimbal (position rad, velocity
+        # rad/s), in the body frame
+        self.actuators = actuators
+        self.wheels = self.gimbals = None
+        if actuators is not None and actuators.wheels:
+            self.wheels = JointState(name=list(actuators.wheel_names))
+        if actuators is not None and actuators.cmgs:
+            self.gimbals = JointState(name=list(actuators.cmg_names))
         for msg in self.stamped():
             msg.header.stamp = self.stamp
         self.set_frames(frame_id, child_frame_id)
 
     def stamped(self):
-        extra = (self.torque,) if self.torque is not None else ()
+        extra = tuple(m for m in (self.torque, self.wheels, self.gimbals) if m is not None)
         return (self.attitude, self.pose, self.transform, self.odometry, self.angular_velocity,
                 self.angular_momentum, self.angular_momentum_body, self.imu) + extra
 
@@ -69,6 +78,8 @@ class StateMessages:
                ('angular_momentum', self.angular_momentum),
                ('angular_momentum_body', self.angular_momentum_body),
                ('kinetic_energy', self.kinetic_energy), ('imu', self.imu))
+        out += tuple((name, msg) for name, msg in (
+            ('wheel_states', self.wheels), ('gimbal_states', self.gimbals)) if msg is not None)
         return out + ((('torque_command', self.torque),) if self.torque is not None else ())
 
     def topic_types(self):
@@ -78,8 +89,8 @@ class StateMessages:
         for msg in (self.attitude, self.pose, self.transform, self.odometry,
                     self.angular_momentum):
             msg.header.frame_id = frame_id
-        for msg in (self.angular_velocity, self.angular_momentum_body, self.imu) + \
-                ((self.torque,) if self.torque is not None else ()):
+        for msg in (self.angular_velocity, self.angular_momentum_body, self.imu) + tuple(
+                m for m in (self.torque, self.wheels, self.gimbals) if m is not None):
             msg.header.frame_id = child_frame_id
         self.transform.child_frame_id = child_frame_id
         self.odometry.child_frame_id = child_frame_id
@@ -99,6 +110,14 @@ class StateMessages:
         if self.torque is not None:
             v = self.torque.vector
             v.x, v.y, v.z = block.torque[i].tolist()
+        if self.actuators is not None:
+            row = block.actuators[i].tolist()  # Actuators.row: speeds, momenta, angles, rates
+            n, k = self.actuators.wheels, self.actuators.cmgs
+            if self.wheels is not None:
+                self.wheels.velocity = row[:n]
+            if self.gimbals is not None:
+                self.gimbals.position = row[2 * n:2 * n + k]
+                self.gimbals.velocity = row[2 * n + k:2 * n + 2 * k]
 
     def serialized(self, block, i: int, stamp_ns: int):
         """[(topic, CDR bytes)] of sample ``i``."""
