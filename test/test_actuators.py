@@ -143,6 +143,25 @@ def test_allocation_gives_the_commanded_torque():
     assert abs(det) < 1e-12 and np.all(np.isfinite(rates))
 
 
+def test_the_kernel_allocates_as_the_reference_inverse():
+    """The step loop's written-out singularity-robust inverse gives the rates of
+    ``sr_rates`` (the plain version) at the same gimbal angles, and the measure."""
+    e = engine(inertia=[900.0, 1000.0, 700.0], initial_angular_velocity=[0.0, 0.0, 0.0],
+               step=0.01, **{'actuators.cmgs.cluster': 'pyramid',
+                             'actuators.cmgs.momentum': [50.0, 40.0, 50.0, 60.0],
+                             'actuators.cmgs.initial_angles': [0.3, -1.2, 2.0, 0.7],
+                             'actuators.cmgs.max_rate': [100.0]})
+    a = e.actuators
+    tau = np.array([3.0, -5.0, 8.0])
+    a.set_body_torque(tau)
+    t, want, work = np.empty((4, 3)), np.empty(4), np.empty((4, 3))
+    gk.cmg_jacobian(a.g, a.s0, a.delta, t)
+    measure = gk.sr_rates(t, a.config.momentum, tau, 0.01, 10.0, want, work)
+    a.run(e._q, e._m, 0.01, 1, e.dynamics.moments, e._split_axes, None)
+    assert np.allclose(a.rate, want, rtol=1e-13, atol=0)
+    assert a.status[gk.ST_SINGULARITY] == pytest.approx(measure, rel=1e-13)
+
+
 def test_wheel_limits_hold():
     """Motor torque clipped to its limit; the motor cannot drive a wheel past its speed."""
     e = engine(inertia=[4.0, 5.0, 3.0], initial_angular_velocity=[0.0, 0.0, 0.0],
