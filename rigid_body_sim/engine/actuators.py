@@ -275,13 +275,21 @@ class Actuators:
     def width(self) -> int:
         return 2 * (self.config.wheels + self.config.cmgs) + 2
 
-    def diagnostics(self) -> dict:
-        s = self.status
-        return {'wheel_torque_saturated_kicks': int(s[gk.ST_WHEEL_TORQUE_SAT]),
-                'wheel_speed_limited_kicks': int(s[gk.ST_WHEEL_SPEED_SAT]),
-                'gimbal_rate_saturated_steps': int(s[gk.ST_GIMBAL_RATE_SAT]),
-                'gimbal_angle_limited_kicks': int(s[gk.ST_GIMBAL_ANGLE_SAT]),
-                'cmg_singularity_measure': self.singularity(),
-                'actuator_commands_accepted': self.accepted,
-                'actuator_commands_rejected': self.rejected,
-                'actuator_last_rejection': self.last_rejection}
+    def diagnostics(self, m, moments) -> dict:
+        """Saturation counters, the wheels at their speed limit now, the singularity
+        measure (with CMGs), command counters (m: body momentum, principal frame)."""
+        s, c = self.status, self.config
+        out = {'wheel_torque_saturated_kicks': int(s[gk.ST_WHEEL_TORQUE_SAT]),
+               'wheel_speed_limited_kicks': int(s[gk.ST_WHEEL_SPEED_SAT]),
+               'actuator_commands_accepted': self.accepted,
+               'actuator_commands_rejected': self.rejected,
+               'actuator_last_rejection': self.last_rejection}
+        if c.wheels:
+            speeds = np.abs(self.wheel_speeds(m, moments))
+            out['wheels_at_speed_limit'] = ', '.join(
+                n for n, v, lim in zip(c.wheel_names, speeds, c.max_speed) if v >= lim)
+        if c.cmgs:
+            out.update({'gimbal_rate_saturated_steps': int(s[gk.ST_GIMBAL_RATE_SAT]),
+                        'gimbal_angle_limited_kicks': int(s[gk.ST_GIMBAL_ANGLE_SAT]),
+                        'cmg_singularity_measure': self.singularity()})
+        return out

@@ -426,8 +426,10 @@ class Engine:
         T, L = self.kinetic_energy, self.angular_momentum
         T0, L0, t0 = self._base
         n0, n = float(np.linalg.norm(L0)), float(np.linalg.norm(L))
-        torque_on = self._tau_body is not None
+        applied = torque_on = self._tau_body is not None
         na = 'n/a (torque applied)'
+        if self.actuators is not None:  # allocated torque is internal: H is still kept
+            torque_on = self._tau_p is not None
 
         def rel(a, b):
             return (a - b) / b if b > 0 else 0.0
@@ -438,17 +440,19 @@ class Engine:
             'step': self.step_max, 'publish_rate': NS / self.config.sample_period_ns,
             'sim_time': self.t, 'kinetic_energy': T, 'angular_momentum_norm': n,
             'drift_since': t0 / NS,
-            'kinetic_energy_drift': na if torque_on else rel(T, T0),
+            'kinetic_energy_drift': na if torque_on else
+            'n/a (actuators do work)' if self.actuators is not None else rel(T, T0),
             'angular_momentum_norm_drift': na if torque_on else rel(n, n0),
             'angular_momentum_inertial_drift': na if torque_on else
             (float(np.linalg.norm(L - L0)) / n0 if n0 > 0 else 0.0),
             'quaternion_norm_error': abs(float(np.linalg.norm(self._q)) - 1.0),
             'energy_dissipated': max(0.0, T0 - T)
             if self.dynamics.dissipation.active and not torque_on else 0.0,
-            'torque_applied': torque_on,
+            'torque_applied': applied,
             'commands_accepted': c.accepted, 'commands_saturated': c.saturated,
             'commands_timed_out': c.timed_out,
             'selection_pending': self.selection_pending,
-            **({} if self.actuators is None else self.actuators.diagnostics()),
+            **({} if self.actuators is None else
+               self.actuators.diagnostics(self._m, self.dynamics.moments)),
         }
 
