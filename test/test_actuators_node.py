@@ -109,3 +109,38 @@ def test_offline_run_records_joint_states_and_plots_the_actuators(tmp_path):
     assert msgs[-1].schema.name == 'sensor_msgs/msg/JointState'
     assert any(abs(v) > 1.0 for v in last.velocity) and list(last.position) == []
     assert last.header.stamp.sec == 5
+
+
+def test_the_recorder_records_the_joint_states_by_default(ros_process, namespace, rclpy_node,
+                                                          tmp_path):
+    """Recorder (default topics) + simulator with CMGs: /gimbal_states and the
+    actuator_command sent are in the bag, read back by rosbags (a reader we did not write)."""
+    from pathlib import Path
+    from rosbags.highlevel import AnyReader
+    from rosbags.typesys import Stores, get_typestore
+    from ros_helpers import venv_exe
+    bag = tmp_path / 'bag'
+    rec = ros_process(venv_exe('recorder'), '--ros-args', '-r', f'__ns:={namespace}',
+                      '-p', f'output:={bag}', env={'PYTHONUNBUFFERED': '1'})
+    start_simulator(ros_process, namespace, actuators__command='forward',
+                    actuators__cmgs__cluster='pyramid', publish_rate=20.0, step=0.01,
+                    initial_angular_velocity=[0.0, 0.0, 0.0])
+    states = []
+    joints(rclpy_node, namespace, 'gimbal_states', states)
+    pub = rclpy_node.create_publisher(Float64MultiArray, f'{namespace}/actuator_command', 10)
+    deadline = time.monotonic() + 60.0
+    while 'subscribed to ' + f'{namespace}/gimbal_states' not in rec.output():
+        assert time.monotonic() < deadline, rec.output()
+        spin_until(rclpy_node, lambda: False, 0.2)
+    spin_until(rclpy_node, lambda: pub.get_subscription_count() >= 2, 30.0)  # sim + recorder
+    pub.publish(Float64MultiArray(data=[0.1, 0.1, 0.1, 0.1]))
+    assert spin_until(rclpy_node, lambda: states and states[-1][1].position[0] > 0.1, 30.0)
+    assert rec.stop() == 0, rec.output()
+    got = {}
+    with AnyReader([Path(bag)], default_typestore=get_typestore(Stores.ROS2_JAZZY)) as r:
+        for conn, _, raw in r.messages(connections=r.connections):
+            got.setdefault(conn.topic, []).append(r.deserialize(raw, conn.msgtype))
+    gimbals = got[f'{namespace}/gimbal_states']
+    assert list(gimbals[-1].name) == ['gimbal_1', 'gimbal_2', 'gimbal_3', 'gimbal_4']
+    assert max(m.position[0] for m in gimbals) > 0.1
+    assert [list(m.data) for m in got[f'{namespace}/actuator_command']] == [[0.1] * 4]
