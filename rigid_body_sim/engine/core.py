@@ -326,15 +326,7 @@ class Engine:
             self.evaluations += 1
             return
         if self.actuators is not None:
-            n = max(1, math.ceil(span / (self.step_max * NS) - 1e-9))
-            h = span / (n * NS)
-            failed = self.actuators.run(self._q, self._m, h, n, self.dynamics.moments,
-                                        self._split_axes, self._tau_p)
-            if failed >= 0:
-                self.steps += failed + 1
-                t = (self.t_ns + (failed + 1) * h * NS) / NS
-                raise IntegrationError(self.method, h, t, 'state became non-finite')
-            self.steps += n
+            self.actuators.integrate(self, span)
             return
         # equal steps no longer than step_max (to 1 ppb: a step given as span/n stays n steps)
         n = max(1, math.ceil(span / (self.step_max * NS) - 1e-9))
