@@ -2,7 +2,9 @@
 simulator's specs. A scene without wheels and CMGs leaves them at their defaults and the
 engine runs the plain rigid body (nothing of this is built).
 
-Arrays are flat, as rcl wants them: 3N values for N axes. Per-actuator limits take one
+Arrays are flat, as rcl wants them: 3N values for N axes. Axes are checked by
+``actuators.ActuatorConfig`` (``finite=False`` here), so that a bad one is named by its
+wheel or gimbal rather than by its index in the flat array. Per-actuator limits take one
 value (shared) or one per actuator. Frames: axes in the body frame (child_frame_id).
 """
 import math
@@ -21,7 +23,7 @@ ACTUATORS = (
     ParamSpec('actuators.wheels.names', '', 'joint names of the wheels, comma-separated '
               '(empty: wheel_1 ... wheel_N)', kind='string', read_only=True),
     ParamSpec('actuators.wheels.axes', [], 'reaction-wheel spin axes, body frame, 3 values per '
-              'wheel (flat); empty = no wheels', kind='float_array', read_only=True,
+              'wheel (flat); empty = no wheels', kind='float_array', read_only=True, finite=False,
               note='non-zero; normalised'),
     ParamSpec('actuators.wheels.inertia', [0.01], 'rotor spin-axis inertia, one value or one '
               'per wheel', kind='float_array', unit='kg*m^2', low=0.0, low_open=True,
@@ -46,10 +48,11 @@ ACTUATORS = (
     ParamSpec('actuators.cmgs.names', '', 'joint names of the gimbals, comma-separated '
               '(empty: gimbal_1 ... gimbal_K)', kind='string', read_only=True),
     ParamSpec('actuators.cmgs.gimbal_axes', [], 'custom cluster: gimbal axes, body frame, 3 '
-              'values per CMG (flat)', kind='float_array', read_only=True,
+              'values per CMG (flat)', kind='float_array', read_only=True, finite=False,
               note='non-zero; normalised; must span 3-D'),
     ParamSpec('actuators.cmgs.spin_axes', [], 'custom cluster: rotor spin axes at zero gimbal '
               'angle, body frame, 3 values per CMG', kind='float_array', read_only=True,
+              finite=False,
               note='not parallel to the gimbal axis; made perpendicular to it and normalised'),
     ParamSpec('actuators.cmgs.momentum', [10.0], 'rotor angular momentum h0, one value or one '
               'per CMG', kind='float_array', unit='N*m*s', low=0.0, low_open=True,
