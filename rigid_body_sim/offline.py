@@ -42,6 +42,7 @@ class RunResult:
     bag: Optional[str] = None
     plots: list = field(default_factory=list)
     pilot_steps: int = 0  # steps auto's pilot ran (a deterministic measure of its cost)
+    actuators: object = None  # the scene's ActuatorConfig (wheels / CMGs), or None
 
     def summary(self) -> dict:
         keep = ('attitude', 'angular_velocity', 'angular_momentum', 'kinetic_energy')
@@ -170,7 +171,8 @@ def simulate(scene: SceneFile, duration=None, integrator=None, step=None, accura
                      engine.step_max, engine.steps + engine.evaluations,
                      cpu - engine.selection_cpu, engine.selection_cpu, samples, first, last,
                      count, engine.body,
-                     pilot_steps=engine.selected.pilot_steps if engine.selected else 0)
+                     pilot_steps=engine.selected.pilot_steps if engine.selected else 0,
+                     actuators=engine.config.actuators)
 
 
 class BagSink:
@@ -178,9 +180,14 @@ class BagSink:
 
     def __init__(self, scene: SceneFile, directory: str, extra: dict):
         from .bag.writer import BagWriter
+        from .engine.actuators import ActuatorConfig
+        from .engine.params import coerce_all
+        from .engine.specs import SIMULATOR
         from .nodes.state_messages import StateMessages
         p = scene.simulator
-        self.msgs = StateMessages(p['frame_id'], p['child_frame_id'], torque=scene.controlled)
+        self.msgs = StateMessages(p['frame_id'], p['child_frame_id'], torque=scene.controlled,
+                                  actuators=ActuatorConfig.from_parameters(
+                                      coerce_all(SIMULATOR, p)))
         self.writer = BagWriter(directory, name=os.path.basename(os.path.normpath(directory)))
         self.path = os.path.abspath(directory)
         for topic, type_name in self.msgs.topic_types():
@@ -275,9 +282,15 @@ def run(args) -> int:
             s = result.samples
             result.plots = [os.path.abspath(pth) for pth in write_plots(
                 s, result.body, out, scene.name, free_until(s.t, s.torque), scene)]
+            if result.actuators is not None:
+                from .plots import write_actuator_plot
+                result.plots.append(os.path.abspath(write_actuator_plot(
+                    s, result.actuators, out, scene.name)))
     except (SceneError, ValueError, IntegrationError, BagError) as exc:
         print(f'error: {exc}', file=sys.stderr)
         return 2
+    for note in result.actuators.notes if result.actuators is not None else ():
+        print(f'note: {note}', file=sys.stderr)
     summary = result.summary()
     if args.json:
         print(json.dumps(summary))

@@ -13,6 +13,7 @@ import numpy as np
 from .. import control
 from ..physics import Dissipation, RigidBody, rotation
 from . import specs
+from .actuators import ActuatorConfig
 from .params import coerce_all
 
 NS = 1_000_000_000
@@ -62,6 +63,7 @@ class EngineConfig:
     duration_ns: the run ends there (0 = open-ended).
     max_torque: per-axis clip of commanded torque (N·m); command_timeout_ns: hold time.
     control: the in-process control law, or None (commands come from outside).
+    actuators: reaction wheels / CMGs (``actuators``), or None: the plain rigid body.
     """
     body: RigidBody
     dissipation: Dissipation
@@ -76,6 +78,7 @@ class EngineConfig:
     command_timeout_ns: int = 500_000_000
     control: Optional[ControlSettings] = None
     integrator_options: Mapping = field(default_factory=dict)
+    actuators: Optional[ActuatorConfig] = None
 
     @property
     def duration(self) -> float:
@@ -103,10 +106,14 @@ class EngineConfig:
         w = np.asarray(p['initial_angular_velocity'], float)
         dissipation = Dissipation(p['dissipation.model'], p['dissipation.coefficient'])
         ctl = None if controller is None else ControlSettings.from_parameters(controller)
+        actuators = ActuatorConfig.from_parameters(p)
+        if actuators is not None and dissipation.active:
+            raise ValueError('dissipation.model: the gyrostat (wheels/CMGs) integrator has no '
+                             'dissipation; set it to none with actuators')
         config = cls(body, dissipation, q, w, integrator=p['integrator'], step=p['step'],
                      accuracy=p['accuracy'],
                      sample_period_ns=seconds_to_ns(1.0 / p['publish_rate'], 'sample period'),
                      duration_ns=int(round(p['duration'] * NS)), max_torque=p['max_torque'],
                      command_timeout_ns=seconds_to_ns(p['command_timeout'], 'command_timeout'),
-                     control=ctl)
+                     control=ctl, actuators=actuators)
         return config.replace(**overrides) if overrides else config

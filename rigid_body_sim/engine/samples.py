@@ -33,6 +33,9 @@ class SampleBlock:
     m: np.ndarray
     torque: np.ndarray
     body: Optional[RigidBody]
+    # with wheels/CMGs: one row per sample of Actuators.row (wheel speeds, wheel momenta,
+    # gimbal angles, gimbal rates, singularity measure, |h_A|); None without actuators
+    actuators: Optional[np.ndarray] = None
 
     def __len__(self):
         return len(self.t_ns)
@@ -94,15 +97,17 @@ class SampleBlock:
     def take(self, index) -> 'SampleBlock':
         """The samples at ``index`` (an index array or a slice)."""
         return SampleBlock(self.t_ns[index], self.q[index], self.m[index], self.torque[index],
-                           self.body)
+                           self.body, None if self.actuators is None else self.actuators[index])
 
     @staticmethod
     def concatenate(blocks) -> 'SampleBlock':
         blocks = [b for b in blocks if len(b)]
         if not blocks:
             return empty_block()
+        extra = None if blocks[0].actuators is None else \
+            np.concatenate([b.actuators for b in blocks])
         return SampleBlock(*(np.concatenate([getattr(b, k) for b in blocks])
-                             for k in ('t_ns', 'q', 'm', 'torque')), blocks[0].body)
+                           for k in ('t_ns', 'q', 'm', 'torque')), blocks[0].body, extra)
 
 
 ROW_PATH_MAX = 4  # blocks up to this length convert row by row on floats (SampleBlock.values)
@@ -150,16 +155,21 @@ class BlockBuilder:
         self._q = np.empty((capacity, 4))
         self._m = np.empty((capacity, 3))
         self._tau = np.empty((capacity, 3))
+        self._extra = None  # actuator rows, allocated on the first one
         self.n = 0
 
     @property
     def full(self) -> bool:
         return self.n >= self.capacity
 
-    def add(self, t_ns, q, m, torque_body):
+    def add(self, t_ns, q, m, torque_body, extra=None):
         i = self.n
         self._t[i], self._q[i], self._m[i] = t_ns, q, m
         self._tau[i] = 0.0 if torque_body is None else torque_body
+        if extra is not None:
+            if self._extra is None or self._extra.shape[1] != len(extra):
+                self._extra = np.zeros((self.capacity, len(extra)))
+            self._extra[i] = extra
         self.n += 1
 
     def add_many(self, t_ns, q, m):
@@ -172,6 +182,7 @@ class BlockBuilder:
     def block(self) -> SampleBlock:
         n = self.n
         out = SampleBlock(self._t[:n].copy(), self._q[:n].copy(), self._m[:n].copy(),
-                          self._tau[:n].copy(), self.body)
+                          self._tau[:n].copy(), self.body,
+                          None if self._extra is None else self._extra[:n].copy())
         self.n = 0
         return out

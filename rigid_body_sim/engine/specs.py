@@ -7,6 +7,7 @@ from typing import Optional
 
 from .. import control
 from ..physics import DISSIPATION_MODELS, INTEGRATORS
+from .actuator_specs import ACTUATORS
 from .params import ParamSpec
 
 AUTO = 'auto'
@@ -63,7 +64,7 @@ SIMULATOR = (
               low=0.0, high=1e6),
     ParamSpec('qos', 'reliable', 'QoS of state topics and command subscriptions',
               kind='string', choices=QOS_CHOICES, read_only=True),
-)
+) + ACTUATORS  # reaction wheels and CMGs (actuator_specs); defaults: none
 
 D = control.PARAMETER_DEFAULTS
 CONTROLLER = (

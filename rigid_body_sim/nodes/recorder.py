@@ -35,6 +35,7 @@ DEFAULT_TOPICS = [
     'attitude', 'pose', 'transform', 'odometry', 'angular_velocity', 'angular_momentum',
     'angular_momentum_body', 'kinetic_energy', 'imu', 'torque_command', 'wrench_command',
     'attitude_target', '/diagnostics', '/tf',
+    'wheel_states', 'gimbal_states', 'actuator_command',  # scenes with wheels / CMGs
 ]
 # Messages taken per callback beyond the one the executor delivered (see _callback).
 DRAIN_LIMIT = 200

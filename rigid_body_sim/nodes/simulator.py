@@ -33,6 +33,7 @@ from rclpy.node import Node
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import Vector3Stamped, WrenchStamped
 from rosgraph_msgs.msg import Clock
+from std_msgs.msg import Float64MultiArray
 from std_srvs.srv import Trigger
 
 from ..engine import NS, Engine, EngineConfig, specs
@@ -81,7 +82,11 @@ class Simulator(Node):
         except ValueError as exc:
             raise SceneError(str(exc)) from None
         self._log = self.get_logger()
-        self._msgs = StateMessages(self._p['frame_id'], self._p['child_frame_id'])
+        actuators = self._engine.config.actuators
+        self._msgs = StateMessages(self._p['frame_id'], self._p['child_frame_id'],
+                                   actuators=actuators)
+        for note in actuators.notes if actuators is not None else ():
+            self._log.info(note)
         self._clock_msg = Clock()
         qos = qos_profile(self._p['qos'])
         state_qos = qos_profile(self._p['qos'], STATE_DEPTH)
@@ -101,6 +106,10 @@ class Simulator(Node):
             m.header, m.vector, 'torque_command'), qos)
         self.create_subscription(WrenchStamped, 'wrench_command', lambda m: self._on_command(
             m.header, m.wrench.torque, 'wrench_command'), qos)
+        if actuators is not None:  # ros2_control forward-command convention
+            self._actuator_warn = 0.0
+            self.create_subscription(Float64MultiArray, 'actuator_command',
+                                     self._on_actuator_command, qos)
         self.create_service(Trigger, '~/reset', self._on_reset)
         self.paused = False
         self._quit_at = None  # wall time at which a requested quit ends the loop
@@ -286,6 +295,22 @@ class Simulator(Node):
         if self._commands.accept(header, vector, source, self.stamp_ns(self._engine.t_ns)):
             self._catch_up()  # what was due before the arrival runs with the previous command
             self._engine.apply_command((vector.x, vector.y, vector.z))
+
+    def _on_actuator_command(self, msg):
+        """Wheel torques then gimbal rates; a bad one is counted by the engine's actuators
+        (diagnostics) and warned about (throttled); the last valid command stays."""
+        if self._fault or self._engine.finished:
+            return
+        self._catch_up()
+        try:
+            self._engine.apply_actuator_command(msg.data)
+        except ValueError as exc:
+            now = time.monotonic()
+            if now >= self._actuator_warn:
+                self._actuator_warn = now + 2.0
+                n = self._engine.actuators.rejected
+                self._log.warn(f'actuator_command rejected: {exc}; the last valid command is '
+                               f'held ({n} rejections so far)')
 
     def _on_reset(self, request, response):
         self._engine.reset()

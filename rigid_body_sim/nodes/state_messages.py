@@ -19,7 +19,7 @@ from geometry_msgs.msg import (PoseStamped, Quaternion, QuaternionStamped, Trans
                                Vector3, Vector3Stamped)
 from nav_msgs.msg import Odometry
 from rclpy.serialization import deserialize_message, serialize_message
-from sensor_msgs.msg import Imu
+from sensor_msgs.msg import Imu, JointState
 from std_msgs.msg import Float64
 
 # sensor_msgs/Imu conventions: the orientation and rate are the simulated truth, exact to
@@ -41,7 +41,7 @@ class StateMessages:
     """
 
     def __init__(self, frame_id: str = 'world', child_frame_id: str = 'base_link',
-                 torque: bool = False):
+                 torque: bool = False, actuators=None):
         self.stamp = Time()
         self.quaternion = Quaternion()
         self.omega = Vector3()
@@ -63,13 +63,22 @@ class StateMessages:
             self.imu.angular_velocity_covariance[i] = TRUTH_VARIANCE
         self.imu.linear_acceleration_covariance[0] = -1.0
         self.torque = Vector3Stamped() if torque else None
+        # wheels / CMGs (an engine ActuatorConfig): one joint per wheel (velocity: speed
+        # relative to the body, rad/s; no position) and per gimbal (position rad, velocity
+        # rad/s), in the body frame
+        self.actuators = actuators
+        self.wheels = self.gimbals = None
+        if actuators is not None and actuators.wheels:
+            self.wheels = JointState(name=list(actuators.wheel_names))
+        if actuators is not None and actuators.cmgs:
+            self.gimbals = JointState(name=list(actuators.cmg_names))
         for msg in self.stamped():
             msg.header.stamp = self.stamp
         self._extra = []
         self.set_frames(frame_id, child_frame_id)
 
     def stamped(self):
-        extra = (self.torque,) if self.torque is not None else ()
+        extra = tuple(m for m in (self.torque, self.wheels, self.gimbals) if m is not None)
         return (self.attitude, self.pose, self.transform, self.odometry, self.angular_velocity,
                 self.angular_momentum, self.angular_momentum_body, self.imu) + extra
 
@@ -80,8 +89,17 @@ class StateMessages:
                ('angular_momentum', self.angular_momentum),
                ('angular_momentum_body', self.angular_momentum_body),
                ('kinetic_energy', self.kinetic_energy), ('imu', self.imu))
+        out += tuple((name, msg) for name, msg in (
+            ('wheel_states', self.wheels), ('gimbal_states', self.gimbals)) if msg is not None)
         out += (('torque_command', self.torque),) if self.torque is not None else ()
         return out + tuple(self._extra)
+
+    def _joints(self):
+        """The JointState topics: their arrays are the scene's length, so rclpy serialises
+        them (no template)."""
+        return [(name, msg) for name, msg in (('wheel_states', self.wheels),
+                                               ('gimbal_states', self.gimbals))
+                if msg is not None]
 
     def topic_types(self):
         return [(name, type_name(msg)) for name, msg in self.topics()]
@@ -90,8 +108,8 @@ class StateMessages:
         for msg in (self.attitude, self.pose, self.transform, self.odometry,
                     self.angular_momentum):
             msg.header.frame_id = frame_id
-        for msg in (self.angular_velocity, self.angular_momentum_body, self.imu) + \
-                ((self.torque,) if self.torque is not None else ()):
+        for msg in (self.angular_velocity, self.angular_momentum_body, self.imu) + tuple(
+                m for m in (self.torque, self.wheels, self.gimbals) if m is not None):
             msg.header.frame_id = child_frame_id
         self.transform.child_frame_id = child_frame_id
         self.odometry.child_frame_id = child_frame_id
@@ -100,6 +118,8 @@ class StateMessages:
     def fill(self, block, i: int, stamp_ns: int):
         """Write sample ``i`` of a SampleBlock into every message, stamped ``stamp_ns``."""
         self._assign(block.values(i), *divmod(int(stamp_ns), 1_000_000_000))
+        if self.actuators is not None:
+            self._fill_actuators(block, i)
 
     def _assign(self, v, sec, nanosec):
         """Set the messages from SampleBlock.values order (see there) and a stamp."""
@@ -117,6 +137,15 @@ class StateMessages:
             a = self.torque.vector
             a.x, a.y, a.z = v[14:17]
 
+    def _fill_actuators(self, block, i: int):
+        row = block.actuators[i].tolist()  # Actuators.row: speeds, momenta, angles, rates
+        n, k = self.actuators.wheels, self.actuators.cmgs
+        if self.wheels is not None:
+            self.wheels.velocity = row[:n]
+        if self.gimbals is not None:
+            self.gimbals.position = row[2 * n:2 * n + k]
+            self.gimbals.velocity = row[2 * n + k:2 * n + 2 * k]
+
     def add_topic(self, name: str, msg):
         """One more message built on these (e.g. the node's /tf, a TFMessage holding
         ``transform``), published from the same templates."""
@@ -131,7 +160,14 @@ class StateMessages:
         """{topic: CDR bytes} of sample ``i`` (as rclpy's serialize_message writes them)."""
         if self._templates is None:
             self._templates = _Templates(self)
-        return self._templates.encode(block.values(i), *divmod(int(stamp_ns), 1_000_000_000))
+        sec, nsec = divmod(int(stamp_ns), 1_000_000_000)
+        out = self._templates.encode(block.values(i), sec, nsec)
+        if self.actuators is not None:
+            self.stamp.sec, self.stamp.nanosec = sec, nsec
+            self._fill_actuators(block, i)
+            for name, msg in self._joints():
+                out[name] = serialize_message(msg)
+        return out
 
 
 N_VALUES = 17  # SampleBlock.values
@@ -150,7 +186,9 @@ class _Templates:
         msgs._assign(MARKERS, SEC_MARKER, NSEC_MARKER)
         self.topics = []  # (name, bytearray, [(offset, Struct, first value)], [stamp offsets])
         self.fallback = []  # (name, msg): layout not verified, serialised by rclpy
-        for name, msg in msgs.topics():
+        joints = {name for name, _ in msgs._joints()}
+        templated = [(name, msg) for name, msg in msgs.topics() if name not in joints]
+        for name, msg in templated:
             self.topics.append((name, *_layout(serialize_message(msg))))
         rng = random.Random(0)
         check = [rng.uniform(-1e3, 1e3) for _ in range(N_VALUES)]
@@ -158,9 +196,9 @@ class _Templates:
         msgs._assign(check, sec, nsec)
         got = self.encode(check, sec, nsec)
         # compared as messages: alignment padding is left uninitialised by rclpy's serialiser
-        bad = {name for name, msg in msgs.topics()
+        bad = {name for name, msg in templated
                if deserialize_message(got[name], type(msg)) != msg}
-        self.fallback = [(name, msg) for name, msg in msgs.topics() if name in bad]
+        self.fallback = [(name, msg) for name, msg in templated if name in bad]
         self.topics = [t for t in self.topics if t[0] not in bad]
 
     def encode(self, v, sec, nsec) -> dict:

@@ -11,9 +11,10 @@ import numpy as np
 
 from ..physics import analytic
 from . import free, story
+from .actuators import write_actuator_plot
 from .common import Figure, time_unit
 
-__all__ = ['Figure', 'free_until', 'write_figures', 'write_plots']
+__all__ = ['Figure', 'free_until', 'write_actuator_plot', 'write_figures', 'write_plots']
 
 
 def free_until(t, torque):
