@@ -38,6 +38,7 @@ from .commands import CommandFilter
 from .common import (changed_values, declare_parameters, diagnostic_status, qos_profile,
                      signals_ignored, validate_update)
 from .sim_services import AVAILABLE as SIM_SERVICES, SimulationServices
+from .sensor_messages import SensorMessages
 from .state_messages import StateMessages
 
 try:  # /tf only where tf2_msgs exists (a full ROS install); the PyPI venv has none
@@ -86,6 +87,11 @@ class Simulator(Node):
         if TFMessage is not None:
             self._pubs.append((pub(TFMessage, '/tf', qos_profile('reliable', 100)),
                                TFMessage(transforms=[self._msgs.transform])))
+        self._sensor_msgs, self._sensor_pubs = None, {}  # gyro / star_tracker, if simulated
+        if self._engine.config.sensors is not None:
+            self._sensor_msgs = SensorMessages(self._engine.config.sensors, *self.frames)
+            self._sensor_pubs = {name: pub(type(msg), name, state_qos)
+                                 for name, msg in self._sensor_msgs.topics()}
         self._clock_pub = None
         if self._p['publish_clock']:
             self._clock_pub = pub(Clock, '/clock', qos_profile('reliable'))
@@ -159,6 +165,9 @@ class Simulator(Node):
 
     def _publish(self, block, late=True):
         msgs, rtf = self._msgs, (self._p['real_time_factor'] if late else 0)
+        if block.sensors is not None:  # readings at their own instants, stamped likewise
+            for _, name, msg in self._sensor_msgs.messages(block.sensors, self.stamp_ns):
+                self._sensor_pubs[name].publish(msg)
         for i in range(len(block)):
             t_ns = int(block.t_ns[i])
             msgs.fill(block, i, self.stamp_ns(t_ns))
@@ -309,6 +318,8 @@ class Simulator(Node):
             self._log.info('inertia and initial state take effect on ~/reset')
         if 'frame_id' in changed or 'child_frame_id' in changed:
             self._msgs.set_frames(self._p['frame_id'], self._p['child_frame_id'])
+            if self._sensor_msgs is not None:
+                self._sensor_msgs.set_frames(self._p['frame_id'], self._p['child_frame_id'])
         if self._p['publish_clock'] and self._clock_pub is None:
             self._clock_pub = self.create_publisher(Clock, '/clock', qos_profile('reliable'))
         self._anchor()
