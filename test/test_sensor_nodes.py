@@ -29,17 +29,21 @@ def ns_of(m):
 
 
 def test_gyro_and_star_tracker_topics_and_the_loop_closed_on_them(ros_process, namespace,
-                                                                  rclpy_node):
+                                                                  rclpy_node, tmp_path):
     """Over ~12 s of real time: gyro messages are Imu in base_link, 20 ms apart in stamp,
     orientation and acceleration covariance[0] = −1, angular-velocity covariance diagonal
     N²/h + σ_gm²; a reading minus the true rate at the same stamp is the turn-on bias plus
     white noise (mean within 5σ/√n of the bias); star-tracker fixes are in world, 200 ms
     apart, within 5σ of the true attitude per body axis. The controller (feedback:
     sensors) commands torque, reports its fixes and learns the bias (within 2e-4 rad/s);
-    the body goes from 0.02 rad off the target to within 5 mrad."""
+    the body goes from 0.02 rad off the target to within 5 mrad. The recorder (default
+    topics) records both sensor topics; rosbags reads them back."""
     args = ['--ros-args', '-r', f'__ns:={namespace}', '--params-file', SCENE]
     sim = ros_process(venv_exe('simulator'), *args)
     ctl = ros_process(venv_exe('controller'), *args)
+    bag = tmp_path / 'bag'
+    rec = ros_process(venv_exe('recorder'), '--ros-args', '-r', f'__ns:={namespace}', '-p',
+                      f'output:={bag}')
     node = rclpy_node
     got = {'gyro': [], 'star': [], 'att': [], 'rate': [], 'torque': [], 'diag': []}
     node.create_subscription(Imu, f'{namespace}/gyro', got['gyro'].append, 500)
@@ -101,3 +105,12 @@ def test_gyro_and_star_tracker_topics_and_the_loop_closed_on_them(ros_process, n
     error = rotation.angle_between([0, 0, 0, 1.0], [final.x, final.y, final.z, final.w])
     print("diffs mean", diffs.mean(axis=0), "bias est", bias, "final error", error, len(g))
     assert error < 5e-3, error
+
+    assert rec.stop() == 0, rec.output()[-3000:]
+    from rosbags.highlevel import AnyReader
+    with AnyReader([bag]) as reader:
+        types = {c.topic: c.msgtype for c in reader.connections}
+        counts = {c.topic: c.msgcount for c in reader.connections}
+    assert types[f'{namespace}/gyro'] == 'sensor_msgs/msg/Imu'
+    assert types[f'{namespace}/star_tracker'] == 'geometry_msgs/msg/QuaternionStamped'
+    assert counts[f'{namespace}/gyro'] > 100 and counts[f'{namespace}/star_tracker'] > 10
