@@ -62,6 +62,7 @@ def test_gyro_and_star_tracker_topics_and_the_loop_closed_on_them(ros_process, n
     assert spin_until(node, lambda: len(got['gyro']) > 600, 40.0)
     spin_until(node, lambda: False, 1.5)  # a last diagnostics message
     assert sim.poll() is None and ctl.poll() is None
+    assert 'sensors: gyro 50 Hz, star_tracker 5 Hz (1 outages), seed 1' in sim.output()
 
     g = got['gyro']
     assert all(m.header.frame_id == 'base_link' for m in g)

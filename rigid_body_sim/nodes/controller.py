@@ -224,7 +224,8 @@ class Controller(Node):
         self._last = None
         if self._q is None or self._w is None:
             self._age = math.inf
-            self._stale_reason = 'no state received yet'
+            self._stale_reason = 'no state received yet' if self._estimator is None else \
+                'no estimate yet (it needs gyro readings and a star_tracker fix)'
         else:
             self._age = now - min(self._q_stamp, self._w_stamp)
             if self._age > self._p['state_timeout']:

@@ -79,3 +79,16 @@ class SensorMessages:
     def serialized(self, readings):
         """[(sim t_ns, topic, CDR bytes)] stamped with sim time (offline bags)."""
         return [(t, name, serialize_message(msg)) for t, name, msg in self.messages(readings)]
+
+
+def sensors_summary(settings) -> str:
+    """'; sensors: gyro 50 Hz, star_tracker 5 Hz (1 outage), seed 1' (empty if none)."""
+    if settings is None:
+        return ''
+    parts = []
+    if settings.gyro is not None:
+        parts.append(f'gyro {NS / settings.gyro.period_ns:g} Hz')
+    s = settings.star_tracker
+    if s is not None:
+        parts.append(f'star_tracker {NS / s.period_ns:g} Hz ({len(s.outages)} outages)')
+    return f'; sensors: {", ".join(parts)}, seed {settings.seed}'

@@ -38,7 +38,7 @@ from .commands import CommandFilter
 from .common import (changed_values, declare_parameters, diagnostic_status, qos_profile,
                      signals_ignored, validate_update)
 from .sim_services import AVAILABLE as SIM_SERVICES, SimulationServices
-from .sensor_messages import SensorMessages
+from .sensor_messages import SensorMessages, sensors_summary
 from .state_messages import StateMessages
 
 try:  # /tf only where tf2_msgs exists (a full ROS install); the PyPI venv has none
@@ -343,7 +343,7 @@ class Simulator(Node):
                 f'publish {NS / e.config.sample_period_ns:g} Hz, {rtf}, '
                 f'clock {"on" if p["publish_clock"] else "off"}, '
                 f'frames {p["frame_id"]} <- {p["child_frame_id"]}, qos {p["qos"]}, '
-                f'duration {duration}')
+                f'duration {duration}' + sensors_summary(e.config.sensors))
 
     def _publish_diagnostics(self):
         now, e = time.monotonic(), self._engine
