@@ -260,3 +260,16 @@ def test_prediction_command_prints_the_prediction_and_refuses_what_it_does_not_m
     assert ', '.join(f'{v:.3e}' for v in rms) in capsys.readouterr().out
     assert prediction.main([POINTING, '--set', 'sensors.gyro.rate=25.0']) == 2
     assert 'sensors.gyro.rate == control_rate' in capsys.readouterr().err
+
+
+def test_no_torque_before_the_first_fix():
+    """Star tracker out for the first second: with no attitude estimate the law commands
+    nothing (zero torque at every sample before 1 s), and from the first fix at t = 1 s it
+    acts."""
+    scene = load('sensors.star_tracker.outages=[0.0, 1.0]')
+    _, blocks = run_blocks(scene, 2.0)
+    t = np.concatenate([b.t_ns for b in blocks])
+    torque = np.concatenate([b.torque for b in blocks])
+    assert np.all(torque[t < 1_000_000_000] == 0.0)
+    assert np.all(np.linalg.norm(torque[t >= 1_000_000_000], axis=1) > 0.0)
+    assert blocks[0].sensors.star_t_ns[0] == 1_000_000_000
