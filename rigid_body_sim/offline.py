@@ -275,6 +275,9 @@ def run(args) -> int:
             s = result.samples
             result.plots = [os.path.abspath(pth) for pth in write_plots(
                 s, result.body, out, scene.name, free_until(s.t, s.torque))]
+            if scene.controlled and scene.controller['feedback'] == 'sensors':
+                from .sensors.plots import write_pointing_plot
+                result.plots.append(os.path.abspath(write_pointing_plot(s, scene, out)))
     except (SceneError, ValueError, IntegrationError, BagError) as exc:
         print(f'error: {exc}', file=sys.stderr)
         return 2
