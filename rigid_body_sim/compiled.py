@@ -15,9 +15,10 @@ def warm() -> bool:
     from . import control_kernel
     from .engine import Engine, EngineConfig
     from .physics import batch_kernels, dop853_kernel, gyrostat_kernel, implicit_kernel, kernels
+    from .sensors import noise
     compiled = kernels.warm()
     for module in (batch_kernels, implicit_kernel, dop853_kernel, control_kernel,
-                   gyrostat_kernel):
+                   gyrostat_kernel, noise):
         module.warm()
     for method in ('splitting2', 'rk4'):
         config = EngineConfig.from_parameters(

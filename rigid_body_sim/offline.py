@@ -18,6 +18,7 @@ import numpy as np
 from .engine import Engine, EngineConfig, SampleBlock
 from .physics import IntegrationError
 from .scene import SceneError, SceneFile, load
+from .sensors.specs import SensorSettings
 
 PLOT_POINTS = 20_000  # samples kept for the plots (a long run is decimated evenly)
 
@@ -192,6 +193,13 @@ class BagSink:
         self.path = os.path.abspath(directory)
         for topic, type_name in self.msgs.topic_types():
             self.writer.add_topic(f'/{topic}', type_name)
+        self.sensors = None  # the scene's gyro / star tracker topics, if it has sensors
+        settings = SensorSettings.from_parameters(p)
+        if settings is not None:
+            from .nodes.sensor_messages import SensorMessages
+            self.sensors = SensorMessages(settings, p['frame_id'], p['child_frame_id'])
+            for topic, type_name in self.sensors.topic_types():
+                self.writer.add_topic(f'/{topic}', type_name)
         self.writer.add_run_configuration({
             'scene': scene.name, 'scene_file': os.path.abspath(scene.path), 'mode': 'offline',
             'simulator_parameters': scene.simulator, 'controller_parameters': scene.controller,
@@ -199,6 +207,13 @@ class BagSink:
 
     def __call__(self, block: SampleBlock):
         write = self.writer.write
+        if self.sensors is not None and block.sensors is not None:
+            records = [(int(block.t_ns[i]), topic, data) for i in range(len(block))
+                       for topic, data in self.msgs.serialized(block, i, int(block.t_ns[i]))]
+            records += self.sensors.serialized(block.sensors)
+            for ns, topic, data in sorted(records, key=lambda r: r[0]):  # stable: time order
+                write(f'/{topic}', data, ns, ns)
+            return
         for i in range(len(block)):
             ns = int(block.t_ns[i])
             for topic, data in self.msgs.serialized(block, i, ns):
@@ -286,6 +301,9 @@ def run(args) -> int:
                 from .plots import write_actuator_plot
                 result.plots.append(os.path.abspath(write_actuator_plot(
                     s, result.actuators, out, scene.name)))
+            if scene.controlled and scene.controller['feedback'] == 'sensors':
+                from .sensors.plots import write_pointing_plot
+                result.plots.append(os.path.abspath(write_pointing_plot(s, scene, out)))
     except (SceneError, ValueError, IntegrationError, BagError) as exc:
         print(f'error: {exc}', file=sys.stderr)
         return 2

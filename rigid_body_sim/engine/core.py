@@ -13,6 +13,7 @@ the closed form is evaluated at each event from an anchor, at the exact elapsed 
 
 Front ends differ only in how they pace :meth:`Engine.advance` and where the samples go.
 """
+from dataclasses import replace
 import math
 import time
 from typing import Iterator, Optional
@@ -22,7 +23,7 @@ import numpy as np
 from ..physics import Dynamics, IntegrationError, create, rotation
 from ..physics.exact import TorqueFreeSolution
 from ..physics.selection import select, selecting
-from . import closed_loop
+from . import closed_loop, sensing
 from .actuators import Actuators
 from .config import NS, EngineConfig
 from .samples import BlockBuilder, SampleBlock
@@ -52,9 +53,15 @@ class Engine:
         self.compiled_loop = compiled_loop
         self.command = CommandHold(config.max_torque, config.command_timeout_ns)
         self.sources = [self.command]
-        self._law = None
+        self._law = self._sensors = None
+        if config.sensors is not None:  # read before the law at a shared instant
+            self._sensors = sensing.SensorSuite(config.sensors, sensing.estimator_bandwidth(
+                config.control))
+            self.sources.append(self._sensors)
         if config.control is not None:
-            self._law = ControlLaw(config.control, clip=config.max_torque)
+            observer = self._sensors.observe if sensing.estimator_bandwidth(config.control) \
+                else None
+            self._law = ControlLaw(config.control, clip=config.max_torque, observer=observer)
             self.sources.append(self._law)
         self._builder = BlockBuilder(config.body, block_size)
         self.steps = 0
@@ -360,7 +367,8 @@ class Engine:
         cap = min(b.capacity, max_samples or b.capacity)
         p = self.config.sample_period_ns
         while not (self.finished or self.fault) and b.n < cap:
-            if self._law is not None and self.compiled_loop:
+            # with sensors the law sees their events: the event path (Python) runs it
+            if self._law is not None and self.compiled_loop and self._sensors is None:
                 closed_loop.advance(self, until_ns)  # to the next sample or end, if it applies
             t_src = min(s.next_event() for s in self.sources)
             end = self.end_ns
@@ -393,6 +401,8 @@ class Engine:
                 self.finished = True
             if deadline is not None and time.monotonic() > deadline:
                 break
+        if self._sensors is not None:
+            return replace(b.block(), sensors=self._sensors.drain())
         return b.block()
 
     def run(self, until_ns: Optional[int] = None) -> Iterator[SampleBlock]:

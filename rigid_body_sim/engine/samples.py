@@ -23,7 +23,9 @@ class SampleBlock:
     """n samples. Frames: attitude (x, y, z, w) body → inertial; angular_velocity (rad/s)
     and angular_momentum_body (kg·m²/s) in the body frame; angular_momentum (kg·m²/s) in
     the inertial frame; kinetic_energy (J); torque (N·m, body frame) is the total held
-    torque applied from that instant on. t_ns: sim time, integer nanoseconds.
+    torque applied from that instant on. t_ns: sim time, integer nanoseconds. sensors:
+    the gyro / star-tracker readings (``engine.sensing.SensorReadings``) taken while this
+    block was produced, at their own instants; None when the scene simulates no sensor.
 
     It holds the principal-frame state (q principal → inertial, m) and converts it to the
     user's frames on first use of each field, so a consumer that reads only the end state
@@ -36,6 +38,7 @@ class SampleBlock:
     # with wheels/CMGs: one row per sample of Actuators.row (wheel speeds, wheel momenta,
     # gimbal angles, gimbal rates, singularity measure, |h_A|); None without actuators
     actuators: Optional[np.ndarray] = None
+    sensors: Optional[object] = None  # engine.sensing.SensorReadings taken meanwhile
 
     def __len__(self):
         return len(self.t_ns)

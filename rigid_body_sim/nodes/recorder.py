@@ -34,7 +34,7 @@ from rigid_body_sim.nodes.common import signals_ignored
 DEFAULT_TOPICS = [
     'attitude', 'pose', 'transform', 'odometry', 'angular_velocity', 'angular_momentum',
     'angular_momentum_body', 'kinetic_energy', 'imu', 'torque_command', 'wrench_command',
-    'attitude_target', '/diagnostics', '/tf',
+    'attitude_target', '/diagnostics', '/tf', 'gyro', 'star_tracker',
     'wheel_states', 'gimbal_states', 'actuator_command',  # scenes with wheels / CMGs
 ]
 # Messages taken per callback beyond the one the executor delivered (see _callback).

@@ -43,6 +43,7 @@ from .commands import CommandFilter
 from .common import (changed_values, declare_parameters, diagnostic_status, qos_profile,
                      signals_ignored, validate_update)
 from .sim_services import AVAILABLE as SIM_SERVICES, SimulationServices
+from .sensor_messages import SensorMessages, sensors_summary
 from .state_messages import StateMessages
 
 try:  # /tf only where tf2_msgs exists (a full ROS install); the PyPI venv has none
@@ -96,6 +97,11 @@ class Simulator(Node):
         # every state message of a sample is published as CDR bytes (state_messages: why)
         self._pubs = [(pub(type(msg), name, qos_profile('reliable', 100) if name == '/tf'
                            else state_qos), name) for name, msg in self._msgs.topics()]
+        self._sensor_msgs, self._sensor_pubs = None, {}  # gyro / star_tracker, if simulated
+        if self._engine.config.sensors is not None:
+            self._sensor_msgs = SensorMessages(self._engine.config.sensors, *self.frames)
+            self._sensor_pubs = {name: pub(type(msg), name, state_qos)
+                                 for name, msg in self._sensor_msgs.topics()}
         self._clock_pub = None
         if self._p['publish_clock']:
             self._clock_pub = pub(Clock, '/clock', qos_profile('reliable'))
@@ -173,6 +179,9 @@ class Simulator(Node):
 
     def _publish(self, block, late=True):
         msgs, rtf = self._msgs, (self._p['real_time_factor'] if late else 0)
+        if block.sensors is not None:  # readings at their own instants, stamped likewise
+            for _, name, msg in self._sensor_msgs.messages(block.sensors, self.stamp_ns):
+                self._sensor_pubs[name].publish(msg)
         for i in range(len(block)):
             t_ns = int(block.t_ns[i])
             data = msgs.encoded(block, i, self.stamp_ns(t_ns)) if self._active else None
@@ -338,6 +347,8 @@ class Simulator(Node):
             self._log.info('inertia and initial state take effect on ~/reset')
         if 'frame_id' in changed or 'child_frame_id' in changed:
             self._msgs.set_frames(self._p['frame_id'], self._p['child_frame_id'])
+            if self._sensor_msgs is not None:
+                self._sensor_msgs.set_frames(self._p['frame_id'], self._p['child_frame_id'])
         if self._p['publish_clock'] and self._clock_pub is None:
             self._clock_pub = self.create_publisher(Clock, '/clock', qos_profile('reliable'))
         self._anchor()
@@ -361,7 +372,7 @@ class Simulator(Node):
                 f'publish {NS / e.config.sample_period_ns:g} Hz, {rtf}, '
                 f'clock {"on" if p["publish_clock"] else "off"}, '
                 f'frames {p["frame_id"]} <- {p["child_frame_id"]}, qos {p["qos"]}, '
-                f'duration {duration}')
+                f'duration {duration}' + sensors_summary(e.config.sensors))
 
     def _publish_diagnostics(self):
         now, e = time.monotonic(), self._engine

@@ -35,7 +35,8 @@ class StateMessages:
     momentum are in ``frame_id``; angular velocity and body angular momentum in
     ``child_frame_id``. The quaternion rotates child-frame vectors into ``frame_id``.
     ``imu`` (sensor_msgs/Imu, ``child_frame_id``): the orientation and body rate as an ideal
-    IMU reports them (noise models come with the sensors).
+    IMU reports them (the noisy gyro and star tracker are topics of their own:
+    ``sensor_messages.py``).
     ``torque``: also a ``torque_command`` message (body frame) holding the sample's applied
     torque — for offline bags of controlled scenes, where no controller node publishes it.
     """
