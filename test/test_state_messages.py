@@ -54,3 +54,25 @@ def test_templates_follow_a_change_of_frames():
                                                          'b')
     assert after.quaternion == before.quaternion
     assert odo.pose.pose.orientation == after.quaternion
+
+
+def test_joint_states_are_exact_size_cdr_that_rosbags_reads():
+    """rclpy's serialize_message pads a JointState to a multiple of 8 that the CDR header
+    does not declare; the bytes we publish and record are the exact size, which rosbags
+    (an independent, strict reader) decodes to the same values, and rclpy too."""
+    from rosbags.typesys import Stores, get_typestore
+    from sensor_msgs.msg import JointState
+
+    from rigid_body_sim.nodes.state_messages import joint_state_cdr
+    store = get_typestore(Stores.ROS2_JAZZY)
+    cases = [(['rw_x'], [], [1.5]), (['rw_x', 'rw_y', 'rw_z', 'rw_skew'], [], [1.0, -2, 3, 4]),
+             (['g1', 'g2', 'g3', 'g4'], [0.1, 0.2, 0.3, 0.4], [1.0, 2, 3, 4]), ([], [], [])]
+    for names, position, velocity in cases:
+        msg = JointState(name=names, position=position, velocity=velocity)
+        msg.header.frame_id = 'base_link'
+        msg.header.stamp.sec, msg.header.stamp.nanosec = 12, 345
+        data = joint_state_cdr(msg)
+        got = store.deserialize_cdr(data, 'sensor_msgs/msg/JointState')
+        assert list(got.name) == names and got.velocity.tolist() == velocity
+        assert got.position.tolist() == position and got.header.frame_id == 'base_link'
+        assert deserialize_message(data, JointState) == msg

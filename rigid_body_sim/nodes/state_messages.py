@@ -167,7 +167,7 @@ class StateMessages:
             self.stamp.sec, self.stamp.nanosec = sec, nsec
             self._fill_actuators(block, i)
             for name, msg in self._joints():
-                out[name] = serialize_message(msg)
+                out[name] = joint_state_cdr(msg)
         return out
 
 
@@ -244,6 +244,24 @@ def _layout(data: bytes):
         stamps.append(start)
         start = data.find(stamp, start + 1)
     return (bytearray(data), [(o, struct.Struct(f'<{n}d'), k) for o, n, k in fields], stamps)
+
+
+def joint_state_cdr(msg) -> bytes:
+    """A sensor_msgs/JointState as CDR bytes of its exact size. rclpy's serialize_message
+    pads the payload to a multiple of 8 without saying so in the encapsulation header;
+    DDS delivers it unpadded, and strict readers (rosbags) refuse the padded form."""
+    def string(o, text):
+        return ((o + 3) & ~3) + 4 + len(text.encode()) + 1
+
+    o = string(8, msg.header.frame_id)  # offsets from the payload start; stamp = 8 bytes
+    o = ((o + 3) & ~3) + 4
+    for name in msg.name:
+        o = string(o, name)
+    for values in (msg.position, msg.velocity, msg.effort):
+        o = ((o + 3) & ~3) + 4
+        if len(values):
+            o = ((o + 7) & ~7) + 8 * len(values)
+    return serialize_message(msg)[:4 + o]
 
 
 def type_name(msg) -> str:

@@ -110,7 +110,8 @@ def poinsot(s, body, out_dir, title, unit, scale, free_end):
     ax3.set(xlabel='ω₁ [rad/s]', ylabel='ω₂ [rad/s]', zlabel='ω₃ [rad/s]')
 
     ax2 = fig.add_subplot(1, 2, 2)
-    n = L[0] / max(np.linalg.norm(L[0]), 1e-300)  # the invariable plane's normal, fixed
+    # the invariable plane's normal (fixed); a body at rest has none: any plane will do
+    n = L[0] / np.linalg.norm(L[0]) if np.linalg.norm(L[0]) > 0 else np.array([0, 0, 1.0])
     e1 = np.cross(n, [1.0, 0, 0] if abs(n[0]) < 0.9 else [0, 1.0, 0])
     e1 /= np.linalg.norm(e1)
     e2 = np.cross(n, e1)

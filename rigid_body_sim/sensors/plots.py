@@ -17,8 +17,8 @@ def pointing_error(samples, target) -> np.ndarray:
 
 def write_pointing_plot(samples, scene, out_dir) -> str:
     """Write ``pointing.png`` into ``out_dir``; returns its path."""
-    from ..plots import _pyplot, _save
-    plt = _pyplot()
+    from ..plots.common import pyplot, save
+    plt = pyplot()
     os.makedirs(out_dir, exist_ok=True)
     t = samples.t
     err = pointing_error(samples, scene.controller['target_attitude'])
@@ -52,4 +52,5 @@ def write_pointing_plot(samples, scene, out_dir) -> str:
              title=f't ≥ {settle:.3g} s (seed {scene.simulator["seed"]})')
     hist.legend(fontsize=7)
     hist.grid(alpha=0.3)
-    return _save(fig, out_dir, 'pointing.png', plt)
+    return save(fig, out_dir, 'pointing.png', 'pointing error on sensors against the '
+                'linearised prediction', plt).path
