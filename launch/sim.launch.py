@@ -9,6 +9,8 @@ Arguments:
   output      recorder bag directory (default: rigid_body_sim_<scene name>)
   controller  auto/true/false: auto (default) starts the controller only for scenes that
               control the body, so a free-tumble scene receives no torque
+  viewer      true/false: start the Foxglove viewer (default false; it opens a port)
+  viewer_port its WebSocket port on 127.0.0.1 (default 8765)
 
 The launch ends when the simulator exits (at the scene's ``duration``): every other node
 is then stopped with SIGINT, and the recorder finalises its bag. What starts is decided by
@@ -29,7 +31,8 @@ def _nodes(context):
     def arg(name):
         return LaunchConfiguration(name).perform(context)
     # SceneError/ValueError here aborts the launch with its message (no node started)
-    planned, summary = plan(arg('scene'), arg('record'), arg('output'), arg('controller'))
+    planned, summary = plan(arg('scene'), arg('record'), arg('output'), arg('controller'),
+                            arg('viewer'), arg('viewer_port'))
     actions = [LogInfo(msg=summary)]
     nodes = {}
     for p in planned:
@@ -53,5 +56,9 @@ def generate_launch_description():
         DeclareLaunchArgument('output', default_value='', description='recorder bag directory'),
         DeclareLaunchArgument('controller', default_value='auto',
                               description='auto: only for scenes that control the body'),
+        DeclareLaunchArgument('viewer', default_value='false',
+                              description='start the Foxglove viewer (ws://127.0.0.1:PORT)'),
+        DeclareLaunchArgument('viewer_port', default_value='8765',
+                              description='Foxglove viewer port'),
         OpaqueFunction(function=_nodes),
     ])

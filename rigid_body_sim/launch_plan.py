@@ -21,6 +21,17 @@ class PlannedNode:
     params_files: Tuple[str, ...] = ()
     parameters: Dict[str, object] = field(default_factory=dict)
 
+    def ros_arguments(self, namespace: str = '') -> List[str]:
+        """The node's ``--ros-args …`` as ``ros2 run`` would pass them (name, namespace,
+        params files, then parameters, which win)."""
+        args = ['--ros-args', '-r', f'__node:={self.name}']
+        args += ['-r', f'__ns:={namespace}'] if namespace else []
+        for path in self.params_files:
+            args += ['--params-file', path]
+        for key, value in self.parameters.items():
+            args += ['-p', f'{key}:={value}']
+        return args
+
 
 def _flag(value: str, name: str, choices=('true', 'false')) -> str:
     v = str(value).strip().lower()
@@ -30,12 +41,15 @@ def _flag(value: str, name: str, choices=('true', 'false')) -> str:
 
 
 def plan(scene: str = 'default', record: str = 'true', output: str = '',
-         controller: str = 'auto') -> Tuple[List[PlannedNode], str]:
+         controller: str = 'auto', viewer: str = 'false',
+         viewer_port: str = '8765') -> Tuple[List[PlannedNode], str]:
     """(nodes, summary line). The scene is resolved and validated first, so an unknown
     name or a bad file fails at once (SceneError listing the built-in scenes) instead of
     starting nodes on defaults. ``controller``: auto = only for scenes that control the
     body (a free-tumble scene gets no controller, hence no torque); true/false force it.
-    The simulator is the node whose exit ends the launch (the scene's ``duration``)."""
+    The simulator is the node whose exit ends the launch (the scene's ``duration``).
+    ``viewer``: also start the Foxglove viewer (nodes/viewer.py) on 127.0.0.1:``viewer_port``
+    (off by default: it opens a port)."""
     path = os.path.abspath(resolve(scene))
     loaded = load(path)
     use_controller = _flag(controller, 'controller', CONTROLLER_CHOICES)
@@ -43,6 +57,15 @@ def plan(scene: str = 'default', record: str = 'true', output: str = '',
     nodes = [PlannedNode('simulator', 'attitude_simulator', (path,))]
     if with_controller:
         nodes.append(PlannedNode('controller', 'attitude_controller', (path,)))
+    if _flag(viewer, 'viewer') == 'true':
+        try:
+            port = int(viewer_port)
+        except ValueError:
+            port = -1
+        if not 0 <= port <= 65535:
+            raise ValueError(f'launch argument viewer_port:={viewer_port}: a TCP port, '
+                             '0 to 65535')
+        nodes.append(PlannedNode('viewer', 'attitude_viewer', (), {'port': port}))
     if _flag(record, 'record') == 'true':
         nodes.append(PlannedNode('recorder', 'mcap_recorder', (), {
             'output': output or f'rigid_body_sim_{loaded.name}', 'scene': loaded.name}))

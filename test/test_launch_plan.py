@@ -24,15 +24,20 @@ def test_every_scene_plans_its_nodes(name):
     assert 'when the simulator exits' in summary
     forced = [n.executable for n in plan(name, controller='true', record='false')[0]]
     assert forced == ['simulator', 'controller']
+    viewed = plan(name, record='false', controller='false', viewer='true', viewer_port='9001')[0]
+    assert [(n.executable, n.parameters) for n in viewed] == [
+        ('simulator', {}), ('viewer', {'port': 9001})]
 
 
 def test_unknown_scene_and_bad_arguments_fail_at_once():
-    with pytest.raises(SceneError, match="unknown scene 'bogus'; built-in scenes: default"):
+    with pytest.raises(SceneError, match="unknown scene 'bogus'; built-in scenes: .*default, detumble"):
         plan('bogus')
     with pytest.raises(ValueError, match='controller:=maybe'):
         plan('default', controller='maybe')
     with pytest.raises(ValueError, match='record:=yes please'):
         plan('default', record='yes please')
+    with pytest.raises(ValueError, match='viewer_port:=70000'):
+        plan('default', viewer='true', viewer_port='70000')
 
 
 def test_free_tumble_scene_gets_no_torque_and_ends(ros_process, namespace, rclpy_node,
@@ -51,12 +56,7 @@ def test_free_tumble_scene_gets_no_torque_and_ends(ros_process, namespace, rclpy
                                    100)
     procs = {}
     for n in reversed(nodes):  # recorder first, as the demo does, so it sees the start
-        cmd = [venv_exe(n.executable), '--ros-args', '-r', f'__node:={n.name}',
-               '-r', f'__ns:={namespace}']
-        for f in n.params_files:
-            cmd += ['--params-file', f]
-        for k, v in n.parameters.items():
-            cmd += ['-p', f'{k}:={v}']
+        cmd = [venv_exe(n.executable), *n.ros_arguments(namespace)]
         if n.executable == 'simulator':  # the scene's 10 s, 5x faster for the test
             cmd += ['-p', 'real_time_factor:=5.0']
         procs[n.executable] = ros_process(*cmd)

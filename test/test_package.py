@@ -141,6 +141,13 @@ def test_launch_file_ends_with_the_simulation_and_follows_the_plan():
     target = next(kw.value for kw in on_exit.keywords if kw.arg == 'target_action')
     assert ast.unparse(target) == "nodes['simulator']"
     assert "default_value='auto'" in text and "default_value='default'" in text
+    # every argument of the plan is a launch argument, passed in the plan's order
+    import inspect
+    from rigid_body_sim.launch_plan import plan
+    declared = [n.args[0].value for n in ast.walk(tree) if isinstance(n, ast.Call)
+                and getattr(n.func, 'id', '') == 'DeclareLaunchArgument']
+    assert declared == list(inspect.signature(plan).parameters)
+    assert [ast.unparse(a) for a in calls['plan'].args] == [f"arg('{a}')" for a in declared]
     setup_text = open(os.path.join(REPO, 'setup.py')).read()
     for exe in ('simulator', 'controller', 'recorder'):
         assert f"'{exe} = rigid_body_sim.nodes.{exe}:main'" in setup_text

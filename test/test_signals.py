@@ -78,15 +78,8 @@ def test_a_launch_style_process_group_stops_on_ctrl_c(ros_process, namespace, rc
     bag = tmp_path / 'bag'
     nodes, _ = plan('slew', output=str(bag))
     assert [n.executable for n in nodes] == ['simulator', 'controller', 'recorder']
-    cmds = []
-    for n in reversed(nodes):
-        cmd = [venv_exe(n.executable), '--ros-args', '-r', f'__node:={n.name}',
-               '-r', f'__ns:={namespace}']
-        for f in n.params_files:
-            cmd += ['--params-file', f]
-        for k, v in n.parameters.items():
-            cmd += ['-p', f'{k}:={v}']
-        cmds.append('\x1f'.join(cmd))
+    cmds = ['\x1f'.join([venv_exe(n.executable), *n.ros_arguments(namespace)])
+            for n in reversed(nodes)]
     parent = ros_process(sys.executable, '-c', GROUP_PARENT, *cmds)
     torques = []
     rclpy_node.create_subscription(Vector3Stamped, f'{namespace}/torque_command',

@@ -21,10 +21,13 @@ import signal
 import sys
 from typing import Any, Dict, Iterable, List, Mapping, Sequence, Tuple
 
+import rclpy
+import rclpy.logging
 from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
 from rcl_interfaces.msg import (FloatingPointRange, IntegerRange, ParameterDescriptor,
                                 ParameterType, SetParametersResult)
+from rclpy.executors import ExternalShutdownException
 from rclpy.parameter import Parameter
 from rclpy.qos import (DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy,
                        qos_profile_sensor_data)
@@ -226,6 +229,51 @@ def signals_ignored():
     for sig in (signal.SIGINT, signal.SIGTERM):
         signal.signal(sig, signal.SIG_IGN)
     yield
+
+
+def run_node(node_name: str, build, run=None, args=None, fatal=(ValueError,),
+             exit_codes=None, close=None) -> int:
+    """Every node's entry point (``ros2 run``); returns the exit code.
+
+    ``rclpy.init`` failing on bad ``--ros-args`` → 2 with the reason; ``build()`` raising
+    one of ``fatal`` (bad parameters) → 2 with the reason; an exception type in
+    ``exit_codes`` ({type: code}) → that code with its message; then ``run(node)``
+    (default rclpy.spin). SIGINT/SIGTERM end the node with 0 and no traceback, also when
+    they land in the middle of an rclpy call (rclpy shut the context down, so the call
+    raised). Shutdown runs with the signals ignored: ``close(node)``, then destroy."""
+    try:
+        rclpy.init(args=args)
+    except Exception as exc:  # noqa: BLE001 - bad --ros-args (e.g. a bad remap): no traceback
+        print(f'[FATAL] [{node_name}]: cannot initialise ROS: {exc}', file=sys.stderr)
+        return 2
+    node = None
+    try:
+        try:
+            node = build()
+        except fatal as exc:
+            rclpy.logging.get_logger(node_name).fatal(f'invalid parameters: {exc}')
+            return 2
+        except tuple(exit_codes or ()) as exc:
+            rclpy.logging.get_logger(node_name).fatal(str(exc))
+            return next(c for t, c in exit_codes.items() if isinstance(exc, t))
+        (run or rclpy.spin)(node)
+        return 0
+    except (KeyboardInterrupt, ExternalShutdownException):
+        return 0
+    except Exception:
+        if not rclpy.ok():  # SIGINT/SIGTERM shut the context down in the middle of a call
+            return 0
+        raise
+    finally:
+        with signals_ignored():  # a second Ctrl-C while shutting down: no traceback
+            if node is not None:
+                try:
+                    if close is not None:
+                        close(node)
+                    node.destroy_node()
+                except Exception:  # noqa: BLE001 - context already gone; nothing to release
+                    pass
+            rclpy.try_shutdown()
 
 
 # --- time ------------------------------------------------------------------------------

@@ -30,9 +30,7 @@ import sys
 import time
 
 import numpy as np
-import rclpy
 from rclpy.clock import Clock, ClockType
-from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rcl_interfaces.msg import SetParametersResult
@@ -45,7 +43,7 @@ from .. import control
 from ..engine import ControlLaw, ControlSettings, specs
 from ..sensors.estimator import AttitudeEstimator
 from .common import (changed_values, coerce_parameters, declare_parameters, diagnostic_status,
-                     frame_id_problem, qos_profile, signals_ignored, stamp_to_seconds,
+                     frame_id_problem, qos_profile, run_node, stamp_to_seconds,
                      validate_update)
 
 NODE_NAME = 'attitude_controller'
@@ -343,34 +341,7 @@ class Controller(Node):
 
 def main(args=None):
     """Entry point of ``ros2 run rigid_body_sim controller``; returns the exit code."""
-    try:
-        rclpy.init(args=args)
-    except Exception as exc:  # bad --ros-args: no traceback
-        print(f'[FATAL] [{NODE_NAME}]: cannot initialise ROS: {exc}', file=sys.stderr)
-        return 2
-    node = None
-    try:
-        try:
-            node = Controller()
-        except ValueError as exc:
-            rclpy.logging.get_logger(NODE_NAME).fatal(f'invalid parameters: {exc}')
-            return 2
-        rclpy.spin(node)
-        return 0
-    except (KeyboardInterrupt, ExternalShutdownException):
-        return 0
-    except Exception:
-        if not rclpy.ok():  # SIGINT/SIGTERM shut the context down in the middle of a call
-            return 0
-        raise
-    finally:
-        with signals_ignored():  # a second Ctrl-C while shutting down: no traceback
-            if node is not None:
-                try:
-                    node.destroy_node()
-                except Exception:  # noqa: BLE001 - context already gone; nothing left to release
-                    pass
-            rclpy.try_shutdown()
+    return run_node(NODE_NAME, Controller, args=args)
 
 
 if __name__ == '__main__':

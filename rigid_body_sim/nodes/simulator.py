@@ -22,8 +22,6 @@ runs in small slices. With ``real_time_factor: 0`` the engine runs in chunks of 
 import sys
 import time
 
-import rclpy
-from rclpy.executors import ExternalShutdownException
 # rclpy's C++ events executor: the node turns its loop at every sample (100 Hz), and the
 # Python SingleThreadedExecutor rebuilds its wait set over every service and subscription
 # each turn (~0.6 ms; the simulator has ~20), which cost more than the physics.
@@ -40,8 +38,8 @@ from ..engine import NS, Engine, EngineConfig, specs
 from ..physics import IntegrationError
 from ..scene import SceneError
 from .commands import CommandFilter
-from .common import (changed_values, declare_parameters, diagnostic_status, qos_profile,
-                     signals_ignored, validate_update)
+from .common import (changed_values, declare_parameters, diagnostic_status, qos_profile, run_node,
+                     validate_update)
 from .sim_services import AVAILABLE as SIM_SERVICES, SimulationServices
 from .sensor_messages import SensorMessages, sensors_summary
 from .state_messages import StateMessages
@@ -410,33 +408,7 @@ class Simulator(Node):
 
 def main(args=None):
     """Entry point of ``ros2 run rigid_body_sim simulator``; returns the exit code."""
-    try:
-        rclpy.init(args=args)
-    except Exception as exc:  # bad --ros-args (e.g. an invalid name in a remap): no traceback
-        print(f'[FATAL] [{NODE_NAME}]: cannot initialise ROS: {exc}', file=sys.stderr)
-        return 2
-    node = None
-    try:
-        node = Simulator()
-        node.run()
-        return 0
-    except (KeyboardInterrupt, ExternalShutdownException):
-        return 0
-    except SceneError as exc:
-        rclpy.logging.get_logger(NODE_NAME).fatal(f'invalid parameters: {exc}')
-        return 2
-    except Exception:
-        if not rclpy.ok():  # SIGINT/SIGTERM shut the context down in the middle of a call
-            return 0
-        raise
-    finally:
-        with signals_ignored():  # a second Ctrl-C while shutting down: no traceback
-            if node is not None:
-                try:
-                    node.destroy_node()
-                except Exception:  # noqa: BLE001 - context already gone; nothing to release
-                    pass
-            rclpy.try_shutdown()
+    return run_node(NODE_NAME, Simulator, run=lambda node: node.run(), args=args)
 
 
 if __name__ == '__main__':

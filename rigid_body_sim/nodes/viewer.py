@@ -21,8 +21,6 @@ import sys
 import time
 
 import numpy as np
-import rclpy
-from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 
 from diagnostic_msgs.msg import DiagnosticArray
@@ -32,7 +30,7 @@ from sensor_msgs.msg import Imu
 from ..physics.body import RigidBody
 from ..viewer import view as fox
 from ..viewer.specs import LOOPBACK, VIEWER
-from .common import declare_parameters, diagnostic_status, qos_profile, signals_ignored
+from .common import declare_parameters, diagnostic_status, qos_profile, run_node
 
 NODE_NAME = 'attitude_viewer'
 DIAGNOSTICS_PERIOD_S = 1.0   # wall clock
@@ -182,40 +180,10 @@ class Viewer(Node):
 
 def main(args=None):
     """Entry point of ``ros2 run rigid_body_sim viewer``; returns the exit code."""
-    try:
-        rclpy.init(args=args)
-    except Exception as exc:  # bad --ros-args: no traceback
-        print(f'[FATAL] [{NODE_NAME}]: cannot initialise ROS: {exc}', file=sys.stderr)
-        return 2
-    node = None
-    try:
-        try:
-            node = Viewer()
-        except ValueError as exc:
-            rclpy.logging.get_logger(NODE_NAME).fatal(f'invalid parameters: {exc}')
-            return 2
-        except fox.PortInUse as exc:
-            rclpy.logging.get_logger(NODE_NAME).fatal(str(exc))
-            return 1
-        # not rclpy.experimental.EventsExecutor: it halves the per-message cost, but in rclpy
-        # 7.1 it busy-loops beside the parameter client and ignores SIGINT
-        rclpy.spin(node)
-        return 0
-    except (KeyboardInterrupt, ExternalShutdownException):
-        return 0
-    except Exception:
-        if not rclpy.ok():  # SIGINT/SIGTERM shut the context down in the middle of a call
-            return 0
-        raise
-    finally:
-        with signals_ignored():  # a second Ctrl-C while shutting down: no traceback
-            if node is not None:
-                try:
-                    node.close()
-                    node.destroy_node()
-                except Exception:  # noqa: BLE001 - context already gone; nothing to release
-                    pass
-            rclpy.try_shutdown()
+    # not rclpy.experimental.EventsExecutor: it halves the per-message cost, but in rclpy
+    # 7.1 it busy-loops beside the parameter client and ignores SIGINT
+    return run_node(NODE_NAME, Viewer, args=args, exit_codes={fox.PortInUse: 1},
+                    close=lambda node: node.close())
 
 
 if __name__ == '__main__':
