@@ -4,7 +4,8 @@
 * :mod:`.dynamics` — Euler's equations, torques and dissipation (principal frame).
 * :mod:`.integrators` — the registry of methods with one interface.
 * :mod:`.exact` — the torque-free solution in closed form (Jacobi elliptic functions);
-  :mod:`.exact_scalar` its one-body path, :mod:`.extended` its long-double phases.
+  :mod:`.exact_kernel` its compiled evaluation (:mod:`.elliptic_kernel`,
+  :mod:`.double_double`), :mod:`.extended` its long-double constants.
 * :mod:`.propagator` — propagation in the user's body frame.
 """
 from .body import RigidBody

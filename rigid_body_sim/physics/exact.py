@@ -69,7 +69,7 @@ from scipy.spatial.transform import Rotation
 from scipy.special import ellipj, elliprf, elliprj
 
 from . import rotation
-from . import exact_scalar
+from . import exact_kernel
 from .extended import LD, cel, reduce_4pi
 
 MOMENT_RTOL = 1e-12
@@ -219,22 +219,15 @@ class TorqueFreeSolution:
         omega_period[el] = (4 * self._K_ld[el] / self._lam_ld[el]).astype(float)
         flip[el] = (2 * self._K_ld[el] / self._lam_ld[el]).astype(float)
 
-        # C = q0 ⊗ w ⊗ E(0)*, with E(0) evaluated by the same code as at(t), so at(0) returns
-        # q0 to round-off whatever φ(0) is (the secular part 2j0·cphi·Π need not vanish).
+        # C = q0 ⊗ w ⊗ E(0)* and P0 = P_r(u0), with E(0) evaluated by the compiled kernel
+        # that evaluates at(t), so at(0) returns q0 to round-off whatever φ(0) is (the
+        # secular part 2j0·cphi·Π need not vanish).
         self._C = np.tile([0.0, 0.0, 0.0, 1.0], (n, 1))
-        self._scalars = {k: (v[0] if k.endswith('_ld') else float(v[0]))
-                         for k, v in const.items()} if n == 1 else None
-        self._wc = tuple(rotation.conjugate(self._w[0]))
+        self._rows = exact_kernel.pack(self)
         if idx.size:
-            self._P0[idx] = 0.0
-            if n == 1:                                   # same formulas, without numpy overhead
-                self._scalars['P0'] = self._P0[0] = self._scalar_moving(0.0)[2]
-                e0 = np.array(self._scalar_moving(0.0)[0])
-            else:
-                self._P0[idx] = self._moving(idx, np.zeros(idx.size))[2]
-                e0 = self._moving(idx, np.zeros(idx.size))[0]
-            self._C[idx] = rotation.multiply(rotation.multiply(q0[idx], self._w[idx]),
-                                             rotation.conjugate(e0))
+            exact_kernel.anchor(self._rows, idx)
+            self._P0[idx] = self._rows[idx, exact_kernel.P0]
+            self._C[idx] = self._rows[idx, exact_kernel.C:exact_kernel.C + 4]
         shape = self.batch_shape
         self.kinetic_energy = T.reshape(shape)
         self.angular_momentum_norm = G.reshape(shape)
@@ -347,9 +340,34 @@ class TorqueFreeSolution:
         return _qz_qx_qz(phi, theta, psi), m, P
 
     def at(self, t):
-        """(q, m) at time(s) t (s), t broadcast against the batch shape."""
+        """(q, m) at time(s) t (s), t broadcast against the batch shape: the compiled
+        kernel (:mod:`.exact_kernel`). With JIT disabled, large evaluations take the
+        vectorised numpy path instead (same formulas; the kernel would be a Python loop)."""
         if not self.batch_shape and isinstance(t, (float, int, np.floating, np.integer)):
-            return self._at_scalar(float(t))
+            t = float(t)
+            if not math.isfinite(t):
+                raise ValueError(f'time must be finite, got {t}')
+            return exact_kernel.at_one(self._rows[0], t)
+        t = np.asarray(t, float)
+        if not np.all(np.isfinite(t)):
+            raise ValueError(f'time must be finite, got {t}')
+        shape = np.broadcast_shapes(t.shape, self.batch_shape)
+        if not exact_kernel.COMPILED and np.prod(shape, dtype=int) > 64:
+            return self.at_numpy(t)
+        if not self.batch_shape:
+            q, m = exact_kernel.at_times(self._rows[0], np.ascontiguousarray(t.ravel()))
+            return q.reshape(shape + (4,)), m.reshape(shape + (3,))
+        n = len(self._kind)
+        body = np.broadcast_to(np.arange(n).reshape(self.batch_shape), shape).ravel()
+        tt = np.ascontiguousarray(np.broadcast_to(t, shape).ravel())
+        q = np.empty((tt.size, 4))
+        m = np.empty((tt.size, 3))
+        exact_kernel.evaluate(self._rows, body, tt, q, m)
+        return q.reshape(shape + (4,)), m.reshape(shape + (3,))
+
+    def at_numpy(self, t):
+        """at(t) by the vectorised numpy path (long-double phases, scipy.special): the
+        reference the compiled kernel is tested against, and JIT-less bulk evaluation."""
         t = np.asarray(t, float)
         if not np.all(np.isfinite(t)):
             raise ValueError(f'time must be finite, got {t}')
@@ -381,20 +399,3 @@ class TorqueFreeSolution:
                 m[sel] = np.einsum('nji,nj->ni', self._W[b], mw)
         q /= np.linalg.norm(q, axis=-1, keepdims=True)
         return q.reshape(shape + (4,)), m.reshape(shape + (3,))
-
-    def _at_scalar(self, t):
-        """One body, one time: the same formulas on Python floats (:mod:`.exact_scalar`)."""
-        if not math.isfinite(t):
-            raise ValueError(f'time must be finite, got {t}')
-        if self._kind[0] == _CLOSED:
-            q, m = exact_scalar.closed(self._rate_l_ld[0], self._ws_ld[0], self._e[0],
-                                       self._lhat[0], self._q0[0], self._m0[0], t)
-        else:
-            E, mw, _ = self._scalar_moving(t)
-            q = exact_scalar.qmul(exact_scalar.qmul(self._C[0], E), self._wc)
-            m = self._W[0].T @ mw
-        q = np.array(q)
-        return q / math.sqrt(q @ q), np.asarray(m, float)
-
-    def _scalar_moving(self, t):
-        return exact_scalar.moving(self._scalars, self._kind[0] == _SEPARATRIX, t)
