@@ -92,3 +92,24 @@ def test_reduce_4pi_matches_exact_pi():
             exact = F(x) - round(F(x) / four_pi) * four_pi
             assert abs(F(got) - exact) <= F(1e-30) * abs(F(x)) + F(2.0 ** -52) * 8, x
             assert abs(got) <= 6.283185307179587
+
+
+def test_division_and_square_root_meet_their_bounds():
+    """dd_div ≤ 8 eps², dd_sqrt ≤ 4 eps² relative (sqrt checked by squaring exactly)."""
+    rng = np.random.default_rng(4)
+    worst_div = worst_sqrt = F(0)
+    for _ in range(3000):
+        a1, a2, b1, b2 = _doubles(rng, 4, spread=20).tolist()
+        ah, al = dd.two_prod(a1, a2)
+        bh, bl = dd.two_prod(b1, b2)
+        exact_a, exact_b = F(ah) + F(al), F(bh) + F(bl)
+        qh, ql = dd.dd_div(ah, al, bh, bl)
+        worst_div = max(worst_div, abs((F(qh) + F(ql)) * exact_b / exact_a - 1))
+        xh, xl = (ah, al) if ah > 0 else (-ah, -al)
+        sh, sl = dd.dd_sqrt(xh, xl)
+        x = F(xh) + F(xl)
+        root = F(sh) + F(sl)
+        worst_sqrt = max(worst_sqrt, abs(root * root / x - 1) / 2)  # δ(√x) ≈ δ(x)/2
+    assert worst_div <= 8 * EPS2, float(worst_div / EPS2)
+    assert worst_sqrt <= 4 * EPS2, float(worst_sqrt / EPS2)
+    assert dd.dd_sqrt(0.0, 0.0) == (0.0, 0.0)

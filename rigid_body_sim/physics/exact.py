@@ -50,16 +50,23 @@ Regime classification (relative tolerances, per body):
 
 Long horizons. The phases grow without bound (λt, (G/Iz)t and 2j·cphi·Π reach ~1e7 rad at
 t = 1e6 s), so float64 rates, each a few eps off, would move them by ~eps·|ω|·t (2e-9 rad at
-10 rad/s), and scipy's elliprj gave Π(−N|k²) only to ~2e-15 near the separatrix, an error
-multiplied by j. The rates and K, Π are therefore computed in long double (:mod:`.extended`),
-u = λt + u0 is split into 2jK + r there, the secular part of φ is reduced modulo 4π there,
-and ψ takes jπ modulo 4π; the Jacobi and Carlson functions then see only |r| ≤ K in float64.
-Against a 40-digit reference (bench/reference40.py) the attitude error at 1e6 s is ≤ 2e-12
-rad on every torque-free scene (it was 5e-9 on tennis_racket, 1.2e-9 on intermediate_axis).
+10 rad/s), Π's error is multiplied by j, and near the separatrix k'² comes from Δy by
+cancellation. :meth:`TorqueFreeSolution.at` therefore evaluates with the compiled kernel
+(:mod:`.exact_kernel`): rates, K, Π and k'² in double-double (:mod:`.exact_constants`, ~1e-32
+relative, on every platform), u = 2jK + r and the secular part of φ modulo 4π formed and
+reduced there, ψ taking jπ modulo 4π; the Jacobi and Carlson functions
+(:mod:`.elliptic_kernel`) see only |r| ≤ K in float64, with k'² passed as such (no 1 − m).
+Against a 40-digit reference (bench/reference40.py) the attitude error is ≤ 4.3e-15 rad at
+1e3 s and ≤ 1.2e-14 at 1e6 s on every torque-free scene, and ≤ 6.1e-14 beside the
+separatrix at k'² down to 2e-13 (test_exact_longhorizon.py).
 
-The output quaternion is continuous in t (no sign jumps). A single body at a scalar t takes
-a pure-Python-float path (:mod:`.exact_scalar`, same formulas, tested against the vectorised
-one): numpy call overhead, not arithmetic, dominates there.
+:meth:`TorqueFreeSolution.at_numpy` keeps the vectorised numpy path (constants and phases
+in long double, :mod:`.extended`; scipy.special): the reference the kernel is tested
+against, and bulk evaluation when numba's JIT is disabled. Its accuracy is that of long
+double (plain double on macOS arm64/MSVC) and of k'² = 1 − m in float64: ≤ 1.7e-12 rad at
+1e6 s on the scenes, but up to 2.4e-9 rad at 1e3 s beside the separatrix.
+
+The output quaternion is continuous in t (no sign jumps).
 """
 import functools
 import math
@@ -186,6 +193,7 @@ class TorqueFreeSolution:
         ie = np.where(c, e @ moments, 1.0)
         self._e = e
         self._ws = np.where(c, me * (1.0 / ie - 1.0 / it), 0.0)
+        self._me, self._ie, self._it = me, ie, it        # the kernel's double-double rates
         # The rates multiply t: kept in long double too (see .extended).
         g_ld = np.sqrt(np.sum(m0.astype(LD) ** 2, axis=-1))
         self._ws_ld = np.where(c, me.astype(LD) * (1 / ie.astype(LD) - 1 / it.astype(LD)), 0)
@@ -215,19 +223,19 @@ class TorqueFreeSolution:
                 const[k][idx] = v
         for k in names:
             setattr(self, '_' + k, const[k])
-        el = kind == _ELLIPTIC
-        omega_period[el] = (4 * self._K_ld[el] / self._lam_ld[el]).astype(float)
-        flip[el] = (2 * self._K_ld[el] / self._lam_ld[el]).astype(float)
 
-        # C = q0 ⊗ w ⊗ E(0)* and P0 = P_r(u0), with E(0) evaluated by the compiled kernel
-        # that evaluates at(t), so at(0) returns q0 to round-off whatever φ(0) is (the
-        # secular part 2j0·cphi·Π need not vanish).
-        self._C = np.tile([0.0, 0.0, 0.0, 1.0], (n, 1))
+        # The compiled kernel's constants (double-double, exact_kernel.pack); its anchor
+        # C = q0 ⊗ w ⊗ E(0)* and P0 = P_r(u0) come from the very code of at(t), so at(0)
+        # returns q0 to round-off whatever φ(0) is (2j0·cphi·Π need not vanish).
         self._rows = exact_kernel.pack(self)
+        self._idx = idx
+        self._row0 = self._rows[0]                       # at(t)'s one-body fast path
         if idx.size:
             exact_kernel.anchor(self._rows, idx)
-            self._P0[idx] = self._rows[idx, exact_kernel.P0]
-            self._C[idx] = self._rows[idx, exact_kernel.C:exact_kernel.C + 4]
+        self._C = None                                   # at_numpy's anchor, on first use
+        el = kind == _ELLIPTIC                           # periods from the kernel's 2K/λ
+        flip[el] = self._rows[el, exact_kernel.TK_H] / self._rows[el, exact_kernel.LAM_H]
+        omega_period[el] = 2 * flip[el]
         shape = self.batch_shape
         self.kinetic_energy = T.reshape(shape)
         self.angular_momentum_norm = G.reshape(shape)
@@ -347,7 +355,7 @@ class TorqueFreeSolution:
             t = float(t)
             if not math.isfinite(t):
                 raise ValueError(f'time must be finite, got {t}')
-            return exact_kernel.at_one(self._rows[0], t)
+            return exact_kernel.at_one(self._row0, t)
         t = np.asarray(t, float)
         if not np.all(np.isfinite(t)):
             raise ValueError(f'time must be finite, got {t}')
@@ -368,6 +376,15 @@ class TorqueFreeSolution:
     def at_numpy(self, t):
         """at(t) by the vectorised numpy path (long-double phases, scipy.special): the
         reference the compiled kernel is tested against, and JIT-less bulk evaluation."""
+        if self._C is None:                              # its own anchor, as the kernel's
+            self._C = np.tile([0.0, 0.0, 0.0, 1.0], (len(self._kind), 1))
+            idx = self._idx
+            if idx.size:
+                self._P0[idx] = 0.0
+                self._P0[idx] = self._moving(idx, np.zeros(idx.size))[2]
+                e0 = self._moving(idx, np.zeros(idx.size))[0]
+                self._C[idx] = rotation.multiply(
+                    rotation.multiply(self._q0[idx], self._w[idx]), rotation.conjugate(e0))
         t = np.asarray(t, float)
         if not np.all(np.isfinite(t)):
             raise ValueError(f'time must be finite, got {t}')

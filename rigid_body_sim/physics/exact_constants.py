@@ -69,6 +69,16 @@ def _delta(sa, ia, sb, ib, ij):
 
 
 @jit
+def sum_squares(x, y, z):
+    """x² + y² + z² as a pair (each square exact)."""
+    ah, al = two_prod(x, x)
+    bh, bl = two_prod(y, y)
+    ch, cl = two_prod(z, z)
+    ah, al = dd_add(ah, al, bh, bl)
+    return dd_add(ah, al, ch, cl)
+
+
+@jit
 def closed_rates(g2h, g2l, me, ie, it):
     """(G/I_t, ω_s = m_e(1/I_e − 1/I_t)) as pairs, from G² as a pair."""
     gh, gl = dd_sqrt(g2h, g2l)
@@ -137,5 +147,5 @@ def elliptic(ix, iy, iz, mx, my, mz, separatrix, s, out):
         out[17] = turn * 2.0 * kf + sr * rf(cr * cr, cr * cr + out[13] * sr * sr, 1.0)
 
 
-for _kernel in (cel, _delta, closed_rates, elliptic):
+for _kernel in (cel, _delta, sum_squares, closed_rates, elliptic):
     depends_on(_kernel, double_double, elliptic_kernel, kernels)

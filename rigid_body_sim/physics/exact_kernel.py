@@ -22,7 +22,7 @@ import math
 
 import numpy as np
 
-from . import double_double, elliptic_kernel, kernels
+from . import double_double, elliptic_kernel, exact_constants, kernels
 from .double_double import dd_add, dd_mul_d, dd_reduce, reduce_4pi
 from .elliptic_kernel import ellipj, rf, rj
 from .kernels import COMPILED, depends_on, jit
@@ -40,40 +40,36 @@ NCONST = 61
 CLOSED, ELLIPTIC, SEPARATRIX = 0, 1, 2
 
 
-def _pair(x):
-    """A long double as (hi, lo) float64, hi + lo = x to long-double precision."""
-    x = np.longdouble(x)
-    hi = float(x)
-    return hi, float(x - np.longdouble(hi))
-
-
 def pack(sol):
-    """(n, NCONST) rows from a TorqueFreeSolution's constants (before its C and P0 are
-    known: :func:`anchor` sets those)."""
+    """(n, NCONST) rows from a TorqueFreeSolution: its frames, signs and classification,
+    with the rates, K, Π and the constants that follow from them recomputed in
+    double-double (:mod:`.exact_constants`), C and P0 left to :func:`anchor`."""
     n = len(sol._kind)
     rows = np.zeros((n, NCONST))
+    out = np.zeros(21)
     for b in range(n):
         r = rows[b]
         r[KIND] = sol._kind[b]
         r[LH:LH + 3], r[Q0:Q0 + 4], r[M0:M0 + 3], r[E:E + 3] = (
             sol._lhat[b], sol._q0[b], sol._m0[b], sol._e[b])
-        r[RL_H], r[RL_L] = _pair(sol._rate_l_ld[b])
-        r[WS_H], r[WS_L] = _pair(sol._ws_ld[b])
         if sol._kind[b] == CLOSED:
+            g2h, g2l = exact_constants.sum_squares(*sol._m0[b])
+            r[RL_H], r[RL_L], r[WS_H], r[WS_L] = exact_constants.closed_rates(
+                g2h, g2l, float(sol._me[b]), float(sol._ie[b]), float(sol._it[b]))
             continue
         r[WC:WC + 4] = sol._w[b] * (-1.0, -1.0, -1.0, 1.0)
         r[W:W + 9] = sol._W[b].ravel()
-        for i, k in zip((MX, MY, MZ, S, SIGD, SIGX, G, N, KP, KP2, KF, U0, CPHI),
-                        ('mx', 'my', 'mz', 's', 'sigd', 'sigx', 'G', 'N', 'kp', 'kp2', 'K',
-                         'u0', 'cphi')):
+        for i, k in zip((MX, MY, MZ, S, SIGD, SIGX, G), ('mx', 'my', 'mz', 's', 'sigd', 'sigx',
+                                                         'G')):
             r[i] = getattr(sol, '_' + k)[b]
-        r[LAM_H], r[LAM_L] = _pair(sol._lam_ld[b])
-        r[TK_H], r[TK_L] = _pair(2 * sol._K_ld[b])
-        r[K_H], r[K_L] = _pair(sol._K_ld[b])
-        r[R0_H], r[R0_L] = _pair(sol._rate0_ld[b])
-        r[CP_H], r[CP_L] = _pair(sol._cphi_ld[b] * 2 * sol._pic_ld[b])
-        r[RS_H], r[RS_L] = _pair(sol._rate0_ld[b]
-                                 + sol._cphi_ld[b] * sol._lam_ld[b] / (1 + sol._N_ld[b]))
+        ix, iy, iz = np.abs(sol._W[b]) @ sol.moments
+        mw = sol._W[b] @ sol._m0[b]                      # exact: a signed permutation
+        exact_constants.elliptic(ix, iy, iz, mw[0], mw[1], mw[2],
+                                 sol._kind[b] == SEPARATRIX, r[S], out)
+        r[[LAM_H, LAM_L, TK_H, TK_L, K_H, K_L, R0_H, R0_L, CP_H, CP_L, RS_H, RS_L]] = out[:12]
+        r[[N, KP2, KP, KF, CPHI, U0]] = out[12:18]
+        if sol._kind[b] == ELLIPTIC:
+            r[[MX, MY, MZ]] = out[18:21]
     return rows
 
 
@@ -217,7 +213,7 @@ def anchor(rows, body):
 
 
 for _kernel in (_moving, evaluate_into, evaluate, at_one, at_times, anchor):
-    depends_on(_kernel, double_double, elliptic_kernel, kernels)
+    depends_on(_kernel, double_double, elliptic_kernel, exact_constants, kernels)
 
 
 def warm():
