@@ -75,7 +75,7 @@ def test_near_separatrix_against_the_reference():
         refs = [ref.at(t)[0] for t in ts]
         err = max(attitude_error(a, r) for a, r in zip(sol.at(ts)[0], refs))
         err_numpy = max(attitude_error(a, r) for a, r in zip(sol.at_numpy(ts)[0], refs))
-        assert err <= err_numpy + 1e-14 and err < 1e-10, (sol._kp2, err, err_numpy)
+        assert err <= err_numpy + 1e-14 and err < 1e-10, (sol._row0[exact_kernel.KP2], err)
 
 
 _SCRIPT = '''
@@ -143,3 +143,49 @@ def test_kernel_module_is_registered_for_warm_up():
     from rigid_body_sim import compiled
     assert 'exact_kernel' in inspect.getsource(compiled.warm)
     assert exact_kernel.warm() is exact_kernel.COMPILED
+
+
+def test_compiled_classification_is_the_numpy_one():
+    """exact_build.build (compiled) and TorqueFreeSolution (numpy) classify alike — pack
+    raises otherwise — at the rules' edges too: moments equal within 1e-12 of the largest
+    or just beyond, momentum exactly on an axis or 1e-90·G off it, Δ2 = 0 exactly."""
+    from rigid_body_sim.physics import exact_build
+    cases = [((1.0, 1.0 + 1e-12, 2.0), (0.3, 0.4, 0.5)),
+             ((1.0, 1.0 + 3e-12, 2.0), (0.3, 0.4, 0.5)),
+             ((2.0, 2.0 - 1e-12 * 2.0, 2.0), (0.3, 0.4, 0.5)), ((1.0, 2.0, 3.0), (0.0, 2.0, 0.0)),
+             ((1.0, 2.0, 3.0), (1e-90, 2.0, 0.0)), ((3.0, 6.0, 2.0), (0.5, 1.0, 1.0)),
+             ((3.0, 6.0, 2.0), (0.5, -1.0, 1.0 + 2.0 ** -52)), ((1.0, 2.0, 3.0), (0.0, 0.0, 0.0))]
+    row = np.empty(exact_kernel.NCONST)
+    kinds = {'spherical': 0, 'symmetric': 0, 'steady_spin': 0, 'A': 1, 'B': 1, 'separatrix': 2}
+    seen = set()
+    for moments, m0 in cases:
+        sol = TorqueFreeSolution(moments, (0.0, 0.0, 0.0, 1.0), m0)   # pack checks too
+        kind = exact_build.build(np.array(moments), np.array([0.0, 0.0, 0.0, 1.0]),
+                                 np.array(m0), row)
+        assert kind == kinds[sol.regime], (moments, m0, sol.regime)
+        seen.add(str(sol.regime))
+    assert seen == set(kinds)
+
+
+def test_one_shot_flow_is_the_solution():
+    """exact_build.flow (the exact integrator's split step) gives TorqueFreeSolution.at's
+    result for every regime (to 4 eps: TorqueFreeSolution re-normalises q0), and a
+    non-finite state through the integrator raises IntegrationError (not ValueError), as
+    in every method."""
+    from rigid_body_sim.physics import Dissipation, Dynamics, IntegrationError, create, exact_build
+    rng = np.random.default_rng(13)
+    for label, moments, m0 in _bodies(rng):
+        q0 = rng.normal(size=4)
+        q0 /= np.linalg.norm(q0)
+        t = float(rng.uniform(-50, 50))
+        q, m = np.empty(4), np.empty(3)
+        exact_build.flow(np.asarray(moments, float), q0, np.asarray(m0, float), t, q, m)
+        q_ref, m_ref = TorqueFreeSolution(moments, q0, m0).at(t)
+        assert np.max(np.abs(q - q_ref)) <= 4 * EPS, label
+        assert np.max(np.abs(m - m_ref)) <= 4 * EPS * max(1.0, np.linalg.norm(m0)), label
+    integ = create('exact', Dynamics(np.array([1.0, 2.0, 3.0]), Dissipation('viscous', 0.1)))
+    q, m = integ.step(np.array([0.0, 0.0, 0.0, 1.0]), np.array([0.3, 0.5, 0.9]), 0.1)
+    assert np.isclose(np.linalg.norm(q), 1.0)
+    assert np.linalg.norm(m) < np.linalg.norm([0.3, 0.5, 0.9])          # viscous damping
+    with pytest.raises(IntegrationError):
+        integ.step(np.array([0.0, 0.0, 0.0, 1.0]), np.array([np.nan, 0.5, 0.9]), 0.1)

@@ -194,6 +194,34 @@ class TorqueFreeSolution:
         self._e = e
         self._ws = np.where(c, me * (1.0 / ie - 1.0 / it), 0.0)
         self._me, self._ie, self._it = me, ie, it        # the kernel's double-double rates
+        body_rate = np.abs(self._ws)
+        omega_period[c] = np.where(body_rate[c] > 0,
+                                   2 * np.pi / np.where(body_rate[c] > 0, body_rate[c], 1.0),
+                                   np.inf)
+        flip[c] = 0.5 * omega_period[c]
+
+        self._G, self._order = G, order
+        self._numpy_ready = False                        # at_numpy's constants, on first use
+
+        # The compiled kernel's constants (double-double, exact_kernel.pack); its anchor
+        # C = q0 ⊗ w ⊗ E(0)* and P0 = P_r(u0) come from the very code of at(t), so at(0)
+        # returns q0 to round-off whatever φ(0) is (2j0·cphi·Π need not vanish).
+        self._rows = exact_kernel.pack(self)             # built and anchored
+        self._row0 = self._rows[0]                       # at(t)'s one-body fast path
+        el = kind == _ELLIPTIC                           # periods from the kernel's 2K/λ
+        flip[el] = self._rows[el, exact_kernel.TK_H] / self._rows[el, exact_kernel.LAM_H]
+        omega_period[el] = 2 * flip[el]
+        shape = self.batch_shape
+        self.kinetic_energy = T.reshape(shape)
+        self.angular_momentum_norm = G.reshape(shape)
+        self.omega_period = omega_period.reshape(shape)
+        self.flip_interval = flip.reshape(shape)
+
+    def _numpy_setup(self):
+        """The numpy path's constants (long double, scipy), built on at_numpy's first call."""
+        n, kind, regime = len(self._kind), self._kind, np.asarray(self.regime).ravel()
+        q0, m0, G, order = self._q0, self._m0, self._G, self._order
+        c, me, ie, it = kind == _CLOSED, self._me, self._ie, self._it
         # The rates multiply t: kept in long double too (see .extended).
         g_ld = np.sqrt(np.sum(m0.astype(LD) ** 2, axis=-1))
         self._ws_ld = np.where(c, me.astype(LD) * (1 / ie.astype(LD) - 1 / it.astype(LD)), 0)
@@ -201,12 +229,6 @@ class TorqueFreeSolution:
         # L̂ in space; at rest any axis will do (the rate is 0).
         lhat = rotation.rotate(q0, m0 / np.where(G > 0, G, 1.0)[:, None])
         self._lhat = np.where((G > 0)[:, None], lhat, [0.0, 0.0, 1.0])
-        body_rate = np.abs(self._ws)
-        omega_period[c] = np.where(body_rate[c] > 0,
-                                   2 * np.pi / np.where(body_rate[c] > 0, body_rate[c], 1.0),
-                                   np.inf)
-        flip[c] = 0.5 * omega_period[c]
-
         # --- elliptic and separatrix constants (only for those bodies; others keep dummies)
         self._W = np.tile(np.eye(3), (n, 1, 1))
         self._w = np.tile([0.0, 0.0, 0.0, 1.0], (n, 1))
@@ -224,23 +246,14 @@ class TorqueFreeSolution:
         for k in names:
             setattr(self, '_' + k, const[k])
 
-        # The compiled kernel's constants (double-double, exact_kernel.pack); its anchor
-        # C = q0 ⊗ w ⊗ E(0)* and P0 = P_r(u0) come from the very code of at(t), so at(0)
-        # returns q0 to round-off whatever φ(0) is (2j0·cphi·Π need not vanish).
-        self._rows = exact_kernel.pack(self)
-        self._idx = idx
-        self._row0 = self._rows[0]                       # at(t)'s one-body fast path
+        self._C = np.tile([0.0, 0.0, 0.0, 1.0], (n, 1))  # anchor as the kernel's
         if idx.size:
-            exact_kernel.anchor(self._rows, idx)
-        self._C = None                                   # at_numpy's anchor, on first use
-        el = kind == _ELLIPTIC                           # periods from the kernel's 2K/λ
-        flip[el] = self._rows[el, exact_kernel.TK_H] / self._rows[el, exact_kernel.LAM_H]
-        omega_period[el] = 2 * flip[el]
-        shape = self.batch_shape
-        self.kinetic_energy = T.reshape(shape)
-        self.angular_momentum_norm = G.reshape(shape)
-        self.omega_period = omega_period.reshape(shape)
-        self.flip_interval = flip.reshape(shape)
+            self._P0[idx] = 0.0
+            self._P0[idx] = self._moving(idx, np.zeros(idx.size))[2]
+            e0 = self._moving(idx, np.zeros(idx.size))[0]
+            self._C[idx] = rotation.multiply(
+                rotation.multiply(self._q0[idx], self._w[idx]), rotation.conjugate(e0))
+        self._numpy_ready = True
 
     def _elliptic_constants(self, kind, W, m0, G):
         """Constants of the elliptic (A, B) and separatrix bodies, in their working frames.
@@ -376,15 +389,8 @@ class TorqueFreeSolution:
     def at_numpy(self, t):
         """at(t) by the vectorised numpy path (long-double phases, scipy.special): the
         reference the compiled kernel is tested against, and JIT-less bulk evaluation."""
-        if self._C is None:                              # its own anchor, as the kernel's
-            self._C = np.tile([0.0, 0.0, 0.0, 1.0], (len(self._kind), 1))
-            idx = self._idx
-            if idx.size:
-                self._P0[idx] = 0.0
-                self._P0[idx] = self._moving(idx, np.zeros(idx.size))[2]
-                e0 = self._moving(idx, np.zeros(idx.size))[0]
-                self._C[idx] = rotation.multiply(
-                    rotation.multiply(self._q0[idx], self._w[idx]), rotation.conjugate(e0))
+        if not self._numpy_ready:
+            self._numpy_setup()
         t = np.asarray(t, float)
         if not np.all(np.isfinite(t)):
             raise ValueError(f'time must be finite, got {t}')

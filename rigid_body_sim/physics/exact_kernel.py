@@ -41,36 +41,31 @@ CLOSED, ELLIPTIC, SEPARATRIX = 0, 1, 2
 
 
 def pack(sol):
-    """(n, NCONST) rows from a TorqueFreeSolution: its frames, signs and classification,
-    with the rates, K, Π and the constants that follow from them recomputed in
-    double-double (:mod:`.exact_constants`), C and P0 left to :func:`anchor`."""
+    """(n, NCONST) anchored rows for a TorqueFreeSolution's bodies, each built by compiled
+    code (:func:`.exact_build.build`: the same classification and frames, the rates, K, Π
+    and what follows from them in double-double)."""
+    from .exact_build import build
     n = len(sol._kind)
-    rows = np.zeros((n, NCONST))
-    out = np.zeros(21)
+    rows = np.empty((n, NCONST))
     for b in range(n):
-        r = rows[b]
-        r[KIND] = sol._kind[b]
-        r[LH:LH + 3], r[Q0:Q0 + 4], r[M0:M0 + 3], r[E:E + 3] = (
-            sol._lhat[b], sol._q0[b], sol._m0[b], sol._e[b])
-        if sol._kind[b] == CLOSED:
-            g2h, g2l = exact_constants.sum_squares(*sol._m0[b])
-            r[RL_H], r[RL_L], r[WS_H], r[WS_L] = exact_constants.closed_rates(
-                g2h, g2l, float(sol._me[b]), float(sol._ie[b]), float(sol._it[b]))
-            continue
-        r[WC:WC + 4] = sol._w[b] * (-1.0, -1.0, -1.0, 1.0)
-        r[W:W + 9] = sol._W[b].ravel()
-        for i, k in zip((MX, MY, MZ, S, SIGD, SIGX, G), ('mx', 'my', 'mz', 's', 'sigd', 'sigx',
-                                                         'G')):
-            r[i] = getattr(sol, '_' + k)[b]
-        ix, iy, iz = np.abs(sol._W[b]) @ sol.moments
-        mw = sol._W[b] @ sol._m0[b]                      # exact: a signed permutation
-        exact_constants.elliptic(ix, iy, iz, mw[0], mw[1], mw[2],
-                                 sol._kind[b] == SEPARATRIX, r[S], out)
-        r[[LAM_H, LAM_L, TK_H, TK_L, K_H, K_L, R0_H, R0_L, CP_H, CP_L, RS_H, RS_L]] = out[:12]
-        r[[N, KP2, KP, KF, CPHI, U0]] = out[12:18]
-        if sol._kind[b] == ELLIPTIC:
-            r[[MX, MY, MZ]] = out[18:21]
+        kind = build(sol.moments, sol._q0[b], sol._m0[b], rows[b])
+        if kind != sol._kind[b]:                         # the two classifications are one rule
+            raise RuntimeError(f'exact_build classified body {b} as kind {kind}, '
+                               f'TorqueFreeSolution as {sol._kind[b]}')
     return rows
+
+
+@jit
+def fill_elliptic(r, out, kind):
+    """Row entries from exact_constants.elliptic's ``out``."""
+    r[LAM_H], r[LAM_L], r[TK_H], r[TK_L], r[K_H], r[K_L] = (out[0], out[1], out[2], out[3],
+                                                           out[4], out[5])
+    r[R0_H], r[R0_L], r[CP_H], r[CP_L], r[RS_H], r[RS_L] = (out[6], out[7], out[8], out[9],
+                                                           out[10], out[11])
+    r[N], r[KP2], r[KP], r[KF], r[CPHI], r[U0] = (out[12], out[13], out[14], out[15],
+                                                  out[16], out[17])
+    if kind == ELLIPTIC:
+        r[MX], r[MY], r[MZ] = out[18], out[19], out[20]
 
 
 @jit
@@ -199,31 +194,32 @@ def at_times(c, ts):
 
 
 @jit
-def anchor(rows, body):
-    """Set P0 = P_r(u0) and C = q0 ⊗ w ⊗ E(0)* for the elliptic/separatrix bodies listed,
-    E(0) from the very code of at(t), so at(0) returns q0 to round-off whatever φ(0)."""
-    for k in range(body.shape[0]):
-        c = rows[body[k]]
-        c[P0] = 0.0
-        c[P0] = _moving(c, 0.0)[7]
-        ex, ey, ez, ew, _, _, _, _ = _moving(c, 0.0)      # E(0) with the final P0
-        x, y, z, w = _qmul(c[Q0], c[Q0 + 1], c[Q0 + 2], c[Q0 + 3],
-                           -c[WC], -c[WC + 1], -c[WC + 2], c[WC + 3])
-        c[C], c[C + 1], c[C + 2], c[C + 3] = _qmul(x, y, z, w, -ex, -ey, -ez, ew)
+def anchor_one(c):
+    """Set P0 = P_r(u0) and C = q0 ⊗ w ⊗ E(0)* of one elliptic/separatrix row, E(0) from
+    the very code of at(t), so at(0) returns q0 to round-off whatever φ(0)."""
+    c[P0] = 0.0
+    c[P0] = _moving(c, 0.0)[7]
+    ex, ey, ez, ew, _, _, _, _ = _moving(c, 0.0)          # E(0) with the final P0
+    x, y, z, w = _qmul(c[Q0], c[Q0 + 1], c[Q0 + 2], c[Q0 + 3],
+                       -c[WC], -c[WC + 1], -c[WC + 2], c[WC + 3])
+    c[C], c[C + 1], c[C + 2], c[C + 3] = _qmul(x, y, z, w, -ex, -ey, -ez, ew)
 
 
-for _kernel in (_moving, evaluate_into, evaluate, at_one, at_times, anchor):
+for _kernel in (fill_elliptic, _moving, evaluate_into, evaluate, at_one, at_times, anchor_one):
     depends_on(_kernel, double_double, elliptic_kernel, exact_constants, kernels)
 
 
 def warm():
     """Compile (or load from the cache) the kernels on one body of each kind."""
     from .exact import TorqueFreeSolution
+    from .exact_build import flow
     for moments, m0 in (((1.0, 2.0, 3.0), (0.1, 1.0, 0.2)), ((1.0, 2.0, 3.0), (0.0, 1.0, 0.0)),
                         ((2.0, 3.0, 6.0), (1.0, 0.5, 1.0))):      # elliptic, steady, separatrix
         sol = TorqueFreeSolution(moments, (0.0, 0.0, 0.0, 1.0), m0)
         sol.at(0.5)
         sol.at(np.array([0.5, 1.0]))
+        flow(np.array(moments), np.array([0.0, 0.0, 0.0, 1.0]), np.array(m0), 0.5,
+             np.empty(4), np.empty(3))
     TorqueFreeSolution((1.0, 2.0, 3.0), (0.0, 0.0, 0.0, 1.0),
                        ((0.1, 1.0, 0.2), (0.3, 0.2, 0.1))).at(0.5)
     return COMPILED
