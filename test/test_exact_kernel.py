@@ -60,8 +60,10 @@ def test_compiled_path_matches_numpy_path():
 
 
 def test_near_separatrix_against_the_reference():
-    """k'² from 1e-4 down to 1e-9: the compiled path is at least as accurate as the numpy
-    path against 40 digits (within 1e-14 rad) and within 1e-10 rad over 1e3 s."""
+    """k'² from 1e-4 down to 1e-9: against 40 digits over 1e3 s the compiled path is within
+    1e-13 rad (measured ≤ 3.7e-14; the numpy path up to 6.3e-12 in this set, from k'² as
+    1 − m and u0 from a small cos am) and never worse than the numpy path by more than
+    5e-14 (round-off of either)."""
     rng = np.random.default_rng(12)
     ts = np.array([3.3, 77.7, 512.0, 1e3])
     for _ in range(6):
@@ -75,7 +77,7 @@ def test_near_separatrix_against_the_reference():
         refs = [ref.at(t)[0] for t in ts]
         err = max(attitude_error(a, r) for a, r in zip(sol.at(ts)[0], refs))
         err_numpy = max(attitude_error(a, r) for a, r in zip(sol.at_numpy(ts)[0], refs))
-        assert err <= err_numpy + 1e-14 and err < 1e-10, (sol._row0[exact_kernel.KP2], err)
+        assert err <= err_numpy + 5e-14 and err < 1e-13, (sol._row0[exact_kernel.KP2], err)
 
 
 _SCRIPT = '''

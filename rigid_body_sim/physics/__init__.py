@@ -5,7 +5,8 @@
 * :mod:`.integrators` — the registry of methods with one interface.
 * :mod:`.exact` — the torque-free solution in closed form (Jacobi elliptic functions);
   :mod:`.exact_kernel` its compiled evaluation (:mod:`.elliptic_kernel`,
-  :mod:`.double_double`), :mod:`.extended` its long-double constants.
+  :mod:`.double_double`), :mod:`.exact_build` and :mod:`.exact_constants` its compiled
+  set-up, :mod:`.exact_numpy` the vectorised numpy path (long double, :mod:`.extended`).
 * :mod:`.propagator` — propagation in the user's body frame.
 """
 from .body import RigidBody

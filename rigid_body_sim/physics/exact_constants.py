@@ -138,14 +138,28 @@ def elliptic(ix, iy, iz, mx, my, mz, separatrix, s, out):
     if separatrix:
         out[17] = math.asinh(s * my / math.hypot(mx, mz))
     else:
-        # u0 = F(am u0 | k²), am u0 from (cn, sn) = (m_x/Mx, m_y/(s My)), |am| ≤ π/2 first
-        ang = math.atan2(my / (s * out[19]), mx / out[18])
+        # u0 = F(am u0 | k²), am u0 from (cn, sn) = (m_x/Mx, m_y/(s My)), reduced to
+        # |am| ≤ π/2 (u0 = 2K·turn + r). Near the quarter period (|am| > π/4) cos am is
+        # small and its rounding would cost eps/cos am in F: there r = ±(K − v) with
+        # tan(am v) = cn/(k' |sn|) (cn(K − v) = k' sd v, sn(K − v) = cd v), all relative.
+        sn0 = my / (s * out[19])
+        cn0 = mx / out[18]
         turn = 0.0
-        if abs(ang) > 0.5 * math.pi:
-            turn = 1.0 if ang > 0.0 else -1.0
-        sr, cr = math.sin(ang - turn * math.pi), math.cos(ang - turn * math.pi)
-        out[17] = turn * 2.0 * kf + sr * rf(cr * cr, cr * cr + out[13] * sr * sr, 1.0)
-
+        if cn0 < 0.0:
+            turn = 1.0 if sn0 >= 0.0 else -1.0
+            sn0, cn0 = -sn0, -cn0
+        kp = out[14]
+        if abs(sn0) <= cn0:
+            h = math.hypot(sn0, cn0)
+            sr, cr = sn0 / h, cn0 / h
+            r = sr * rf(cr * cr, cr * cr + out[13] * sr * sr, 1.0)
+        else:
+            a, b = cn0, kp * abs(sn0)
+            h = math.hypot(a, b)
+            sv, cv = a / h, b / h
+            v = sv * rf(cv * cv, cv * cv + out[13] * sv * sv, 1.0)
+            r = math.copysign(kf - v, sn0)
+        out[17] = turn * 2.0 * kf + r
 
 for _kernel in (cel, _delta, sum_squares, closed_rates, elliptic):
     depends_on(_kernel, double_double, elliptic_kernel, kernels)
