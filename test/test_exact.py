@@ -238,12 +238,14 @@ def test_invalid_time_raises():
 def test_scalar_path_matches_vectorised(moments, m0, regime):
     """The single-body scalar-t call and the many-times call (both the compiled kernel,
     :mod:`.exact_kernel`) give the same bits, and reproduce the vectorised numpy code
-    (``at_numpy``) to round-off of the phase: 1e-15·(1 + |t|) (double-double vs long-double
-    phases, libm vs numpy sin in the last bit). Near the separatrix (k'² = 1e-12, the last
-    case) the numpy path is the inaccurate one (scipy's ellipj takes m = 1 − k'², which
-    carries k'² only to 9e-5, and u0 from a small cos am: 1.0e-12 rad and 9e-13·|m| off at
-    t = 123.4 s), so there the check is against the 40-digit reference: ≤ 1e-14 rad and
-    1e-14·|m| (measured ≤ 5.9e-15 and 9e-17)."""
+    (``at_numpy``) to round-off of the phase: 1e-15·(4 + |t|) (double-double vs long-double
+    constants and phases, Carlson/Cephes in numba vs scipy, each within a few eps: at
+    t = 0.3 s the numpy path is 1.7e-15 rad from 40 digits, the kernel 1.4e-16).
+    Near the separatrix (k'² = 1e-12, the last case) the numpy path is the inaccurate one:
+    scipy's ellipj takes m = 1 − k'², which carries k'² only to 9e-5, and u0 comes from a
+    small cos am (1.0e-12 rad and 9e-13·|m| off at t = 123.4 s). There the check is
+    against the 40-digit reference: ≤ 1e-14 rad and 1e-14·|m| (measured ≤ 5.9e-15, 9e-17).
+    """
     from rigid_body_sim.bench.reference40 import Reference40, attitude_error, vector_error
     sol = TorqueFreeSolution(moments, Q0, m0)
     ts = np.array([0.0, 0.3, 7.9, -4.2, 123.4, 1e5])
@@ -262,6 +264,6 @@ def test_scalar_path_matches_vectorised(moments, m0, regime):
             assert attitude_error(q, refs[k][0]) <= 1e-14, t
             assert vector_error(m, refs[k][1]) <= 1e-14 * g, t
         else:
-            tol = 1e-15 * (1 + abs(t))
+            tol = 1e-15 * (4 + abs(t))
             assert np.max(np.abs(m - mv[k])) <= tol * max(1.0, np.max(np.abs(mv[k])))
             assert rotation.angle_between(q, qv[k]) < tol

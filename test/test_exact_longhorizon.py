@@ -4,7 +4,7 @@ torque-free scene: ≤ 1e-12 rad and ≤ 1e-9 rad (the issue's targets), and |Δ
 The reference starts from the same float64 numbers, so the errors are exact.py's own. The
 near-separatrix scenes (intermediate_axis, config/tennis_racket) were the misses (1.2e-9 and
 5.5e-9 rad at 1e6 s, from Π(−N|k²) and the rates in float64); ≤ 1.7e-12 with long double;
-measured now ≤ 1.2e-14 (compiled kernel, double-double constants and phases) and ≤ 4.3e-15
+measured now ≤ 5.4e-15 (compiled kernel, double-double constants and phases) and ≤ 1.5e-14
 at 1e3 s.
 """
 import numpy as np

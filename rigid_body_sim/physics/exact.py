@@ -56,8 +56,8 @@ cancellation. :meth:`TorqueFreeSolution.at` therefore evaluates with the compile
 relative, on every platform), u = 2jK + r and the secular part of φ modulo 4π formed and
 reduced there, ψ taking jπ modulo 4π; the Jacobi and Carlson functions
 (:mod:`.elliptic_kernel`) see only |r| ≤ K in float64, with k'² passed as such (no 1 − m).
-Against a 40-digit reference (bench/reference40.py) the attitude error is ≤ 4.3e-15 rad at
-1e3 s and ≤ 1.2e-14 at 1e6 s on every torque-free scene, and ≤ 6.1e-14 beside the
+Against a 40-digit reference (bench/reference40.py) the attitude error is ≤ 1.5e-14 rad at
+1e3 s and ≤ 5.4e-15 at 1e6 s on every torque-free scene, and ≤ 6.1e-14 beside the
 separatrix at k'² down to 2e-13 (test_exact_longhorizon.py).
 
 :meth:`TorqueFreeSolution.at_numpy` keeps the vectorised numpy path (constants and phases

@@ -158,7 +158,7 @@ def elliptic(ix, iy, iz, mx, my, mz, separatrix, s, out):
             h = math.hypot(a, b)
             sv, cv = a / h, b / h
             v = sv * rf(cv * cv, cv * cv + out[13] * sv * sv, 1.0)
-            r = math.copysign(kf - v, sn0)
+            r = math.copysign((kh - v) + kl, sn0)             # K − v with K a pair
         out[17] = turn * 2.0 * kf + r
 
 for _kernel in (cel, _delta, sum_squares, closed_rates, elliptic):
