@@ -62,7 +62,7 @@ separatrix at k'² down to 2e-13 (test_exact_longhorizon.py).
 
 :meth:`TorqueFreeSolution.at_numpy` keeps the vectorised numpy path (constants and phases
 in long double, :mod:`.extended`; scipy.special): the reference the kernel is tested
-against, and bulk evaluation when numba's JIT is disabled. Its accuracy is that of long
+against. Its accuracy is that of long
 double (plain double on macOS arm64/MSVC) and of k'² = 1 − m in float64: ≤ 1.7e-12 rad at
 1e6 s on the scenes, but up to 2.4e-9 rad at 1e3 s beside the separatrix.
 
@@ -187,8 +187,9 @@ class TorqueFreeSolution(NumpyPath):
 
     def at(self, t):
         """(q, m) at time(s) t (s), t broadcast against the batch shape: the compiled
-        kernel (:mod:`.exact_kernel`). With JIT disabled, large evaluations take the
-        vectorised numpy path instead (same formulas; the kernel would be a Python loop)."""
+        kernel (:mod:`.exact_kernel`), also with JIT disabled (then a Python loop, but the
+        same numbers whatever the number of times: the numpy path differs near the
+        separatrix, see at_numpy)."""
         if not self.batch_shape and isinstance(t, (float, int, np.floating, np.integer)):
             t = float(t)
             if not math.isfinite(t):
@@ -198,8 +199,6 @@ class TorqueFreeSolution(NumpyPath):
         if not np.all(np.isfinite(t)):
             raise ValueError(f'time must be finite, got {t}')
         shape = np.broadcast_shapes(t.shape, self.batch_shape)
-        if not exact_kernel.COMPILED and np.prod(shape, dtype=int) > 64:
-            return self.at_numpy(t)
         if not self.batch_shape:
             q, m = exact_kernel.at_times(self._rows[0], np.ascontiguousarray(t.ravel()))
             return q.reshape(shape + (4,)), m.reshape(shape + (3,))

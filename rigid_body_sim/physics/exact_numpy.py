@@ -1,10 +1,9 @@
 """The vectorised numpy path of :class:`.exact.TorqueFreeSolution` (``at_numpy``): the
 same formulas as the compiled kernel, with the constants and secular phases in long double
 (:mod:`.extended`) and scipy.special's ellipj/elliprf/elliprj, over many bodies and times
-at once. It is the second opinion the compiled kernel is tested against, and the bulk path
-when numba's JIT is disabled. Its limits (see exact.py): long double is plain double on
-macOS arm64/MSVC, and ellipj takes m = 1 − k'², which near the separatrix carries k'²
-only to eps/k'².
+at once. It is the second opinion the compiled kernel is tested against. Its limits (see
+exact.py): long double is plain double on macOS arm64/MSVC, and ellipj takes m = 1 − k'²,
+which near the separatrix carries k'² only to eps/k'².
 """
 import functools
 
@@ -192,7 +191,7 @@ class NumpyPath:
 
     def at_numpy(self, t):
         """at(t) by the vectorised numpy path (long-double phases, scipy.special): the
-        reference the compiled kernel is tested against, and JIT-less bulk evaluation."""
+        reference the compiled kernel is tested against."""
         if not self._numpy_ready:
             self._numpy_setup()
         t = np.asarray(t, float)
