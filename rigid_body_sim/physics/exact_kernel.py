@@ -1,15 +1,14 @@
-"""Compiled evaluation of the torque-free solution (:mod:`.exact`): one body's constants,
-packed by :func:`pack` into a float64 row, evaluated at one time or at many.
+"""Compiled evaluation of the torque-free solution (:mod:`.exact`): one body's constants
+in a float64 row (built by :mod:`.exact_build`), evaluated at one time or at many.
 
-The formulas, frames and conventions are those of :mod:`.exact` (read its docstring); only
-the arithmetic of the secular phases changes. Where :mod:`.exact` forms λt + u0, its
-reduction u = 2jK + r, (G/Iz)t + cphi·2jΠ and their reduction modulo 4π in long double,
-this kernel does it in double-double (:mod:`.double_double`, ~106 bits): each rate is
-stored as a pair (hi, lo) = its long-double value split in two float64, the products with
-t and j and the reductions are error-free transformations. So the phases keep ~1e-32 of
-relative error in the arithmetic and the constants' own (long double, eps 1.1e-19 on
-x86-64); the Jacobi functions and Carlson's integrals (:mod:`.elliptic_kernel`) see only
-|r| ≤ K in float64, as before.
+The formulas, frames and conventions are those of :mod:`.exact` (read its docstring). The
+quantities that grow with t — λt + u0, its reduction u = 2jK + r, (G/Iz)t + cphi·2jΠ and
+its reduction modulo 4π — are formed in double-double (:mod:`.double_double`, ~106 bits):
+each rate and complete integral is stored as a pair (hi, lo) computed in double-double
+(:mod:`.exact_constants`), and the products with t and j and the reductions are
+error-free transformations, so the phases keep ~1e-32 relative error. The Jacobi
+functions and Carlson's integrals (:mod:`.elliptic_kernel`) see only |r| ≤ K in float64,
+with k'² passed as such.
 
 Kinds (row[KIND]): 0 closed form (symmetric or spherical body, steady spin, rest),
 1 elliptic (cases A and B in their working frames), 2 separatrix. The closed form is the
