@@ -30,7 +30,8 @@ def test_every_scene_plans_its_nodes(name):
 
 
 def test_unknown_scene_and_bad_arguments_fail_at_once():
-    with pytest.raises(SceneError, match="unknown scene 'bogus'; built-in scenes: .*default, detumble"):
+    with pytest.raises(SceneError,
+                       match="unknown scene 'bogus'; built-in scenes: .*default, detumble"):
         plan('bogus')
     with pytest.raises(ValueError, match='controller:=maybe'):
         plan('default', controller='maybe')

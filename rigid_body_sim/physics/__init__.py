@@ -4,7 +4,9 @@
 * :mod:`.dynamics` — Euler's equations, torques and dissipation (principal frame).
 * :mod:`.integrators` — the registry of methods with one interface.
 * :mod:`.exact` — the torque-free solution in closed form (Jacobi elliptic functions);
-  :mod:`.exact_scalar` its one-body path, :mod:`.extended` its long-double phases.
+  :mod:`.exact_kernel` its compiled evaluation (:mod:`.elliptic_kernel`,
+  :mod:`.double_double`), :mod:`.exact_build` and :mod:`.exact_constants` its compiled
+  set-up, :mod:`.exact_numpy` the vectorised numpy path (long double, :mod:`.extended`).
 * :mod:`.propagator` — propagation in the user's body frame.
 """
 from .body import RigidBody

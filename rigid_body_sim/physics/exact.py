@@ -50,62 +50,37 @@ Regime classification (relative tolerances, per body):
 
 Long horizons. The phases grow without bound (λt, (G/Iz)t and 2j·cphi·Π reach ~1e7 rad at
 t = 1e6 s), so float64 rates, each a few eps off, would move them by ~eps·|ω|·t (2e-9 rad at
-10 rad/s), and scipy's elliprj gave Π(−N|k²) only to ~2e-15 near the separatrix, an error
-multiplied by j. The rates and K, Π are therefore computed in long double (:mod:`.extended`),
-u = λt + u0 is split into 2jK + r there, the secular part of φ is reduced modulo 4π there,
-and ψ takes jπ modulo 4π; the Jacobi and Carlson functions then see only |r| ≤ K in float64.
-Against a 40-digit reference (bench/reference40.py) the attitude error at 1e6 s is ≤ 2e-12
-rad on every torque-free scene (it was 5e-9 on tennis_racket, 1.2e-9 on intermediate_axis).
+10 rad/s), Π's error is multiplied by j, and near the separatrix k'² comes from Δy by
+cancellation. :meth:`TorqueFreeSolution.at` therefore evaluates with the compiled kernel
+(:mod:`.exact_kernel`): rates, K, Π and k'² in double-double (:mod:`.exact_constants`, ~1e-32
+relative, on every platform), u = 2jK + r and the secular part of φ modulo 4π formed and
+reduced there, ψ taking jπ modulo 4π; the Jacobi and Carlson functions
+(:mod:`.elliptic_kernel`) see only |r| ≤ K in float64, with k'² passed as such (no 1 − m).
+Against a 40-digit reference (bench/reference40.py) the attitude error is ≤ 1.5e-14 rad at
+1e3 s and ≤ 5.4e-15 at 1e6 s on every torque-free scene, and ≤ 6.1e-14 beside the
+separatrix at k'² down to 2e-13 (test_exact_longhorizon.py).
 
-The output quaternion is continuous in t (no sign jumps). A single body at a scalar t takes
-a pure-Python-float path (:mod:`.exact_scalar`, same formulas, tested against the vectorised
-one): numpy call overhead, not arithmetic, dominates there.
+:meth:`TorqueFreeSolution.at_numpy` keeps the vectorised numpy path (constants and phases
+in long double, :mod:`.extended`; scipy.special): the reference the kernel is tested
+against. Its accuracy is that of long
+double (plain double on macOS arm64/MSVC) and of k'² = 1 − m in float64: ≤ 1.7e-12 rad at
+1e6 s on the scenes, but up to 2.4e-9 rad at 1e3 s beside the separatrix.
+
+The output quaternion is continuous in t (no sign jumps).
 """
-import functools
 import math
 
 import numpy as np
-from scipy.spatial.transform import Rotation
-from scipy.special import ellipj, elliprf, elliprj
 
-from . import rotation
-from . import exact_scalar
-from .extended import LD, cel, reduce_4pi
+from . import exact_kernel, rotation
+from .exact_build import MOMENT_RTOL, SEPARATRIX_RTOL, STEADY_RTOL  # one rule, both paths
+from .exact_kernel import CLOSED as _CLOSED, ELLIPTIC as _ELLIPTIC, SEPARATRIX as _SEPARATRIX
+from .exact_numpy import NumpyPath
 
-MOMENT_RTOL = 1e-12
-SEPARATRIX_RTOL = 16 * np.finfo(float).eps
-STEADY_RTOL = 1e-100
-
-_CLOSED, _ELLIPTIC, _SEPARATRIX = 0, 1, 2
+__all__ = ['TorqueFreeSolution', 'MOMENT_RTOL', 'SEPARATRIX_RTOL', 'STEADY_RTOL']
 
 
-@functools.lru_cache(maxsize=8)
-def _frame_quaternions(order):
-    """Signed permutations W (rows = working axes in caller indices), det +1, for frames A, B."""
-    wa = np.eye(3)[list(order)]
-    if np.linalg.det(wa) < 0:          # odd sort: flip the intermediate axis
-        wa[1] *= -1.0
-    wb = np.array([wa[2], -wa[1], wa[0]])
-    return [(w, Rotation.from_matrix(w.T).as_quat()) for w in (wa, wb)]
-
-
-def _carlson_pi(sn, cn, dn, n_):
-    """Π(−N; am r | k²) for |am r| ≤ π/2, Carlson form."""
-    s2 = sn * sn
-    return (sn * elliprf(cn * cn, dn * dn, 1.0)
-            - (n_ / 3.0) * sn * s2 * elliprj(cn * cn, dn * dn, 1.0, 1.0 + n_ * s2))
-
-
-def _qz_qx_qz(phi, theta, psi):
-    """Quaternion of Rz(φ)·Rx(θ)·Rz(ψ)."""
-    sp, cp = np.sin(0.5 * phi), np.cos(0.5 * phi)
-    st, ct = np.sin(0.5 * theta), np.cos(0.5 * theta)
-    ss, cs = np.sin(0.5 * psi), np.cos(0.5 * psi)
-    x, y, z, w = st * cs, -st * ss, ct * ss, ct * cs        # Rx(θ)·Rz(ψ)
-    return np.stack((cp * x - sp * y, cp * y + sp * x, cp * z + sp * w, cp * w - sp * z), axis=-1)
-
-
-class TorqueFreeSolution:
+class TorqueFreeSolution(NumpyPath):
     """Closed-form torque-free motion of one body or a batch sharing principal ``moments``.
 
     ``q0`` (4,) or (N, 4), ``m0`` (3,) or (N, 3) at t = 0; ``at(t)`` returns (q, m) with t
@@ -186,215 +161,51 @@ class TorqueFreeSolution:
         ie = np.where(c, e @ moments, 1.0)
         self._e = e
         self._ws = np.where(c, me * (1.0 / ie - 1.0 / it), 0.0)
-        # The rates multiply t: kept in long double too (see .extended).
-        g_ld = np.sqrt(np.sum(m0.astype(LD) ** 2, axis=-1))
-        self._ws_ld = np.where(c, me.astype(LD) * (1 / ie.astype(LD) - 1 / it.astype(LD)), 0)
-        self._rate_l_ld = np.where(c, g_ld / it, 0)
-        # L̂ in space; at rest any axis will do (the rate is 0).
-        lhat = rotation.rotate(q0, m0 / np.where(G > 0, G, 1.0)[:, None])
-        self._lhat = np.where((G > 0)[:, None], lhat, [0.0, 0.0, 1.0])
+        self._me, self._ie, self._it = me, ie, it        # the kernel's double-double rates
         body_rate = np.abs(self._ws)
         omega_period[c] = np.where(body_rate[c] > 0,
                                    2 * np.pi / np.where(body_rate[c] > 0, body_rate[c], 1.0),
                                    np.inf)
         flip[c] = 0.5 * omega_period[c]
 
-        # --- elliptic and separatrix constants (only for those bodies; others keep dummies)
-        self._W = np.tile(np.eye(3), (n, 1, 1))
-        self._w = np.tile([0.0, 0.0, 0.0, 1.0], (n, 1))
-        frames = _frame_quaternions(tuple(order.tolist()))
-        for which, mask in ((0, (kind != _CLOSED) & (regime != 'B')), (1, regime == 'B')):
-            self._W[mask], self._w[mask] = frames[which]
-        names = ('N', 'sigd', 'sigx', 's', 'lam', 'u0', 'mx', 'my', 'mz', 'kp2', 'kp', 'K', 'pic',
-                 'rate0', 'cphi', 'G', 'P0', 'lam_ld', 'K_ld', 'pic_ld', 'rate0_ld', 'cphi_ld',
-                 'N_ld')
-        const = {k: np.ones(n, LD if k.endswith('_ld') else float) for k in names}
-        idx = np.flatnonzero(kind != _CLOSED)
-        if idx.size:
-            for k, v in self._elliptic_constants(kind[idx], self._W[idx], m0[idx], G[idx]).items():
-                const[k][idx] = v
-        for k in names:
-            setattr(self, '_' + k, const[k])
-        el = kind == _ELLIPTIC
-        omega_period[el] = (4 * self._K_ld[el] / self._lam_ld[el]).astype(float)
-        flip[el] = (2 * self._K_ld[el] / self._lam_ld[el]).astype(float)
+        self._G, self._order = G, order
+        self._numpy_ready = False                        # at_numpy's constants, on first use
 
-        # C = q0 ⊗ w ⊗ E(0)*, with E(0) evaluated by the same code as at(t), so at(0) returns
-        # q0 to round-off whatever φ(0) is (the secular part 2j0·cphi·Π need not vanish).
-        self._C = np.tile([0.0, 0.0, 0.0, 1.0], (n, 1))
-        self._scalars = {k: (v[0] if k.endswith('_ld') else float(v[0]))
-                         for k, v in const.items()} if n == 1 else None
-        self._wc = tuple(rotation.conjugate(self._w[0]))
-        if idx.size:
-            self._P0[idx] = 0.0
-            if n == 1:                                   # same formulas, without numpy overhead
-                self._scalars['P0'] = self._P0[0] = self._scalar_moving(0.0)[2]
-                e0 = np.array(self._scalar_moving(0.0)[0])
-            else:
-                self._P0[idx] = self._moving(idx, np.zeros(idx.size))[2]
-                e0 = self._moving(idx, np.zeros(idx.size))[0]
-            self._C[idx] = rotation.multiply(rotation.multiply(q0[idx], self._w[idx]),
-                                             rotation.conjugate(e0))
+        # The compiled kernel's constants (double-double, exact_kernel.pack); its anchor
+        # C = q0 ⊗ w ⊗ E(0)* and P0 = P_r(u0) come from the very code of at(t), so at(0)
+        # returns q0 to round-off whatever φ(0) is (2j0·cphi·Π need not vanish).
+        self._rows = exact_kernel.pack(self)             # built and anchored
+        self._row0 = self._rows[0]                       # at(t)'s one-body fast path
+        el = kind == _ELLIPTIC                           # periods from the kernel's 2K/λ
+        flip[el] = self._rows[el, exact_kernel.TK_H] / self._rows[el, exact_kernel.LAM_H]
+        omega_period[el] = 2 * flip[el]
         shape = self.batch_shape
         self.kinetic_energy = T.reshape(shape)
         self.angular_momentum_norm = G.reshape(shape)
         self.omega_period = omega_period.reshape(shape)
         self.flip_interval = flip.reshape(shape)
 
-    def _elliptic_constants(self, kind, W, m0, G):
-        """Constants of the elliptic (A, B) and separatrix bodies, in their working frames.
-        Those that multiply t or the half-period count j are kept in long double (``*_ld``)."""
-        mw = np.einsum('nij,nj->ni', W, m0)             # exact: W is a signed permutation
-        ix, iy, iz = (np.abs(W) @ self.moments).T      # working moments
-        lx, ly, lz = (v.astype(LD) for v in (ix, iy, iz))
-        sq = mw.astype(LD) ** 2
-        dx = sq[:, 1] * (ly - lx) / ly + sq[:, 2] * (lz - lx) / lz
-        dy = sq[:, 0] * (lx - ly) / lx + sq[:, 2] * (lz - ly) / lz
-        dz = sq[:, 0] * (lx - lz) / lx + sq[:, 1] * (ly - lz) / ly
-        g = np.sqrt(np.sum(sq, axis=-1))
-        sp = kind == _SEPARATRIX
-        n_ld = lz * (ly - lx) / (lx * (lz - ly))
-        c = dict(N=n_ld.astype(float), G=G, P0=np.zeros(len(G)), N_ld=n_ld)
-        c['sigd'] = np.where(mw[:, 2] < 0, -1.0, 1.0)
-        c['sigx'] = np.where(mw[:, 0] < 0, -1.0, 1.0)
-        with np.errstate(divide='ignore', invalid='ignore'):   # separatrix rows are replaced below
-            lam = np.sqrt((lz - ly) * dx / (lx * ly * lz))
-            mx = np.sqrt(lx * -dz / (lz - lx)).astype(float)
-            my = np.sqrt(ly * -dz / (lz - ly)).astype(float)
-            mz = np.sqrt(lz * dx / (lz - lx)).astype(float)
-            kp2 = np.where(sp, 0.5, dy * (lz - lx) / (dx * (lz - ly)))
-        # On the separatrix Δy = 0 exactly: My = G, λ = σ, and m_x, m_z carry independent signs.
-        c['mx'] = np.where(sp, G * np.sqrt(ix * (iz - iy) / (iy * (iz - ix))), mx)
-        c['mz'] = np.where(sp, G * np.sqrt(iz * (iy - ix) / (iy * (iz - ix))), mz)
-        c['my'] = np.where(sp, G, my)
-        c['s'] = np.where(sp, c['sigx'], 1.0) * c['sigd'] * np.sign(iz - iy)
-        lam = np.where(sp, (g / ly) * np.sqrt((lz - ly) * (ly - lx) / (lx * lz)), lam)
-        kp = np.sqrt(kp2)
-        # K = cel(k', 1), Π(−N|k²) = cel(k', 1 + N): from k' directly, no cancellation.
-        K, pic = cel(np.stack((kp, kp)), np.stack((np.ones_like(n_ld), 1 + n_ld)))
-        rate0 = g / lz
-        cphi = rate0 * (lz - lx) / (lx * lam)
-        c.update(lam_ld=lam, K_ld=K, pic_ld=pic, rate0_ld=rate0, cphi_ld=cphi)
-        c.update({k: v.astype(float) for k, v in (('lam', lam), ('K', K), ('pic', pic),
-                                                    ('rate0', rate0), ('cphi', cphi),
-                                                    ('kp2', kp2), ('kp', kp))})
-        # u0 = F(am u0), am u0 from (cn, sn) = (m_x/Mx, m_y/(s My)), reduced to |am| ≤ π/2.
-        ang = np.arctan2(mw[:, 1] / (c['s'] * c['my']), mw[:, 0] / c['mx'])
-        turn = np.where(np.abs(ang) > 0.5 * np.pi, np.sign(ang), 0.0)
-        sr, cr = np.sin(ang - turn * np.pi), np.cos(ang - turn * np.pi)
-        u0 = turn * 2 * c['K'] + sr * elliprf(cr * cr, cr * cr + c['kp2'] * sr * sr, 1.0)
-        with np.errstate(divide='ignore', invalid='ignore'):
-            c['u0'] = np.where(sp, np.arcsinh(c['s'] * mw[:, 1] / np.hypot(mw[:, 0], mw[:, 2])),
-                               u0)
-        return c
-
-    def _moving(self, b, t):
-        """Working-frame E(t) = Rz(φ)Rx(θ)Rz(ψ), m_work and P_r for elliptic/separatrix
-        bodies b, where P(u) = (secular part, in long double) + P_r; P0 holds P_r(u0)."""
-        tl = np.asarray(t, LD)
-        u = self._lam_ld[b] * tl + self._u0[b]         # long double: λt reaches ~1e7
-        sep = self._kind[b] == _SEPARATRIX
-        if np.all(sep):
-            return self._separatrix(b, tl, u)
-        mx, my, mz, s, sigd = self._mx[b], self._my[b], self._mz[b], self._s[b], self._sigd[b]
-        K, kp, kp2, N = self._K[b], self._kp[b], self._kp2[b], self._N[b]
-        two_k = 2 * self._K_ld[b]
-        j = np.rint(u / two_k)
-        r_ld = u - two_k * j                             # |r| ≤ K, exact to ~eps_ld·|u|
-        r = r_ld.astype(float)
-        ar = np.abs(r)
-        near = ar > 0.5 * K
-        sv, cv, dv, _ = ellipj(np.where(near, (self._K_ld[b] - np.abs(r_ld)).astype(float), ar),
-                               1.0 - kp2)
-        sn = np.copysign(np.where(near, cv / dv, sv), r)
-        cn = np.where(near, kp * sv / dv, cv)
-        dn = np.where(near, kp / dv, dv)
-        P = _carlson_pi(sn, cn, dn, N)
-        # φ = rate0·t + cphi·(2j·Π(−N|k²) + P_r − P0): the secular terms grow without bound,
-        # so they are summed in long double and reduced modulo 4π.
-        secular = self._rate0_ld[b] * tl + self._cphi_ld[b] * (2 * j * self._pic_ld[b])
-        j = j.astype(float)
-        par = 1.0 - 2.0 * (j % 2)
-        m = np.stack((mx * par * cn, s * my * par * sn, sigd * mz * dn), axis=-1)
-        A = (j % 4) * np.pi + np.arctan2(sn, cn)         # ψ enters as ψ/2: jπ modulo 4π
-        delta = np.arctan2((my - mx) * sn * cn, mx * cn * cn + my * sn * sn)
-        psi = 0.5 * np.pi - s * (A + delta)
-        phi = reduce_4pi(secular) + self._cphi[b] * (P - self._P0[b])
-        theta = np.arctan2(np.hypot(m[..., 0], m[..., 1]), m[..., 2])
-        E = _qz_qx_qz(phi, theta, psi)
-        if np.any(sep):
-            Es, ms, Ps = self._separatrix(b, tl, u)
-            E, m, P = (np.where(sep[:, None], Es, E), np.where(sep[:, None], ms, m),
-                       np.where(sep, Ps, P))
-        return E, m, P
-
-    def _separatrix(self, b, tl, u):
-        """P(u) = [u + √N atan(√N tanh u)]/(1 + N): secular part λt/(1 + N) in long double."""
-        N = self._N[b]
-        u = u.astype(float)
-        th = np.tanh(u)
-        ex = np.exp(-np.abs(u))
-        se = 2 * ex / (1 + ex * ex)                      # sech without overflow
-        rn = np.sqrt(N)
-        P = (self._u0[b] + rn * np.arctan(rn * th)) / (1 + N)
-        m = np.stack((self._sigx[b] * self._mx[b] * se, self._s[b] * self._G[b] * th,
-                      self._sigd[b] * self._mz[b] * se), axis=-1)
-        psi = np.arctan2(m[..., 0], m[..., 1])
-        secular = (self._rate0_ld[b] * tl
-                   + self._cphi_ld[b] * self._lam_ld[b] * tl / (1 + self._N_ld[b]))
-        phi = reduce_4pi(secular) + self._cphi[b] * (P - self._P0[b])
-        theta = np.arctan2(np.hypot(m[..., 0], m[..., 1]), m[..., 2])
-        return _qz_qx_qz(phi, theta, psi), m, P
-
     def at(self, t):
-        """(q, m) at time(s) t (s), t broadcast against the batch shape."""
+        """(q, m) at time(s) t (s), t broadcast against the batch shape: the compiled
+        kernel (:mod:`.exact_kernel`), also with JIT disabled (then a Python loop, but the
+        same numbers whatever the number of times: the numpy path differs near the
+        separatrix, see at_numpy)."""
         if not self.batch_shape and isinstance(t, (float, int, np.floating, np.integer)):
-            return self._at_scalar(float(t))
+            t = float(t)
+            if not math.isfinite(t):
+                raise ValueError(f'time must be finite, got {t}')
+            return exact_kernel.at_one(self._row0, t)
         t = np.asarray(t, float)
         if not np.all(np.isfinite(t)):
             raise ValueError(f'time must be finite, got {t}')
         shape = np.broadcast_shapes(t.shape, self.batch_shape)
+        if not self.batch_shape:
+            q, m = exact_kernel.at_times(self._rows[0], np.ascontiguousarray(t.ravel()))
+            return q.reshape(shape + (4,)), m.reshape(shape + (3,))
         n = len(self._kind)
         body = np.broadcast_to(np.arange(n).reshape(self.batch_shape), shape).ravel()
-        tt = np.broadcast_to(t, shape).ravel()
+        tt = np.ascontiguousarray(np.broadcast_to(t, shape).ravel())
         q = np.empty((tt.size, 4))
         m = np.empty((tt.size, 3))
-        closed = self._kind[body] == _CLOSED
-        for sel in (np.flatnonzero(closed), np.flatnonzero(~closed)):
-            if sel.size == 0:
-                continue
-            b, ts = body[sel], tt[sel]
-            if closed[sel[0]]:
-                tl = ts.astype(LD)                       # angles reduced in long double
-                spin = self._e[b] * reduce_4pi(self._ws_ld[b] * tl)[:, None]
-                q[sel] = rotation.multiply(
-                    rotation.multiply(
-                        rotation.exp(self._lhat[b] * reduce_4pi(self._rate_l_ld[b] * tl)[:, None]),
-                        self._q0[b]),
-                    rotation.exp(spin))
-                m[sel] = rotation.rotate(rotation.exp(-spin), self._m0[b])
-            else:
-                E, mw, _ = self._moving(b, ts)
-                qs = rotation.multiply(rotation.multiply(self._C[b], E),
-                                       rotation.conjugate(self._w[b]))
-                q[sel] = qs
-                m[sel] = np.einsum('nji,nj->ni', self._W[b], mw)
-        q /= np.linalg.norm(q, axis=-1, keepdims=True)
+        exact_kernel.evaluate(self._rows, body, tt, q, m)
         return q.reshape(shape + (4,)), m.reshape(shape + (3,))
-
-    def _at_scalar(self, t):
-        """One body, one time: the same formulas on Python floats (:mod:`.exact_scalar`)."""
-        if not math.isfinite(t):
-            raise ValueError(f'time must be finite, got {t}')
-        if self._kind[0] == _CLOSED:
-            q, m = exact_scalar.closed(self._rate_l_ld[0], self._ws_ld[0], self._e[0],
-                                       self._lhat[0], self._q0[0], self._m0[0], t)
-        else:
-            E, mw, _ = self._scalar_moving(t)
-            q = exact_scalar.qmul(exact_scalar.qmul(self._C[0], E), self._wc)
-            m = self._W[0].T @ mw
-        q = np.array(q)
-        return q / math.sqrt(q @ q), np.asarray(m, float)
-
-    def _scalar_moving(self, t):
-        return exact_scalar.moving(self._scalars, self._kind[0] == _SEPARATRIX, t)

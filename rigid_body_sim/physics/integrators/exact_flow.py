@@ -7,8 +7,11 @@ elapsed time advances: the result is the solution at t, not a chain of rounded s
 With torque or dissipation the step is the symmetric splitting of ``splitting2`` with the
 exact free flow in place of the axis rotations (order 2 in the coupling).
 """
+import math
+
 import numpy as np
 
+from .. import exact_build
 from ..exact import TorqueFreeSolution
 from .splitting import Splitting2
 
@@ -26,6 +29,7 @@ class Exact(Splitting2):
 
     def __init__(self, dynamics):
         super().__init__(dynamics)
+        self._moments = np.ascontiguousarray(dynamics.moments, dtype=float)
         self.reset()
 
     def effective_order(self, m, h) -> int:
@@ -57,6 +61,18 @@ class Exact(Splitting2):
         self.nfev += 1
         return q_new, m_new
 
+    def _flow(self, q, m, h):
+        """The free flow for h from (q, m), a new solution each time: for one body a
+        compiled one-shot (:func:`..exact_build.flow`, ~1 µs instead of a TorqueFreeSolution's
+        ~300 µs of numpy set-up); a non-finite state gives NaN, which step() reports."""
+        if q.ndim > 1 or m.ndim > 1:
+            return TorqueFreeSolution(self.dynamics.moments, q, m).at(h)
+        q_out, m_out = np.full(4, np.nan), np.full(3, np.nan)
+        norm = math.sqrt(q @ q)
+        if math.isfinite(norm) and norm > 0.0 and np.all(np.isfinite(m)):
+            exact_build.flow(self._moments, q / norm, np.asarray(m, float), h, q_out, m_out)
+        return q_out, m_out
+
     def _step(self, q, m, h, torque, t):
         if torque is None and not self.dynamics.dissipation.active:
             return self._free(q, m, h)
@@ -64,7 +80,7 @@ class Exact(Splitting2):
         m = self._dissipate(m, 0.5 * h)
         if torque is not None:
             m = m + (0.5 * h) * torque
-        q, m = TorqueFreeSolution(self.dynamics.moments, q, m).at(h)
+        q, m = self._flow(q, m, h)
         self.nfev += 1
         if torque is not None:
             m = m + (0.5 * h) * torque
