@@ -22,6 +22,9 @@ of sim time from the start of the run. Definitions:
   ``kinetic_energy_drift``: |L|(end)/|L|(0) − 1 and T(end)/T(0) − 1. In a torque- and
   dissipation-free scene both are invariants, so these are integration errors; otherwise
   they are the physical change.
+
+The row adds ``integrator`` (the method that ran; ``auto``'s choice) and ``cpu_time``
+(CPU seconds of the thread that drew and ran it: a Dask worker's other threads excluded).
 """
 import math
 
