@@ -23,6 +23,12 @@ def _column(table, name) -> np.ndarray:
     return np.asarray(table.column(name).to_numpy(zero_copy_only=False), dtype=float)
 
 
+def _constant(v) -> bool:
+    """All finite values equal to 1e-9 relative (or none finite)."""
+    v = v[np.isfinite(v)]
+    return not v.size or float(np.ptp(v)) <= 1e-9 * max(1e-300, float(np.max(np.abs(v))))
+
+
 def summary(table, columns) -> Dict:
     """Counts, per-metric statistics over ok runs, worst run ids, failures by status."""
     status = np.asarray(table.column('status').to_pylist())
@@ -43,6 +49,8 @@ def summary(table, columns) -> Dict:
         v = _column(table, name)[ok]
         if not np.any(np.isfinite(v)):
             continue
+        if _constant(v):
+            continue  # no run is worse than another
         key = np.where(np.isfinite(v), np.abs(v), np.inf)  # never reached = worst
         order = np.argsort(-key, kind='stable')[:WORST_COUNT]
         worst[name] = [int(i) for i in ids[ok][order]]
@@ -89,7 +97,9 @@ def write_plots(table, columns, out_dir) -> List[str]:
     rows = math.ceil(len(data) / cols)
     fig, axes = plt.subplots(rows, cols, figsize=(4 * cols, 3 * rows), squeeze=False)
     for ax, (name, v) in zip(axes.flat, data.items()):
-        ax.hist(v[np.isfinite(v)], bins=30)
+        finite = v[np.isfinite(v)]
+        # equal values (to rounding) get one bin: numpy cannot split a zero-width range
+        ax.hist(finite, bins=1 if _constant(finite) else 30)
         ax.set_title(name, fontsize=9)
         ax.grid(alpha=0.3)
     for ax in list(axes.flat)[len(data):]:
