@@ -309,6 +309,9 @@ def test_local_cluster_campaign_writes_dataset_summary_plots_and_reruns(tmp_path
     again = cli(*args, '--rerun', '13')
     assert again.returncode == 0 and 'identical to the stored row' in again.stderr
     assert json.loads(again.stdout)['run_id'] == 13
+    other = [('12' if a == '11' else a) for a in args]  # another seed: another campaign
+    mismatch = cli(*other, '--rerun', '13')
+    assert mismatch.returncode == 0 and 'differs from this command in: seed' in mismatch.stderr
     # a finished campaign is not silently overwritten
     assert cli(*args).returncode == 2
 
@@ -420,7 +423,8 @@ def test_worker_killed_mid_campaign_retried_elsewhere(tmp_path, dask_processes):
     assert set(table.column('status').to_pylist()) == {'ok'}
 
 
-def test_sigint_keeps_finished_runs_and_resume_runs_only_the_rest(tmp_path):
+@pytest.mark.parametrize('how', ['SIGINT to the group', 'SIGTERM to the process'])
+def test_interrupt_keeps_finished_runs_and_resume_runs_only_the_rest(tmp_path, how):
     out = tmp_path / 'r'
     n = 400  # seconds of work even on an idle machine: SIGINT lands mid-campaign
     args = ['detumble', '--disperse', 'initial_angular_velocity=normal:0.2', '--runs', str(n),
@@ -434,7 +438,10 @@ def test_sigint_keeps_finished_runs_and_resume_runs_only_the_rest(tmp_path):
         while not store.part_files(str(out)) and time.monotonic() < deadline:
             time.sleep(0.1)
         assert store.part_files(str(out)), 'no rows written'
-        os.killpg(camp.pid, signal.SIGINT)
+        if how.startswith('SIGINT'):  # Ctrl-C in a terminal: every process of the group
+            os.killpg(camp.pid, signal.SIGINT)
+        else:
+            camp.send_signal(signal.SIGTERM)
         stdout, stderr = camp.communicate(timeout=120)
     finally:
         if camp.poll() is None:

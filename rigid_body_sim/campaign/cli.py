@@ -2,6 +2,7 @@
 import json
 import math
 import os
+import signal
 import sys
 
 MAX_SEED = 2 ** 63 - 1
@@ -97,6 +98,13 @@ def rerun(spec, k, out) -> int:
     table = store.read(out)
     if table is None:
         return 0
+    stored_config = (store.read_config(out) or {}).get('config')
+    mine = json.loads(json.dumps(spec.identity(), default=str))
+    if stored_config != mine:
+        keys = sorted(k for k in mine if (stored_config or {}).get(k) != mine[k])
+        print(f'{out} holds a campaign that differs from this command in: {", ".join(keys)}; '
+              'not compared', file=sys.stderr)
+        return 0
     import pyarrow.compute as pc
     stored = table.filter(pc.equal(table.column('run_id'), k)).to_pylist()
     if not stored:
@@ -159,6 +167,8 @@ def _drive(args, spec, todo, rows, out):
     bar = None
     cluster = None
     failures = 0
+    # SIGTERM stops as Ctrl-C does: finished rows are written, the cluster shut down
+    old_term = signal.signal(signal.SIGTERM, _interrupt)
     try:
         if todo:
             cluster = Cluster(args.scheduler, args.workers)
@@ -180,16 +190,25 @@ def _drive(args, spec, todo, rows, out):
               f'{out}/runs; --resume runs the rest', file=sys.stderr)
         _close_quietly(cluster)
         return 130
-    except OSError as exc:  # e.g. no scheduler at the address
-        rows.close()
-        print(f'error: Dask: {exc}', file=sys.stderr)
+    except OSError as exc:  # no scheduler at the address, a full disk, ...
+        print(f'error: {exc}', file=sys.stderr)
+        try:
+            rows.close()
+        except OSError:
+            pass
         _close_quietly(cluster)
         return 2
+    finally:
+        signal.signal(signal.SIGTERM, old_term)
     rows.close()
     if bar is not None:
         bar.close()
     _close_quietly(cluster)
     return None
+
+
+def _interrupt(signum, frame):
+    raise KeyboardInterrupt
 
 
 def store_ids(out):
