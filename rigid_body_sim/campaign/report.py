@@ -17,10 +17,26 @@ from .metrics import NUMERIC
 WORST = {'final_pointing_error': True, 'settling_time': True, 'detumble_time': True,
          'peak_torque': True, 'angular_momentum_drift': True, 'kinetic_energy_drift': True}
 WORST_COUNT = 5
+UNITS = {'final_pointing_error': 'rad', 'settling_time': 's', 'detumble_time': 's',
+         'peak_torque': 'N·m', 'energy_dissipated': 'J', 'final_angular_momentum': 'kg·m²/s',
+         'cpu_time': 's'}
+
+
+def _label(name) -> str:
+    return f'{name} [{UNITS[name]}]' if name in UNITS else name
 
 
 def _column(table, name) -> np.ndarray:
     return np.asarray(table.column(name).to_numpy(zero_copy_only=False), dtype=float)
+
+
+def _param_label(col) -> str:
+    """A dispersed column with its parameter's unit (from the nodes' specs)."""
+    from ..engine import specs
+    key = col.split('[')[0]
+    unit = next((p.unit for p in specs.SIMULATOR + specs.CONTROLLER
+                 if p.name == key and p.unit), '')
+    return f'{col} [{unit}]' if unit else col
 
 
 def _constant(v) -> bool:
@@ -100,7 +116,7 @@ def write_plots(table, columns, out_dir) -> List[str]:
         finite = v[np.isfinite(v)]
         # equal values (to rounding) get one bin: numpy cannot split a zero-width range
         ax.hist(finite, bins=1 if _constant(finite) else 30)
-        ax.set_title(name, fontsize=9)
+        ax.set_title(_label(name), fontsize=9)
         ax.grid(alpha=0.3)
     for ax in list(axes.flat)[len(data):]:
         ax.set_visible(False)
@@ -114,7 +130,7 @@ def write_plots(table, columns, out_dir) -> List[str]:
         fig, axes = plt.subplots(rows, cols, figsize=(4 * cols, 3 * rows), squeeze=False)
         for ax, (name, v) in zip(axes.flat, data.items()):
             ax.scatter(x, v, s=4)
-            ax.set(xlabel=col, title=name)
+            ax.set(xlabel=_param_label(col), title=_label(name))
             ax.title.set_fontsize(9)
             ax.grid(alpha=0.3)
         for ax in list(axes.flat)[len(data):]:
