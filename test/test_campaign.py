@@ -78,6 +78,12 @@ def test_yaml_file_gives_dispersions_runs_and_seed(tmp_path):
     f.write_text('dispersions:\n  inertia: lognormal:1\n')
     with pytest.raises(ValueError, match='d.yaml: dispersions: inertia'):
         disp.load_file(str(f))
+    f.write_text('runs: 0\ndispersions:\n  inertia: normal:1\n')
+    with pytest.raises(ValueError, match=r'runs must be an integer in \[1, '):
+        disp.load_file(str(f))
+    f.write_text('seed: 9223372036854775808\ndispersions:\n  inertia: normal:1\n')
+    with pytest.raises(ValueError, match='seed must be an integer'):
+        disp.load_file(str(f))
     f.write_text('runs: 3\ndispersion:\n  inertia: normal:1\n')
     with pytest.raises(ValueError, match='"dispersions:" mapping'):
         disp.load_file(str(f))

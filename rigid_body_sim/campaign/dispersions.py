@@ -106,9 +106,11 @@ def load_file(path: str) -> Tuple[List[Dispersion], dict]:
     extra = {}
     for name in ('runs', 'seed'):
         if name in doc:
-            if not isinstance(doc[name], int) or isinstance(doc[name], bool) or doc[name] < 0:
-                raise ValueError(f'{path}: {name} must be a non-negative integer, '
-                                 f'got {doc[name]!r}')
+            low, high = (1, 10 ** 9) if name == 'runs' else (0, 2 ** 63 - 1)
+            v = doc[name]
+            if not isinstance(v, int) or isinstance(v, bool) or not low <= v <= high:
+                raise ValueError(f'{path}: {name} must be an integer in [{low}, {high}], '
+                                 f'got {v!r}')
             extra[name] = doc[name]
     return out, extra
 

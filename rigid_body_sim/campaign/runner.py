@@ -99,10 +99,11 @@ def run_chunk(spec: CampaignSpec, ids: Sequence[int]) -> List[dict]:
 
 
 def lost_rows(spec: CampaignSpec, ids, reason: str) -> List[dict]:
-    """Rows for runs whose task could not be run (e.g. it killed every worker it ran on)."""
+    """Rows for runs whose task failed outside the run function: it killed every worker
+    it ran on (KilledWorker), or a worker could not load it (rigid_body_sim missing)."""
     rows = []
     for k in ids:
-        row = {'run_id': k, 'seed': spec.seed, 'status': 'worker_lost', 'error': reason,
+        row = {'run_id': k, 'seed': spec.seed, 'status': 'task_failed', 'error': reason,
                'redraws': 0, 'integrator': '', 'cpu_time': math.nan}
         row.update(disp.flatten(spec.scene, spec.dispersions, None))
         row.update(empty())
@@ -118,6 +119,14 @@ def chunks(ids: Sequence[int], size: int) -> Iterable[List[int]]:
     ids = list(ids)
     for i in range(0, len(ids), size):
         yield ids[i:i + size]
+
+
+def cores() -> int:
+    """Cores this process may run on (its affinity), at least 1."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except AttributeError:  # not on Linux
+        return os.cpu_count() or 1
 
 
 class Cluster:
@@ -136,7 +145,7 @@ class Cluster:
         # terminal reaches the whole process group, and only this process should handle it.
         old = signal.signal(signal.SIGINT, signal.SIG_IGN)
         try:
-            self.local = LocalCluster(n_workers=workers or os.cpu_count() or 1,
+            self.local = LocalCluster(n_workers=workers or cores(),
                                       threads_per_worker=1, processes=True,
                                       dashboard_address=None, silence_logs=logging.ERROR)
             self.client = Client(self.local, timeout=timeout)
