@@ -43,6 +43,13 @@ def _rss_mb() -> float:
     return psutil.Process().memory_info().rss / 2 ** 20
 
 
+def _cpu_s() -> float:
+    """CPU seconds (user + system) of this whole process, every thread."""
+    import psutil
+    t = psutil.Process().cpu_times()
+    return t.user + t.system
+
+
 def _warm(s, _i):
     from ..campaign.runner import run_one
     run_one(s, 0)
@@ -54,12 +61,17 @@ def time_pool(s, workers, chunk):
     from ..campaign.runner import run_one
     ctx = multiprocessing.get_context('spawn')
     with ctx.Pool(workers) as pool:
-        pool.map(partial(_warm, s), range(workers), chunksize=1)
+        import psutil
+        procs = [psutil.Process(p) for p in
+                 set(pool.map(partial(_warm, s), range(workers), chunksize=1))]
+        cpu0 = _cpu_s() + sum(sum(p.cpu_times()[:2]) for p in procs)
         t0 = time.perf_counter()
         rows = list(pool.imap_unordered(partial(run_one, s), range(s.runs), chunksize=chunk))
         elapsed = time.perf_counter() - t0
+        total = _cpu_s() + sum(sum(p.cpu_times()[:2]) for p in procs) - cpu0
     assert len(rows) == s.runs and all(r['status'] == 'ok' for r in rows)
-    return elapsed, sum(r['cpu_time'] for r in rows) / len(rows)
+    runs_cpu = sum(r['cpu_time'] for r in rows)
+    return elapsed, runs_cpu / len(rows), total / runs_cpu - 1.0
 
 
 def time_dask(s, workers, chunk):
@@ -84,17 +96,20 @@ def time_dask(s, workers, chunk):
                 for pct in (10, 50):
                     if seen[0] >= s.runs * pct // 100 and f'at_{pct}pct' not in rss:
                         rss[f'at_{pct}pct'] = _rss_mb()
+            cpu0 = _cpu_s() + sum(cluster.client.run(_cpu_s).values())
             t0 = time.perf_counter()
             execute(cluster, s, range(s.runs), on_rows, chunk)
             rows.close()
             elapsed = time.perf_counter() - t0
+            # the client process holds the scheduler and the nannies of a local cluster
+            total = _cpu_s() + sum(cluster.client.run(_cpu_s).values()) - cpu0
             rss['at_end'] = _rss_mb()
             assert len(store.existing_ids(out)) == s.runs
         after = cluster.client.run(_rss_mb)
     finally:
         cluster.close()
     workers_rss = {'before': sorted(before.values()), 'after': sorted(after.values())}
-    return elapsed, startup, rss, workers_rss, cpu[0] / s.runs
+    return elapsed, startup, rss, workers_rss, cpu[0] / s.runs, total / cpu[0] - 1.0
 
 
 def main(argv=None) -> int:
@@ -108,17 +123,19 @@ def main(argv=None) -> int:
     args = parser.parse_args(argv)
     s = spec(args.runs, args.duration)
     chunk = chunk_size(args.runs, args.workers)
-    pool, dask, startup, pool_cpu, dask_cpu = [], [], [], [], []
+    pool, dask, startup, pool_cpu, dask_cpu, pool_extra, dask_extra = [], [], [], [], [], [], []
     mem = workers_rss = None
     try:
         for _ in range(args.repeats):
-            t, c = time_pool(s, args.workers, chunk)
+            t, c, x = time_pool(s, args.workers, chunk)
             pool.append(t)
             pool_cpu.append(c)
-            d, up, mem, workers_rss, c = time_dask(s, args.workers, chunk)
+            pool_extra.append(x)
+            d, up, mem, workers_rss, c, x = time_dask(s, args.workers, chunk)
             dask.append(d)
             startup.append(up)
             dask_cpu.append(c)
+            dask_extra.append(x)
         one, *_ = time_dask(s, 1, chunk_size(args.runs, 1))
     except KeyboardInterrupt:
         print('interrupted', file=sys.stderr)
@@ -132,6 +149,7 @@ def main(argv=None) -> int:
         'dask_1_worker_runs_per_s': args.runs / one,
         'scaling_1_to_n': one / best_dask,
         'cpu_per_run_pool': pool_cpu, 'cpu_per_run_dask': dask_cpu,
+        'cpu_beyond_runs_pool': pool_extra, 'cpu_beyond_runs_dask': dask_extra,
         'client_rss_mb': mem, 'worker_rss_mb': workers_rss,
         'client_rss_growth_second_half_mb': mem['at_end'] - mem['at_50pct'],
     }
@@ -145,8 +163,10 @@ def main(argv=None) -> int:
     print(f'  Dask overhead vs Pool {100 * result["dask_overhead"]:+.1f} % (target <= 10 %)')
     print(f'  Dask, 1 worker        {result["dask_1_worker_runs_per_s"]:8.1f} runs/s; '
           f'1 -> {args.workers} workers: x{result["scaling_1_to_n"]:.2f}')
-    print(f'  CPU per run (process time in the run function): Pool '
-          f'{1e3 * min(pool_cpu):.1f} ms, Dask {1e3 * min(dask_cpu):.1f} ms')
+    print(f'  CPU per run (the run function\'s thread): Pool {1e3 * min(pool_cpu):.1f} ms, '
+          f'Dask {1e3 * min(dask_cpu):.1f} ms')
+    print(f'  CPU of every process beyond the runs\' own: Pool '
+          f'{100 * min(pool_extra):+.1f} %, Dask {100 * min(dask_extra):+.1f} % (load-proof)')
     w = {k: [round(x, 1) for x in v] for k, v in workers_rss.items()}
     print(f'  client RSS {mem["at_10pct"]:.1f} / {mem["at_50pct"]:.1f} / {mem["at_end"]:.1f} '
           f'MB at 10 / 50 / 100 % of the runs; workers {w["before"]} -> {w["after"]} MB')

@@ -98,10 +98,8 @@ def rerun(spec, k, out) -> int:
     table = store.read(out)
     if table is None:
         return 0
-    stored_config = (store.read_config(out) or {}).get('config')
-    mine = json.loads(json.dumps(spec.identity(), default=str))
-    if stored_config != mine:
-        keys = sorted(k for k in mine if (stored_config or {}).get(k) != mine[k])
+    keys = _config_diff(out, spec)
+    if keys:
         print(f'{out} holds a campaign that differs from this command in: {", ".join(keys)}; '
               'not compared', file=sys.stderr)
         return 0
@@ -117,6 +115,15 @@ def rerun(spec, k, out) -> int:
         return 1
     print(f'run {k}: identical to the stored row (CPU time aside)', file=sys.stderr)
     return 0
+
+
+def _config_diff(out, spec):
+    """The keys in which the campaign stored in ``out`` differs from ``spec`` (empty if
+    the same campaign; every key if none is stored)."""
+    from . import store
+    stored = (store.read_config(out) or {}).get('config') or {}
+    mine = json.loads(json.dumps(spec.identity(), default=str))
+    return sorted(k for k in mine if stored.get(k) != mine[k])
 
 
 def _meta(spec, scheduler):
@@ -145,15 +152,17 @@ def run(args) -> int:
               '--overwrite to start again', file=sys.stderr)
         return 2
     elif have:
-        stored = store.read_config(out) or {}
-        mine = json.loads(json.dumps(spec.identity(), default=str))
-        if stored.get('config') != mine:
-            keys = sorted(k for k in mine if stored.get('config', {}).get(k) != mine[k])
+        keys = _config_diff(out, spec)
+        if keys:
             print(f'error: {out} holds a different campaign (differs in: '
                   f'{", ".join(keys)}); use another --out', file=sys.stderr)
             return 2
     todo = [k for k in range(spec.runs) if k not in have]
-    rows = store.RunStore(out, spec.columns, _meta(spec, args.scheduler))
+    try:
+        rows = store.RunStore(out, spec.columns, _meta(spec, args.scheduler))
+    except OSError as exc:
+        print(f'error: {out}: cannot write the campaign: {exc}', file=sys.stderr)
+        return 2
     done = _drive(args, spec, todo, rows, out)
     if done is not None:
         return done
