@@ -16,7 +16,10 @@ apart, and so is the CPU time per run inside the run function (the same work in 
 a gap in wall time is scheduling, not the runs). The two are timed alternately
 ``--repeats`` times and the best of each compared, in the same run. Memory: this
 process's RSS when 10 %, 50 % and 100 % of the runs are in, and each worker's RSS before
-and after. Prints a table and one JSON line.
+and after. On a shared machine wall time depends on what else runs; the CPU that all the
+processes of each set-up spend beyond the runs' own (this process — with a local
+cluster's scheduler and nannies — and the workers) does not, and is printed too. Prints
+a table and one JSON line.
 """
 import argparse
 import json
