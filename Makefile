@@ -1,20 +1,22 @@
 # Two commands for users:  make demo   (set up, then run the live demo)
 #                          make test   (set up, then run the whole test suite)
 # For developers:          make check  (physics, engine and lint only: under a minute)
+#                          make tour   (the README's tour thumbnails, into docs/tour)
 # Setup is a .venv in the repo that is also an ament prefix for this package,
 # so `ros2 run`-style lookups (lib/rigid_body_sim/<exe>, ament index) work in it.
 
 VENV        ?= .venv
 PY          := $(VENV)/bin/python
 STAMP       := $(VENV)/.rigid_body_sim-installed
-DEMO_DURATION ?= 30
+DEMO_DURATION ?= 40
 DEMO_OUT    ?= out/demo
 PYTEST_ARGS ?=
-NODES       := simulator controller recorder replay
+SETUP_LOG   ?= out/setup.log
+NODES       := simulator controller recorder replay viewer
 # tf2_msgs and simulation_interfaces, built into the venv by .ci/build_interfaces.sh
 INTERFACES  := $(wildcard interfaces/* interfaces/*/* interfaces/*/*/*)
 
-.PHONY: demo test check venv bench clean
+.PHONY: demo test check venv bench clean tour ament-layout
 .DEFAULT_GOAL := demo
 
 demo: venv
@@ -27,6 +29,10 @@ test: venv
 check: venv
 	$(PY) -m pytest -q -m fast $(PYTEST_ARGS)
 
+# The README's tour: one thumbnail per phenomenon of free rotation, into docs/tour.
+tour: venv
+	$(VENV)/bin/rigid-body-sim tour --out docs/tour
+
 bench: venv
 	$(VENV)/bin/rigid-body-sim bench --out out/bench
 
@@ -35,10 +41,23 @@ venv: $(STAMP)
 # Rebuilt only when a dependency pin, the package metadata or an interface definition
 # changes; code is an editable install, and config/ and launch/ are linked, so edits need no
 # reinstall. The interface build skips itself when its inputs are unchanged.
-$(STAMP): requirements.txt setup.py setup.cfg package.xml .ci/make_venv.sh \
+$(STAMP): requirements.txt setup.py setup.cfg package.xml .ci/make_venv.sh .ci/step.sh \
           .ci/build_interfaces.sh .ci/wheel_cmake_paths.cmake $(INTERFACES)
-	sh .ci/make_venv.sh $(VENV)
-	$(VENV)/bin/pip install --disable-pip-version-check -q -r requirements.txt
+	@echo "setting up $(VENV) (once; the details go to $(SETUP_LOG))"
+	@rm -f $(SETUP_LOG)
+	@sh .ci/step.sh $(SETUP_LOG) "setup 1/5: Python virtual environment" sh .ci/make_venv.sh $(VENV)
+	@sh .ci/step.sh $(SETUP_LOG) "setup 2/5: dependencies (ROS 2 Jazzy wheels, numpy, scipy, numba, ...)" \
+	  $(VENV)/bin/pip install --disable-pip-version-check -q -r requirements.txt
+	@sh .ci/step.sh $(SETUP_LOG) "setup 3/5: this package (editable) and its ament layout" \
+	  $(MAKE) --no-print-directory ament-layout
+	@sh .ci/step.sh $(SETUP_LOG) "setup 4/5: message interfaces (tf2_msgs, simulation_interfaces)" \
+	  sh .ci/build_interfaces.sh $(VENV)
+	@sh .ci/step.sh $(SETUP_LOG) "setup 5/5: compiling the step kernels (numba, cached on disk)" \
+	  $(PY) -m rigid_body_sim.compiled
+	@touch $@
+
+# Stage 3 of the setup: the editable install, and the venv as an ament prefix.
+ament-layout:
 	$(VENV)/bin/pip install --disable-pip-version-check -q --no-deps --no-build-isolation -e .
 	mkdir -p $(VENV)/share/ament_index/resource_index/packages $(VENV)/share/rigid_body_sim $(VENV)/lib/rigid_body_sim
 	touch $(VENV)/share/ament_index/resource_index/packages/rigid_body_sim
@@ -46,10 +65,6 @@ $(STAMP): requirements.txt setup.py setup.cfg package.xml .ci/make_venv.sh \
 	ln -sfn $(CURDIR)/config $(VENV)/share/rigid_body_sim/config
 	ln -sfn $(CURDIR)/launch $(VENV)/share/rigid_body_sim/launch
 	for exe in $(NODES); do ln -sfn ../../bin/$$exe $(VENV)/lib/rigid_body_sim/$$exe; done
-	sh .ci/build_interfaces.sh $(VENV)
-	@echo "compiling the step kernels (numba, cached on disk; once)"
-	$(PY) -m rigid_body_sim.compiled
-	touch $@
 
 clean:
 	rm -rf $(VENV) build install log

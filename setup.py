@@ -12,7 +12,7 @@ setup(
     data_files=[
         ('share/ament_index/resource_index/packages', [f'resource/{PACKAGE}']),
         (f'share/{PACKAGE}', ['package.xml']),
-        (f'share/{PACKAGE}/config', glob('config/*.yaml')),
+        (f'share/{PACKAGE}/config', glob('config/*.yaml') + glob('config/*.json')),
         (f'share/{PACKAGE}/launch', glob('launch/*.py')),
     ],
     # Versions are pinned in requirements.txt (PyPI) or resolved by rosdep (package.xml).
@@ -29,6 +29,7 @@ setup(
             'controller = rigid_body_sim.nodes.controller:main',
             'recorder = rigid_body_sim.nodes.recorder:main',
             'replay = rigid_body_sim.nodes.replay:main',
+            'viewer = rigid_body_sim.nodes.viewer:main',
         ],
     },
 )

@@ -8,7 +8,8 @@ if [ -x "$VENV/bin/python" ] && "$VENV/bin/python" -c 'import pip' 2>/dev/null; 
 
 PY=""
 for cand in ${PYTHON:-} python3.12 python3.11 python3.13 python3.10 python3; do
-  if command -v "$cand" >/dev/null 2>&1 && "$cand" -c 'import sys; sys.exit(not ((3,10) <= sys.version_info[:2] <= (3,13)))'; then
+  # 2>/dev/null: a pyenv shim exists for versions it has not installed, and says so
+  if command -v "$cand" >/dev/null 2>&1 && "$cand" 2>/dev/null -c 'import sys; sys.exit(not ((3,10) <= sys.version_info[:2] <= (3,13)))'; then
     PY=$cand; break
   fi
 done

@@ -3,10 +3,10 @@
 Starts the recorder, then the simulator and controller, as separate processes (the
 installed node executables, as ``ros2 run`` would), loaded with the scene's params file.
 An in-process rclpy node watches the state and prints sim time, real-time factor,
-attitude error, |ω|, T and |L|. After ``--duration`` wall seconds (or Ctrl-C, or the
-simulator reaching its ``duration``) the nodes are stopped cleanly and a summary is printed:
-final pointing error, T and |L| drift during the free phase, messages recorded, and where
-the bag and plots are.
+attitude error, |ω|, T and |L|. After ``--duration`` simulated seconds from the first
+sample (or Ctrl-C, or the simulator reaching its ``duration``) the nodes are stopped cleanly
+and a summary is printed: the phase it ended in, final pointing error, T and |L| drift during
+the free phase, messages recorded, and where the bag and plots are.
 """
 import math
 import os
@@ -19,6 +19,8 @@ import time
 import numpy as np
 
 from .scene import SceneError, load
+
+STARTUP_TIMEOUT = 60.0  # wall s for the first sample (imports, kernels from cache, discovery)
 
 
 def _executable(name):
@@ -52,7 +54,7 @@ class _Watcher:
     """Subscribes to the simulator's state and the controller's command; keeps what the
     summary needs."""
 
-    def __init__(self, node, target):
+    def __init__(self, node, target, time_scale=1.0):
         from diagnostic_msgs.msg import DiagnosticArray
         from geometry_msgs.msg import QuaternionStamped, Vector3Stamped
         from std_msgs.msg import Float64
@@ -62,6 +64,9 @@ class _Watcher:
         self.T = None
         self.t = 0.0
         self.t0 = None  # first stamp: the status shows time since the simulation started
+        self.time_scale = time_scale  # sim seconds per stamp second (rtf without /clock)
+        self.phase = None  # the controller's mission phase (free, detumble, slew), if any
+        self.slew_start = None  # sim time at which the controller reported the slew
         self.rtf = math.nan
         self.torque_seen = False
         self.free = {'T': [], 'L': []}  # T and |L| while no torque has been commanded yet
@@ -78,7 +83,7 @@ class _Watcher:
         self.q = np.array((o.x, o.y, o.z, o.w))
         stamp = msg.header.stamp.sec + 1e-9 * msg.header.stamp.nanosec
         self.t0 = stamp if self.t0 is None else self.t0
-        self.t = stamp - self.t0
+        self.t = (stamp - self.t0) * self.time_scale
 
     def _on_w(self, msg):
         v = msg.vector
@@ -102,6 +107,12 @@ class _Watcher:
 
     def _on_diag(self, msg):
         for status in msg.status:
+            if status.name.startswith('attitude_controller'):
+                for kv in status.values:
+                    if kv.key == 'mission_phase':
+                        if kv.value == 'slew' and self.phase != 'slew':
+                            self.slew_start = self.t
+                        self.phase = kv.value
             if status.name.startswith('attitude_simulator'):
                 for kv in status.values:
                     if kv.key == 'real_time_factor_achieved':
@@ -116,13 +127,40 @@ class _Watcher:
         from .physics import rotation
         return math.degrees(float(rotation.angle_between(self.q, self.target)))
 
+    def ended_in(self):
+        """The phase the run is in: the controller's mission phase when it reported one."""
+        if self.phase:
+            return self.phase
+        return 'controlled' if self.torque_seen else 'free'
+
     def status(self):
-        w = float(np.linalg.norm(self.w)) if self.w is not None else math.nan
-        L = float(np.linalg.norm(self.L)) if self.L is not None else math.nan
-        T = self.T if self.T is not None else math.nan
-        phase = 'controlled' if self.torque_seen else 'free'
-        return (f't = {self.t:7.2f} s  rtf {self.rtf:5.2f}  error {self.error_deg():7.3f}°  '
-                f'|ω| {w:.3e} rad/s  T {T:.6e} J  |L| {L:.6e} kg·m²/s  [{phase}]')
+        """The status line; empty until the first sample (no NaN placeholders)."""
+        if self.t0 is None or self.w is None or self.L is None or self.T is None:
+            return ''
+        parts = [f't = {self.t:7.2f} s']
+        if math.isfinite(self.rtf):  # the first diagnostics come after 1 s
+            parts.append(f'rtf {self.rtf:5.2f}')
+        parts += [f'error {self.error_deg():7.3f}°', f'|ω| {np.linalg.norm(self.w):.3e} rad/s',
+                  f'T {self.T:.6e} J', f'|L| {np.linalg.norm(self.L):.6e} kg·m²/s',
+                  f'[{self.ended_in()}]']
+        return '  '.join(parts)
+
+
+def _phase_hint(watcher, scene):
+    """Why the pointing error is still large, when the run ended before the slew."""
+    if not scene.controlled or watcher.ended_in() == 'off':
+        return ''
+    if watcher.ended_in() == 'slew':
+        from .control import critical_settling_time
+        wn = np.mean(scene.controller.get('natural_frequency', 0.5))
+        settle = critical_settling_time(wn)
+        if watcher.slew_start is None or watcher.t - watcher.slew_start >= settle:
+            return ''
+        return (f' — the slew began at t ≈ {watcher.slew_start:.1f} s and settles to 2 % in '
+                f'5.83/ω_n = {settle:.1f} s (try a longer --duration)')
+    free = scene.controller.get('mission.free_time', 0.0)
+    return (f' — the slew had not begun: the free phase lasts {free:g} s, then the detumble; '
+            'the error is the tumble\'s, not the controller\'s (try a longer --duration)')
 
 
 def _drift(values):
@@ -147,6 +185,7 @@ def _plots_from_bag(bag, scene, out_dir):
     rtf = 1.0 if p['publish_clock'] else (p['real_time_factor'] or 1.0)
     series = {'/attitude': {}, '/angular_velocity': {}, '/angular_momentum': {}}
     first_torque = None  # stamp of the first nonzero command: the end of the free phase
+    commands = []  # (stamp, torque): held from its stamp on
     for m in iter_messages(bag, topics=list(series) + ['/torque_command']):
         msg = deserialize_message(m.data, message_class(m.type))
         stamp = msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
@@ -154,6 +193,7 @@ def _plots_from_bag(bag, scene, out_dir):
             v = msg.vector
             if first_torque is None and (v.x or v.y or v.z):
                 first_torque = stamp
+            commands.append((stamp, (v.x, v.y, v.z)))
         elif m.topic == '/attitude':
             o = msg.quaternion
             series[m.topic][stamp] = (o.x, o.y, o.z, o.w)
@@ -165,13 +205,20 @@ def _plots_from_bag(bag, scene, out_dir):
         return []
     t0 = stamps[0]
     w = np.array([series['/angular_velocity'][s] for s in stamps])
+    torque = np.zeros_like(w)
+    if commands:
+        commands.sort(key=lambda c: c[0])
+        k = np.searchsorted([c[0] for c in commands], stamps, side='right') - 1
+        held = np.array([c[1] for c in commands])
+        torque[k >= 0] = held[k[k >= 0]]
     samples = {'t': (np.array(stamps) - t0) * 1e-9 * rtf,
                'attitude': np.array([series['/attitude'][s] for s in stamps]),
                'angular_velocity': w,
                'angular_momentum': np.array([series['/angular_momentum'][s] for s in stamps]),
-               'kinetic_energy': 0.5 * np.einsum('ni,ij,nj->n', w, body.inertia, w)}
+               'kinetic_energy': 0.5 * np.einsum('ni,ij,nj->n', w, body.inertia, w),
+               'torque': torque}
     free_end = np.inf if first_torque is None else (first_torque - t0) * 1e-9 * rtf
-    return write_plots(samples, body, out_dir, f'{scene.name} (live)', free_end)
+    return write_plots(samples, body, out_dir, f'{scene.name} (live)', free_end, scene)
 
 
 def _interrupt(signum, frame):
@@ -196,12 +243,17 @@ def add_arguments(parser):
                         help='scene name or params file (default: default)')
     from .cli import number
     parser.add_argument('--duration', type=number(0.0, 1e9, low_open=True),
-                        default=os.environ.get('DEMO_DURATION', '30'),
-                        help='wall seconds to run (default: $DEMO_DURATION or 30)')
+                        default=os.environ.get('DEMO_DURATION', '40'),
+                        help='simulated seconds to run, counted from the first sample (start-up '
+                             'is not included; default: $DEMO_DURATION or 40)')
     parser.add_argument('--out', default=os.path.join('out', 'demo'),
                         help='output directory (default out/demo)')
     from .offline import add_set_argument
     add_set_argument(parser)
+    parser.add_argument('--no-viewer', dest='viewer', action='store_false',
+                        help='do not start the Foxglove viewer node')
+    parser.add_argument('--viewer-port', type=int, default=8765,
+                        help='port of the Foxglove viewer (default 8765)')
 
 
 def run(args) -> int:
@@ -216,7 +268,7 @@ def run(args) -> int:
         print(f'error: {exc}', file=sys.stderr)
         return 2
     if not args.duration > 0:
-        print('error: --duration must be > 0 wall seconds', file=sys.stderr)
+        print('error: --duration must be > 0 simulated seconds', file=sys.stderr)
         return 2
     # a demo stays on this machine
     os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
@@ -229,8 +281,8 @@ def run(args) -> int:
         params += ['--params-file', _overrides_file(scene, out)]
     target = np.asarray(scene.controller.get('target_attitude', (0.0, 0.0, 0.0, 1.0)), float)
     print(f'demo: scene {scene.name} — {scene.description}')
-    print(f'demo: logs and output in {out}; stopping after {args.duration:g} s '
-          '(Ctrl-C stops earlier)')
+    print(f'demo: logs and output in {out}; stopping after {args.duration:g} simulated s '
+          'from the first sample (Ctrl-C stops earlier)')
 
     # Ctrl-C and SIGTERM raise KeyboardInterrupt here (rclpy's own handler would shut the
     # context down under the loop instead); the nodes run in their own sessions and are
@@ -243,7 +295,9 @@ def run(args) -> int:
                                            '-p', f'scene:={scene.name}'], out))
         rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
         node = Node('demo_status')
-        watcher = _Watcher(node, target)
+        p = scene.simulator
+        watcher = _Watcher(node, target, 1.0 if p['publish_clock'] else
+                           (p['real_time_factor'] or 1.0))
         executor = SingleThreadedExecutor()
         executor.add_node(node)
         # Give the recorder a moment to be discovered so it sees the first messages.
@@ -253,17 +307,28 @@ def run(args) -> int:
         procs.append(_Process('simulator', params, out))
         if scene.controlled:
             procs.append(_Process('controller', params, out))
+        if getattr(args, 'viewer', False):  # its own process: a viewer problem stops nothing
+            procs.append(_Process('viewer', ['--ros-args', '-p', f'port:={args.viewer_port}'],
+                                  out))
+            url = f'ws://127.0.0.1:{args.viewer_port}'
+            print(f'demo: live 3D view: open {url} in Foxglove (app: Open connection → '
+                  f'Foxglove WebSocket; web: https://app.foxglove.dev/?ds=foxglove-websocket'
+                  f'&ds.url={url}); layout: config/foxglove_layout.json')
         tty = sys.stdout.isatty()
         start, last_print = time.monotonic(), 0.0
-        while time.monotonic() - start < args.duration:
+        while watcher.t0 is None or watcher.t < args.duration:
             executor.spin_once(timeout_sec=0.05)
             if procs[1].proc.poll() is not None:
                 break  # the simulator reached its duration (or failed: see its log)
             now = time.monotonic()
-            if now - last_print >= (0.25 if tty else 2.0):
+            if watcher.t0 is None and now - start > STARTUP_TIMEOUT:
+                print(f'demo: no sample from the simulator after {STARTUP_TIMEOUT:g} s; see '
+                      f'{procs[1].log_path}', flush=True)
+                break
+            line = watcher.status()
+            if line and now - last_print >= (0.25 if tty else 2.0):
                 last_print = now
-                print(('\r' if tty else '') + watcher.status(), end='' if tty else '\n',
-                      flush=True)
+                print(('\r' if tty else '') + line, end='' if tty else '\n', flush=True)
     except KeyboardInterrupt:
         interrupted = True
     finally:
@@ -288,9 +353,13 @@ def run(args) -> int:
         signal.signal(signal.SIGINT, previous_int)
         signal.signal(signal.SIGTERM, previous_term)
 
+    if codes.get('viewer') not in (0, None, -signal.SIGINT):  # reported, not a demo failure
+        print(f'  viewer: exited with {codes.pop("viewer")} (log: {out}/viewer.log)')
     failed = {n: c for n, c in codes.items() if c not in (0, None, -signal.SIGINT)}
     print('demo: summary' + (' (interrupted)' if interrupted else ''))
     if watcher is not None:
+        print(f'  ended at t = {watcher.t:.2f} s (sim time) in the {watcher.ended_in()} phase'
+              + _phase_hint(watcher, scene))
         print(f'  final pointing error: {watcher.error_deg():.4f}° '
               f'(target {np.round(target, 6).tolist()})')
         print(f'  free phase: {len(watcher.free["T"])} samples, '

@@ -18,6 +18,7 @@ import numpy as np
 from .engine import Engine, EngineConfig, SampleBlock
 from .physics import IntegrationError
 from .scene import SceneError, SceneFile, load
+from .sensors.specs import SensorSettings
 
 PLOT_POINTS = 20_000  # samples kept for the plots (a long run is decimated evenly)
 
@@ -42,6 +43,7 @@ class RunResult:
     bag: Optional[str] = None
     plots: list = field(default_factory=list)
     pilot_steps: int = 0  # steps auto's pilot ran (a deterministic measure of its cost)
+    actuators: object = None  # the scene's ActuatorConfig (wheels / CMGs), or None
 
     def summary(self) -> dict:
         keep = ('attitude', 'angular_velocity', 'angular_momentum', 'kinetic_energy')
@@ -170,7 +172,8 @@ def simulate(scene: SceneFile, duration=None, integrator=None, step=None, accura
                      engine.step_max, engine.steps + engine.evaluations,
                      cpu - engine.selection_cpu, engine.selection_cpu, samples, first, last,
                      count, engine.body,
-                     pilot_steps=engine.selected.pilot_steps if engine.selected else 0)
+                     pilot_steps=engine.selected.pilot_steps if engine.selected else 0,
+                     actuators=engine.config.actuators)
 
 
 class BagSink:
@@ -178,13 +181,25 @@ class BagSink:
 
     def __init__(self, scene: SceneFile, directory: str, extra: dict):
         from .bag.writer import BagWriter
+        from .engine.actuators import ActuatorConfig
+        from .engine.params import coerce_all
+        from .engine.specs import SIMULATOR
         from .nodes.state_messages import StateMessages
         p = scene.simulator
-        self.msgs = StateMessages(p['frame_id'], p['child_frame_id'], torque=scene.controlled)
+        self.msgs = StateMessages(p['frame_id'], p['child_frame_id'], torque=scene.controlled,
+                                  actuators=ActuatorConfig.from_parameters(
+                                      coerce_all(SIMULATOR, p)))
         self.writer = BagWriter(directory, name=os.path.basename(os.path.normpath(directory)))
         self.path = os.path.abspath(directory)
         for topic, type_name in self.msgs.topic_types():
             self.writer.add_topic(f'/{topic}', type_name)
+        self.sensors = None  # the scene's gyro / star tracker topics, if it has sensors
+        settings = SensorSettings.from_parameters(p)
+        if settings is not None:
+            from .nodes.sensor_messages import SensorMessages
+            self.sensors = SensorMessages(settings, p['frame_id'], p['child_frame_id'])
+            for topic, type_name in self.sensors.topic_types():
+                self.writer.add_topic(f'/{topic}', type_name)
         self.writer.add_run_configuration({
             'scene': scene.name, 'scene_file': os.path.abspath(scene.path), 'mode': 'offline',
             'simulator_parameters': scene.simulator, 'controller_parameters': scene.controller,
@@ -192,6 +207,13 @@ class BagSink:
 
     def __call__(self, block: SampleBlock):
         write = self.writer.write
+        if self.sensors is not None and block.sensors is not None:
+            records = [(int(block.t_ns[i]), topic, data) for i in range(len(block))
+                       for topic, data in self.msgs.serialized(block, i, int(block.t_ns[i]))]
+            records += self.sensors.serialized(block.sensors)
+            for ns, topic, data in sorted(records, key=lambda r: r[0]):  # stable: time order
+                write(f'/{topic}', data, ns, ns)
+            return
         for i in range(len(block)):
             ns = int(block.t_ns[i])
             for topic, data in self.msgs.serialized(block, i, ns):
@@ -206,10 +228,9 @@ def add_arguments(parser):
     from .engine import specs
     from .physics import INTEGRATORS
     spec = {s.name: s for s in specs.SIMULATOR}
-    parser.add_argument('scene', help='built-in scene name (see `rigid-body-sim scenes`) or a '
-                        'params file')
+    parser.add_argument('scene', help='built-in scene name (listed below) or a params file')
     parser.add_argument('--duration', type=number(0.0, 1e12, low_open=True),
-                        help='simulated seconds (default: the scene\'s)')
+                        help='simulated seconds, s (default: the scene\'s)')
     parser.add_argument('--integrator', choices=('auto',) + tuple(INTEGRATORS),
                         help='integrator (default: the scene\'s): %(choices)s')
     parser.add_argument('--step', type=number(spec['step'].low, spec['step'].high),
@@ -228,10 +249,26 @@ def add_arguments(parser):
 
 
 def add_set_argument(parser):
+    """--set, and an epilog listing the choices a newcomer needs (with their units)."""
+    parser.epilog = choices_epilog()
     parser.add_argument('--set', action='append', default=[], metavar='KEY=VALUE',
                         help='override a scene parameter after the file (repeatable), typed '
                              'as in a params file: --set accuracy=1e-9 --set '
                              'initial_angular_velocity=[0.1,2.0,0.0]')
+
+
+def choices_epilog() -> str:
+    from .physics import DISSIPATION_MODELS, INTEGRATORS
+    from .scene import list_scenes
+    try:
+        scenes = ', '.join(name for name, _, _ in list_scenes())
+    except (OSError, SceneError):
+        scenes = '(config/ not found)'
+    return (f'scenes: {scenes}. integrators (--set integrator=NAME): auto, '
+            f'{", ".join(INTEGRATORS)}. dissipation models (--set dissipation.model=NAME, '
+            f'dissipation.coefficient in s/(kg·m²) for double_bracket, N·m·s for viscous): '
+            f'{", ".join(DISSIPATION_MODELS)}. Units are SI: s, rad, rad/s, kg·m², N·m, J; '
+            'quaternions (x, y, z, w).')
 
 
 def run(args) -> int:
@@ -259,10 +296,19 @@ def run(args) -> int:
             from .plots import free_until, write_plots
             s = result.samples
             result.plots = [os.path.abspath(pth) for pth in write_plots(
-                s, result.body, out, scene.name, free_until(s.t, s.torque))]
+                s, result.body, out, scene.name, free_until(s.t, s.torque), scene)]
+            if result.actuators is not None:
+                from .plots import write_actuator_plot
+                result.plots.append(os.path.abspath(write_actuator_plot(
+                    s, result.actuators, out, scene.name)))
+            if scene.controlled and scene.controller['feedback'] == 'sensors':
+                from .sensors.plots import write_pointing_plot
+                result.plots.append(os.path.abspath(write_pointing_plot(s, scene, out)))
     except (SceneError, ValueError, IntegrationError, BagError) as exc:
         print(f'error: {exc}', file=sys.stderr)
         return 2
+    for note in result.actuators.notes if result.actuators is not None else ():
+        print(f'note: {note}', file=sys.stderr)
     summary = result.summary()
     if args.json:
         print(json.dumps(summary))

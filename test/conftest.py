@@ -21,7 +21,8 @@ from ros_helpers import NodeProcess, unique_namespace  # noqa: E402
 # `make check`: the physics and the engine, no ROS graph, under a minute.
 FAST_FILES = {'test_body.py', 'test_exact.py', 'test_integrators.py', 'test_control.py',
               'test_engine.py', 'test_lint.py', 'test_kernels.py', 'test_batch.py',
-              'test_dop853.py'}
+              'test_dop853.py', 'test_viewer_geometry.py', 'test_actuators.py',
+              'test_sensor_noise.py', 'test_sensors.py'}
 
 
 def pytest_collection_modifyitems(config, items):

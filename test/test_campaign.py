@@ -80,6 +80,19 @@ def test_run_k_depends_only_on_seed_and_k():
     assert other['inertia[0]'] != first['inertia[0]']
 
 
+def test_sensor_noise_is_seeded_per_run_from_seed_and_k():
+    # gyro_pointing: a slew on a noisy gyro and star tracker; no dispersion at all, so the
+    # runs differ only by their noise, seeded from (S, k)
+    spec = spec_for('gyro_pointing', ['duration=5.0'], [], seed=3)
+    a, b = run_one(spec, 0), run_one(spec, 1)
+    assert a['status'] == b['status'] == 'ok'
+    assert a['noise_seed'] != b['noise_seed']
+    assert a['noise_seed'] == int(np.random.SeedSequence(3, spawn_key=(0, 0)).generate_state(
+        1, np.uint64)[0] >> np.uint64(1))
+    assert a['final_pointing_error'] != b['final_pointing_error']
+    assert rows_equal(a, run_one(spec, 0)) == []
+
+
 def test_draws_follow_their_distributions():
     s = load('detumble')
     ds = [disp.parse('inertia=uniform:5%'), disp.parse('initial_angular_velocity=normal:0.2')]

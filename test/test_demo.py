@@ -14,19 +14,26 @@ REPO = Path(__file__).resolve().parent.parent
 
 
 def test_make_demo_runs_the_live_graph_and_records_a_bag(tmp_path):
-    out = subprocess.run(['make', '-C', str(REPO), 'demo', 'DEMO_DURATION=14',
+    # DEMO_DURATION counts simulated seconds from the first sample: 24 s is past the 17 s
+    # free phase (one full flip) and into the control phases
+    out = subprocess.run(['make', '-C', str(REPO), 'demo', 'DEMO_DURATION=24',
                           f'DEMO_OUT={tmp_path}'],
                          capture_output=True, text=True, timeout=240)
     assert out.returncode == 0, out.stdout[-3000:] + out.stderr[-3000:]
     text = out.stdout
     assert 'Traceback' not in text + out.stderr
+    assert 'nan' not in text.lower(), text  # the status line shows nothing before a sample
+    ended = re.search(r'ended at t = ([0-9.]+) s \(sim time\) in the (\w+) phase', text)
+    assert ended and float(ended.group(1)) >= 24.0 and ended.group(2) in ('detumble', 'slew'), text
+    recorded = re.search(r'messages recorded: \d+ on \d+ topics, ([0-9.]+) s', text)
+    assert recorded and float(recorded.group(1)) >= 23.0, text  # start-up not counted
     assert re.search(r'final pointing error: [0-9.]+°', text), text
     drift = re.search(r'free phase: (\d+) samples, relative drift T ([0-9.e+-]+), '
                       r'\|L\| ([0-9.e+-]+)', text)
     assert drift and int(drift.group(1)) > 50, text
     assert float(drift.group(2)) < 1e-10 and float(drift.group(3)) < 1e-10  # exact flow while free
     assert re.search(r'messages recorded: \d+ on \d+ topics', text), text
-    for name in ('omega.png', 'invariants.png', 'poinsot.png'):
+    for name in ('omega.png', 'invariants.png', 'poinsot.png', 'flips.png', 'control.png'):
         assert (tmp_path / name).stat().st_size > 10_000
 
     from rosbags.highlevel import AnyReader
@@ -40,7 +47,7 @@ def test_make_demo_runs_the_live_graph_and_records_a_bag(tmp_path):
             if conn.topic == '/torque_command':
                 v = reader.deserialize(raw, conn.msgtype).vector
                 torques.append((v.x, v.y, v.z))
-    # 50 Hz state for ~10 s of sim time, and the controller's commands (zeros, then detumble)
+    # 50 Hz state for ~24 s of sim time, and the controller's commands (zeros, then detumble)
     assert counts.get('/attitude', 0) > 300 and counts.get('/kinetic_energy', 0) > 300, counts
     assert any(any(t) for t in torques) and any(not any(t) for t in torques)
     assert os.path.isfile(tmp_path / 'simulator.log')

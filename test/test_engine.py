@@ -210,3 +210,29 @@ def test_set_state_continues_from_the_new_state_at_the_same_time():
                                atol=1e-13)
     with pytest.raises(ValueError, match='not finite'):
         engine.set_state(q_new, [np.nan, 0.0, 0.0])
+
+
+def test_row_values_equal_the_vectorised_fields_for_a_rotated_body():
+    """SampleBlock.values converts short blocks on Python floats (the live node's path) and
+    long ones from the vectorised fields; both must agree to round-off (1e-15 relative),
+    also for a full inertia tensor whose principal axes are not the body axes."""
+    from scipy.spatial.transform import Rotation
+
+    from rigid_body_sim.physics.body import RigidBody
+    rng = np.random.default_rng(3)
+    axes = Rotation.from_quat(rng.normal(size=4)).as_matrix()
+    inertia = axes @ np.diag([1.0, 2.0, 2.5]) @ axes.T
+    body = RigidBody.from_inertia(inertia.ravel().tolist())
+    assert not np.allclose(body.principal_axes, np.eye(3))
+    n = 3
+    q = rng.normal(size=(n, 4))
+    q /= np.linalg.norm(q, axis=1, keepdims=True)
+    block = SampleBlock(np.arange(n, dtype=np.int64), q, rng.normal(size=(n, 3)),
+                        rng.normal(size=(n, 3)), body)
+    rows = [block.values(i) for i in range(n)]          # row path (short block)
+    assert 'attitude' not in block.__dict__
+    whole = block.take(slice(None))
+    fields = np.column_stack([whole.attitude, whole.angular_velocity, whole.angular_momentum,
+                              whole.angular_momentum_body, whole.kinetic_energy, whole.torque])
+    assert np.allclose(np.array(rows), fields, rtol=1e-15, atol=1e-15)
+    assert whole.values(1) == fields[1].tolist()         # fields path once they exist

@@ -51,3 +51,59 @@ def test_nodes_stop_cleanly_and_the_bag_is_finished(ros_process, namespace, rclp
                            'bag', 'info', str(bag)], capture_output=True, text=True, timeout=60)
     assert info.returncode == 0, info.stdout + info.stderr
     assert 'attitude' in info.stdout and 'recover' not in info.stdout + info.stderr
+
+
+GROUP_PARENT = r'''
+import signal, subprocess, sys
+# like `ros2 launch`: one parent process, the nodes its children in the parent's process
+# group; Ctrl-C in a terminal signals the whole group. The parent only waits: it handles
+# SIGINT by doing nothing, so it outlives its children as launch does while it shuts them
+# down (a handler, not SIG_IGN: an ignored SIGINT would be inherited by the nodes).
+signal.signal(signal.SIGINT, lambda *_: None)
+procs = [subprocess.Popen(cmd.split('\x1f')) for cmd in sys.argv[1:]]
+sys.exit(max(abs(p.wait()) for p in procs))
+'''
+
+
+@pytest.mark.parametrize('sequence', ['sigint', 'sigint_twice'])
+def test_a_launch_style_process_group_stops_on_ctrl_c(ros_process, namespace, rclpy_node,
+                                                      tmp_path, sequence):
+    """The nodes the launch file plans for the slew scene, started as children of one
+    parent in one process group (what `ros2 launch` does); Ctrl-C (SIGINT to the group,
+    once, or twice as `timeout -s INT` plus an impatient user do) → every node exits 0
+    within 2 s (5 s allowed on a loaded machine), no traceback, no process left in the
+    group, and the bag reads without recover."""
+    from geometry_msgs.msg import Vector3Stamped
+    from rigid_body_sim.launch_plan import plan
+    bag = tmp_path / 'bag'
+    nodes, _ = plan('slew', output=str(bag))
+    assert [n.executable for n in nodes] == ['simulator', 'controller', 'recorder']
+    cmds = []
+    for n in reversed(nodes):
+        cmd = [venv_exe(n.executable), '--ros-args', '-r', f'__node:={n.name}',
+               '-r', f'__ns:={namespace}']
+        for f in n.params_files:
+            cmd += ['--params-file', f]
+        for k, v in n.parameters.items():
+            cmd += ['-p', f'{k}:={v}']
+        cmds.append('\x1f'.join(cmd))
+    parent = ros_process(sys.executable, '-c', GROUP_PARENT, *cmds)
+    torques = []
+    rclpy_node.create_subscription(Vector3Stamped, f'{namespace}/torque_command',
+                                   torques.append, 100)
+    assert spin_until(rclpy_node, lambda: len(torques) > 20, 90.0), parent.output()[-3000:]
+    t0 = time.monotonic()
+    for sig in SEQUENCES[sequence]:
+        parent.signal(sig)       # os.killpg: the whole group, as a terminal's Ctrl-C
+        time.sleep(0.3)
+    code = parent.wait(30)
+    took = time.monotonic() - t0
+    out = parent.output()
+    assert code == 0 and 'Traceback' not in out, out[-3000:]
+    assert took < 5.0, took
+    with pytest.raises(ProcessLookupError):
+        os.killpg(parent.pid, 0)  # nothing left in the group
+    info = subprocess.run([os.path.join(os.path.dirname(sys.executable), 'rigid-body-sim'),
+                           'bag', 'info', str(bag)], capture_output=True, text=True, timeout=60)
+    assert info.returncode == 0, info.stdout + info.stderr + out[-4000:]
+    assert 'torque_command' in info.stdout and 'recover' not in info.stdout + info.stderr

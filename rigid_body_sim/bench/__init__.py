@@ -37,7 +37,10 @@ def add_arguments(parser):
                         help='also measure MuJoCo and Basilisk if installed '
                              f'({peers.INSTALL_HINT})')
     parser.add_argument('--scenes', default='', metavar='A,B',
-                        help='comma-separated subset of scenes for the work-precision section')
+                        help='comma-separated subset of scenes for the work-precision section: '
+                             + ', '.join(SCENE_BY_NAME))
+    parser.epilog = ('CPU times are process seconds; errors are attitude angles in rad against '
+                     'the reference each chart names; drifts are relative (value/initial − 1).')
 
 
 def machine():
@@ -264,7 +267,7 @@ def _run(args) -> int:
         for scene in scenes:
             charts.work_precision(wp_rows, scene,
                                   os.path.join(out, f'work_precision_{scene.name}.png'),
-                                  machine_text)
+                                  machine_text, refs[scene.name][2])
         charts.stability(st_rows, os.path.join(out, 'stability.png'))
         charts.long_horizon(lh_rows, os.path.join(out, 'long_horizon.png'))
     except Exception as exc:  # noqa: BLE001 - charts are a convenience; the CSVs carry the data

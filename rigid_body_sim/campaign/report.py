@@ -100,8 +100,9 @@ def format_summary(s: Dict) -> str:
 
 def write_plots(table, columns, out_dir) -> List[str]:
     """histograms.png and scatter_<value>.png per dispersed column; returns the paths."""
-    from ..plots import _pyplot
-    plt = _pyplot()
+    import matplotlib
+    matplotlib.use('Agg')  # files only; no display needed
+    import matplotlib.pyplot as plt
     os.makedirs(out_dir, exist_ok=True)
     ok = np.asarray(table.column('status').to_pylist()) == 'ok'
     data = {n: _column(table, n)[ok] for n in NUMERIC}

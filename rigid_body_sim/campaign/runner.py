@@ -1,7 +1,8 @@
 """The per-run function (pure: spec + run id → row) and the Dask driver around it.
 
 Run k draws its values from ``numpy.random.default_rng(SeedSequence(S, spawn_key=(k,)))``
-— the k-th child of ``SeedSequence(S).spawn(n)`` for any n > k — so it depends only on the
+— the k-th child of ``SeedSequence(S).spawn(n)`` for any n > k — and its scene's ``seed``
+parameter (sensor noise) from that sequence's first child, so it depends only on the
 campaign seed S and k, whichever worker runs it, in whichever order, alone or in a chunk.
 It runs on the same engine as ``rigid-body-sim run`` (:func:`rigid_body_sim.offline.simulate`).
 
@@ -15,7 +16,7 @@ import math
 import os
 import signal
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Callable, Iterable, List, Optional, Sequence, Tuple
 
 import numpy as np
@@ -68,6 +69,13 @@ def rng_for(seed: int, k: int) -> np.random.Generator:
     return np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(k,)))
 
 
+def noise_seed(seed: int, k: int) -> int:
+    """Run k's ``seed`` parameter (the scene's random processes, e.g. sensor noise): from
+    the first child of run k's SeedSequence, so it too depends on (seed, k) only."""
+    return int(np.random.SeedSequence(seed, spawn_key=(k, 0)).generate_state(1, np.uint64)[0]
+               >> np.uint64(1))  # within the parameter's range [0, 2^63 - 1]
+
+
 def run_one(spec: CampaignSpec, k: int) -> dict:
     """Run k of the campaign → its row. Never raises for a bad run: a refused draw, an
     integrator error or any other failure is the row's ``status`` and ``error``."""
@@ -75,11 +83,16 @@ def run_one(spec: CampaignSpec, k: int) -> dict:
     from ..physics import IntegrationError
     # the thread's CPU time: a Dask worker's other threads (its event loop) are not the run's
     cpu0 = time.thread_time()
-    row = {'run_id': k, 'seed': spec.seed, 'status': 'ok', 'error': '', 'redraws': 0}
+    row = {'run_id': k, 'seed': spec.seed, 'status': 'ok', 'error': '', 'redraws': 0,
+           'noise_seed': None}
     values, metrics = None, empty()
     integrator = str(spec.scene.simulator.get('integrator', ''))
+    base = spec.scene
+    if 'seed' in base.simulator and 'seed' not in {d.key for d in spec.dispersions}:
+        row['noise_seed'] = noise_seed(spec.seed, k)
+        base = replace(base, simulator={**base.simulator, 'seed': row['noise_seed']})
     try:
-        values, scene, row['redraws'] = disp.draw(spec.scene, spec.dispersions,
+        values, scene, row['redraws'] = disp.draw(base, spec.dispersions,
                                                   rng_for(spec.seed, k), spec.policy)
     except disp.DrawRejected as exc:
         row.update(status='bad_draw', error=str(exc), redraws=exc.attempts)
@@ -110,7 +123,7 @@ def lost_rows(spec: CampaignSpec, ids, reason: str) -> List[dict]:
     rows = []
     for k in ids:
         row = {'run_id': k, 'seed': spec.seed, 'status': 'task_failed', 'error': reason,
-               'redraws': 0, 'integrator': '', 'cpu_time': math.nan}
+               'redraws': 0, 'noise_seed': None, 'integrator': '', 'cpu_time': math.nan}
         row.update(disp.flatten(spec.scene, spec.dispersions, None))
         row.update(empty())
         rows.append(row)

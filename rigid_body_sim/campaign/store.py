@@ -20,7 +20,7 @@ FLUSH_ROWS = 256
 FLUSH_SECONDS = 2.0
 
 HEAD = (('run_id', 'int64'), ('seed', 'int64'), ('status', 'string'), ('error', 'string'),
-        ('redraws', 'int32'))
+        ('redraws', 'int32'), ('noise_seed', 'int64'))
 TAIL = (('final_pointing_error', 'float64'), ('settling_time', 'float64'),
         ('detumble_time', 'float64'), ('peak_torque', 'float64'), ('saturated', 'bool'),
         ('energy_dissipated', 'float64'), ('flip_count', 'int64'),

@@ -12,7 +12,9 @@ import numpy as np
 
 from .. import control
 from ..physics import Dissipation, RigidBody, rotation
+from ..sensors.specs import SensorSettings, check_feedback
 from . import specs
+from .actuators import ActuatorConfig
 from .params import coerce_all
 
 NS = 1_000_000_000
@@ -34,6 +36,8 @@ class ControlSettings:
     period_ns: int
     free_time: float = 0.0
     detumble_exit_rate: float = 0.0
+    feedback: str = 'truth'             # or 'sensors' (the estimator's output)
+    estimator_bandwidth: float = 0.5    # rad/s
 
     @classmethod
     def from_parameters(cls, values: Mapping) -> 'ControlSettings':
@@ -45,7 +49,8 @@ class ControlSettings:
         control.Mission(p['mission.free_time'], p['mission.detumble_exit_rate'])  # validates
         return cls(control.config_from_parameters(p), p['mode'], target,
                    seconds_to_ns(1.0 / p['control_rate'], 'control period'),
-                   p['mission.free_time'], p['mission.detumble_exit_rate'])
+                   p['mission.free_time'], p['mission.detumble_exit_rate'],
+                   p['feedback'], p['estimator.bandwidth'])
 
 
 @dataclass(frozen=True, eq=False)
@@ -62,6 +67,8 @@ class EngineConfig:
     duration_ns: the run ends there (0 = open-ended).
     max_torque: per-axis clip of commanded torque (N·m); command_timeout_ns: hold time.
     control: the in-process control law, or None (commands come from outside).
+    actuators: reaction wheels / CMGs (``actuators``), or None: the plain rigid body.
+    sensors: the simulated gyro / star tracker (``sensors.specs``), or None.
     """
     body: RigidBody
     dissipation: Dissipation
@@ -76,6 +83,8 @@ class EngineConfig:
     command_timeout_ns: int = 500_000_000
     control: Optional[ControlSettings] = None
     integrator_options: Mapping = field(default_factory=dict)
+    actuators: Optional[ActuatorConfig] = None
+    sensors: Optional[SensorSettings] = None  # None: no sensor simulated (nothing built)
 
     @property
     def duration(self) -> float:
@@ -103,10 +112,17 @@ class EngineConfig:
         w = np.asarray(p['initial_angular_velocity'], float)
         dissipation = Dissipation(p['dissipation.model'], p['dissipation.coefficient'])
         ctl = None if controller is None else ControlSettings.from_parameters(controller)
+        actuators = ActuatorConfig.from_parameters(p)
+        if actuators is not None and dissipation.active:
+            raise ValueError('dissipation.model: the gyrostat (wheels/CMGs) integrator has no '
+                             'dissipation; set it to none with actuators')
+        sensors = SensorSettings.from_parameters(p)
+        if ctl is not None:
+            check_feedback(sensors, ctl.feedback, ctl.estimator_bandwidth)
         config = cls(body, dissipation, q, w, integrator=p['integrator'], step=p['step'],
                      accuracy=p['accuracy'],
                      sample_period_ns=seconds_to_ns(1.0 / p['publish_rate'], 'sample period'),
                      duration_ns=int(round(p['duration'] * NS)), max_torque=p['max_torque'],
                      command_timeout_ns=seconds_to_ns(p['command_timeout'], 'command_timeout'),
-                     control=ctl)
+                     control=ctl, actuators=actuators, sensors=sensors)
         return config.replace(**overrides) if overrides else config

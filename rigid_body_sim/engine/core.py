@@ -13,6 +13,7 @@ the closed form is evaluated at each event from an anchor, at the exact elapsed 
 
 Front ends differ only in how they pace :meth:`Engine.advance` and where the samples go.
 """
+from dataclasses import replace
 import math
 import time
 from typing import Iterator, Optional
@@ -22,13 +23,16 @@ import numpy as np
 from ..physics import Dynamics, IntegrationError, create, rotation
 from ..physics.exact import TorqueFreeSolution
 from ..physics.selection import select, selecting
-from . import closed_loop
+from . import closed_loop, sensing
+from .actuators import Actuators
 from .config import NS, EngineConfig
 from .samples import BlockBuilder, SampleBlock
 from .sources import NEVER, CommandHold, ControlLaw
 from .specs import AUTO
 
 __all__ = ['Engine', 'IntegrationError', 'NEVER']
+
+GYROSTAT = 'gyrostat_strang'  # the method of scenes with wheels or CMGs
 
 
 class Engine:
@@ -49,9 +53,15 @@ class Engine:
         self.compiled_loop = compiled_loop
         self.command = CommandHold(config.max_torque, config.command_timeout_ns)
         self.sources = [self.command]
-        self._law = None
+        self._law = self._sensors = None
+        if config.sensors is not None:  # read before the law at a shared instant
+            self._sensors = sensing.SensorSuite(config.sensors, sensing.estimator_bandwidth(
+                config.control))
+            self.sources.append(self._sensors)
         if config.control is not None:
-            self._law = ControlLaw(config.control, clip=config.max_torque)
+            observer = self._sensors.observe if sensing.estimator_bandwidth(config.control) \
+                else None
+            self._law = ControlLaw(config.control, clip=config.max_torque, observer=observer)
             self.sources.append(self._law)
         self._builder = BlockBuilder(config.body, block_size)
         self.steps = 0
@@ -70,6 +80,11 @@ class Engine:
         self.dynamics = Dynamics(self.body.principal_moments, c.dissipation)
         self._q = self.body.attitude_to_principal(c.attitude)
         self._m = self.body.principal_moments * self.body.to_principal(c.angular_velocity)
+        # wheels / CMGs: the gyrostat path (scenes without them build nothing of it)
+        self.actuators = None if c.actuators is None else Actuators(c.actuators, self.body)
+        if self.actuators is not None:
+            self.actuators.reset(self._m / self.body.principal_moments)
+            self._split_axes = np.argsort(self.body.principal_moments, kind='stable')[[0, 2, 1]]
         self.t_ns = t_ns
         self.start_ns = t_ns
         self.fault: Optional[str] = None
@@ -124,12 +139,16 @@ class Engine:
 
     @property
     def angular_momentum(self):
-        """L, inertial frame, kg·m²/s."""
+        """L, inertial frame, kg·m²/s (with actuators: the total H = Iω + h_A)."""
+        if self.actuators is not None:
+            return rotation.rotate(self._q, self._m + self.actuators.momentum_principal())
         return rotation.rotate(self._q, self._m)
 
     @property
     def kinetic_energy(self) -> float:
-        return float(self.dynamics.kinetic_energy(self._m))
+        """J; with wheels, their spin energy too."""
+        extra = 0.0 if self.actuators is None else self.actuators.energy()
+        return float(self.dynamics.kinetic_energy(self._m)) + extra
 
     @property
     def principal_state(self):
@@ -179,6 +198,13 @@ class Engine:
         """Pick the method for the current state (``auto``) or take the configured one."""
         c = self.config
         self._selection = None
+        if self.actuators is not None:
+            self._integ = None
+            self.method, self._anchor = GYROSTAT, None
+            self.step_max = min(c.step, self._max_step())
+            self.reason = ('actuators (wheels/CMGs): gyrostat Strang splitting, |H| kept to '
+                           'round-off; at the scene\'s step')
+            return
         if c.integrator != AUTO:
             self._use(c.integrator, self._max_step(),
                       f'set by the scene or parameter ({c.integrator})',
@@ -256,6 +282,13 @@ class Engine:
             self._choose()
 
     # ------------------------------------------------------------------ torque
+    def apply_actuator_command(self, values):
+        """Hold a forward command (wheel torques N·m, then gimbal rates rad/s). ValueError
+        (counted by the actuators; the last valid command stays) if invalid."""
+        if self.actuators is None:
+            raise ValueError('the scene has no actuators (actuators.wheels / actuators.cmgs)')
+        self.actuators.command(values)
+
     def apply_command(self, torque_body):
         """Hold a commanded body-frame torque (N·m, finite) from now for the timeout."""
         self.command.set(torque_body, self.t_ns)
@@ -268,6 +301,9 @@ class Engine:
             np.sum(active, axis=0)
         self._tau_p = None if self._tau_body is None else \
             self._tau_body if self._aligned else self.body.to_principal(self._tau_body)
+        if self.actuators is not None and self.actuators.allocate:
+            self.actuators.set_body_torque(self._tau_p)  # the actuators make it, internally
+            self._tau_p = None
         if self._tau_body is not None:
             self._anchor = None
             if not self._torque_seen:
@@ -295,6 +331,9 @@ class Engine:
             t0, solution = self._anchored()
             self._q, self._m = solution.at((t_end - t0) / NS)
             self.evaluations += 1
+            return
+        if self.actuators is not None:
+            self.actuators.integrate(self, span)
             return
         # equal steps no longer than step_max (to 1 ppb: a step given as span/n stays n steps)
         n = max(1, math.ceil(span / (self.step_max * NS) - 1e-9))
@@ -328,7 +367,8 @@ class Engine:
         cap = min(b.capacity, max_samples or b.capacity)
         p = self.config.sample_period_ns
         while not (self.finished or self.fault) and b.n < cap:
-            if self._law is not None and self.compiled_loop:
+            # with sensors the law sees their events: the event path (Python) runs it
+            if self._law is not None and self.compiled_loop and self._sensors is None:
                 closed_loop.advance(self, until_ns)  # to the next sample or end, if it applies
             t_src = min(s.next_event() for s in self.sources)
             end = self.end_ns
@@ -354,12 +394,15 @@ class Engine:
                 if not (np.all(np.isfinite(self._q)) and np.all(np.isfinite(self._m))):
                     self.fault = f'state became non-finite at t = {self.t:.9g} s'
                     raise IntegrationError(self.method, self.step_max, self.t, self.fault)
-                b.add(t_event, self._q, self._m, self._tau_body)
+                b.add(t_event, self._q, self._m, self._tau_body, None if self.actuators is None
+                      else self.actuators.row(self._m, self.dynamics.moments))
                 self._next_sample += p
             if t_event >= end:
                 self.finished = True
             if deadline is not None and time.monotonic() > deadline:
                 break
+        if self._sensors is not None:
+            return replace(b.block(), sensors=self._sensors.drain())
         return b.block()
 
     def run(self, until_ns: Optional[int] = None) -> Iterator[SampleBlock]:
@@ -385,8 +428,10 @@ class Engine:
         T, L = self.kinetic_energy, self.angular_momentum
         T0, L0, t0 = self._base
         n0, n = float(np.linalg.norm(L0)), float(np.linalg.norm(L))
-        torque_on = self._tau_body is not None
+        applied = torque_on = self._tau_body is not None
         na = 'n/a (torque applied)'
+        if self.actuators is not None:  # allocated torque is internal: H is still kept
+            torque_on = self._tau_p is not None
 
         def rel(a, b):
             return (a - b) / b if b > 0 else 0.0
@@ -397,16 +442,19 @@ class Engine:
             'step': self.step_max, 'publish_rate': NS / self.config.sample_period_ns,
             'sim_time': self.t, 'kinetic_energy': T, 'angular_momentum_norm': n,
             'drift_since': t0 / NS,
-            'kinetic_energy_drift': na if torque_on else rel(T, T0),
+            'kinetic_energy_drift': na if torque_on else
+            'n/a (actuators do work)' if self.actuators is not None else rel(T, T0),
             'angular_momentum_norm_drift': na if torque_on else rel(n, n0),
             'angular_momentum_inertial_drift': na if torque_on else
             (float(np.linalg.norm(L - L0)) / n0 if n0 > 0 else 0.0),
             'quaternion_norm_error': abs(float(np.linalg.norm(self._q)) - 1.0),
             'energy_dissipated': max(0.0, T0 - T)
             if self.dynamics.dissipation.active and not torque_on else 0.0,
-            'torque_applied': torque_on,
+            'torque_applied': applied,
             'commands_accepted': c.accepted, 'commands_saturated': c.saturated,
             'commands_timed_out': c.timed_out,
             'selection_pending': self.selection_pending,
+            **({} if self.actuators is None else
+               self.actuators.diagnostics(self._m, self.dynamics.moments)),
         }
 

@@ -5,6 +5,7 @@ thousand offline). Every front end consumes blocks: the node turns each row into
 messages, the offline run into bag records and plot points, the bench into errors.
 """
 from dataclasses import dataclass
+import math
 from functools import cached_property
 from typing import Optional
 
@@ -22,7 +23,9 @@ class SampleBlock:
     """n samples. Frames: attitude (x, y, z, w) body → inertial; angular_velocity (rad/s)
     and angular_momentum_body (kg·m²/s) in the body frame; angular_momentum (kg·m²/s) in
     the inertial frame; kinetic_energy (J); torque (N·m, body frame) is the total held
-    torque applied from that instant on. t_ns: sim time, integer nanoseconds.
+    torque applied from that instant on. t_ns: sim time, integer nanoseconds. sensors:
+    the gyro / star-tracker readings (``engine.sensing.SensorReadings``) taken while this
+    block was produced, at their own instants; None when the scene simulates no sensor.
 
     It holds the principal-frame state (q principal → inertial, m) and converts it to the
     user's frames on first use of each field, so a consumer that reads only the end state
@@ -32,6 +35,10 @@ class SampleBlock:
     m: np.ndarray
     torque: np.ndarray
     body: Optional[RigidBody]
+    # with wheels/CMGs: one row per sample of Actuators.row (wheel speeds, wheel momenta,
+    # gimbal angles, gimbal rates, singularity measure, |h_A|); None without actuators
+    actuators: Optional[np.ndarray] = None
+    sensors: Optional[object] = None  # engine.sensing.SensorReadings taken meanwhile
 
     def __len__(self):
         return len(self.t_ns)
@@ -72,6 +79,20 @@ class SampleBlock:
             return np.zeros(0)
         return 0.5 * np.sum(self.m * self.m / self.body.principal_moments, axis=-1)
 
+    def values(self, i) -> list:
+        """Sample i as 17 floats: attitude (4), angular_velocity (3), angular_momentum (3),
+        angular_momentum_body (3), kinetic_energy, torque (3) — the fields' frames.
+
+        A live node converts one sample at a time, where the vectorised fields cost ~90 µs
+        of numpy overhead per row; short blocks are therefore converted on Python floats
+        (the same formulas, equal to the fields to round-off: test_engine checks 1e-15)."""
+        if len(self) > ROW_PATH_MAX or 'attitude' in self.__dict__:
+            return [*self.attitude[i].tolist(), *self.angular_velocity[i].tolist(),
+                    *self.angular_momentum[i].tolist(), *self.angular_momentum_body[i].tolist(),
+                    float(self.kinetic_energy[i]), *self.torque[i].tolist()]
+        return _row_values(self.body, self.q[i].tolist(), self.m[i].tolist(),
+                           self.torque[i].tolist())
+
     def row(self, i):
         """Sample i as a dict of Python values."""
         return {k: getattr(self, k)[i].tolist() for k in FIELDS}
@@ -79,15 +100,46 @@ class SampleBlock:
     def take(self, index) -> 'SampleBlock':
         """The samples at ``index`` (an index array or a slice)."""
         return SampleBlock(self.t_ns[index], self.q[index], self.m[index], self.torque[index],
-                           self.body)
+                           self.body, None if self.actuators is None else self.actuators[index])
 
     @staticmethod
     def concatenate(blocks) -> 'SampleBlock':
         blocks = [b for b in blocks if len(b)]
         if not blocks:
             return empty_block()
+        extra = None if blocks[0].actuators is None else \
+            np.concatenate([b.actuators for b in blocks])
         return SampleBlock(*(np.concatenate([getattr(b, k) for b in blocks])
-                             for k in ('t_ns', 'q', 'm', 'torque')), blocks[0].body)
+                           for k in ('t_ns', 'q', 'm', 'torque')), blocks[0].body, extra)
+
+
+ROW_PATH_MAX = 4  # blocks up to this length convert row by row on floats (SampleBlock.values)
+
+
+def _row_values(body: RigidBody, q, m, torque) -> list:
+    """SampleBlock.values for one principal-frame state (q principal → inertial, m), with
+    the formulas of rotation.multiply, rotation.rotate and RigidBody.to_body."""
+    qx, qy, qz, qw = q
+    px, py, pz, pw = body.principal_to_body.tolist()
+    cx, cy, cz, cw = -px, -py, -pz, pw                   # a = q ⊗ conj(p): body attitude
+    ax = qw * cx + qx * cw + qy * cz - qz * cy
+    ay = qw * cy - qx * cz + qy * cw + qz * cx
+    az = qw * cz + qx * cy - qy * cx + qz * cw
+    aw = qw * cw - qx * cx - qy * cy - qz * cz
+    n = math.sqrt(ax * ax + ay * ay + az * az + aw * aw)
+    ix, iy, iz = body.principal_moments.tolist()
+    m0, m1, m2 = m
+    w0, w1, w2 = m0 / ix, m1 / iy, m2 / iz
+    (r00, r01, r02), (r10, r11, r12), (r20, r21, r22) = body.principal_axes.tolist()
+    tx, ty, tz = 2 * (qy * m2 - qz * m1), 2 * (qz * m0 - qx * m2), 2 * (qx * m1 - qy * m0)
+    return [ax / n, ay / n, az / n, aw / n,                # L = m + qw t + u × t, t = 2 u × m
+            r00 * w0 + r01 * w1 + r02 * w2, r10 * w0 + r11 * w1 + r12 * w2,
+            r20 * w0 + r21 * w1 + r22 * w2,
+            m0 + qw * tx + (qy * tz - qz * ty), m1 + qw * ty + (qz * tx - qx * tz),
+            m2 + qw * tz + (qx * ty - qy * tx),
+            r00 * m0 + r01 * m1 + r02 * m2, r10 * m0 + r11 * m1 + r12 * m2,
+            r20 * m0 + r21 * m1 + r22 * m2,
+            0.5 * (m0 * m0 / ix + m1 * m1 / iy + m2 * m2 / iz), *torque]
 
 
 def empty_block() -> SampleBlock:
@@ -106,16 +158,21 @@ class BlockBuilder:
         self._q = np.empty((capacity, 4))
         self._m = np.empty((capacity, 3))
         self._tau = np.empty((capacity, 3))
+        self._extra = None  # actuator rows, allocated on the first one
         self.n = 0
 
     @property
     def full(self) -> bool:
         return self.n >= self.capacity
 
-    def add(self, t_ns, q, m, torque_body):
+    def add(self, t_ns, q, m, torque_body, extra=None):
         i = self.n
         self._t[i], self._q[i], self._m[i] = t_ns, q, m
         self._tau[i] = 0.0 if torque_body is None else torque_body
+        if extra is not None:
+            if self._extra is None or self._extra.shape[1] != len(extra):
+                self._extra = np.zeros((self.capacity, len(extra)))
+            self._extra[i] = extra
         self.n += 1
 
     def add_many(self, t_ns, q, m):
@@ -128,6 +185,7 @@ class BlockBuilder:
     def block(self) -> SampleBlock:
         n = self.n
         out = SampleBlock(self._t[:n].copy(), self._q[:n].copy(), self._m[:n].copy(),
-                          self._tau[:n].copy(), self.body)
+                          self._tau[:n].copy(), self.body,
+                          None if self._extra is None else self._extra[:n].copy())
         self.n = 0
         return out

@@ -88,9 +88,11 @@ class ControlLaw(TorqueSource):
     """
     name = 'control'
 
-    def __init__(self, settings: ControlSettings, clip: float = math.inf):
+    def __init__(self, settings: ControlSettings, clip: float = math.inf, observer=None):
         super().__init__()
         self.settings, self.clip = settings, float(clip)
+        # observer(t_ns) -> (attitude, ω) or None: the law sees an estimate, not the truth
+        self.observer = observer
         self.reset(0)
 
     def reset(self, t_ns):
@@ -116,6 +118,12 @@ class ControlLaw(TorqueSource):
         return self.next_t
 
     def on_event(self, t_ns, attitude, angular_velocity):
+        if self.observer is not None:
+            estimate = self.observer(t_ns)
+            if estimate is None:  # no estimate yet (before the first fix): no torque
+                self.torque, self.next_t = None, t_ns + self.settings.period_ns
+                return
+            attitude, angular_velocity = estimate
         tau, _, _ = self.evaluate(t_ns / 1e9, attitude, angular_velocity)
         if self.clip < math.inf:
             tau = np.clip(tau, -self.clip, self.clip)

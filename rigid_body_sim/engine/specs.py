@@ -7,6 +7,8 @@ from typing import Optional
 
 from .. import control
 from ..physics import DISSIPATION_MODELS, INTEGRATORS
+from .actuator_specs import ACTUATORS
+from ..sensors import specs as sensor_specs
 from .params import ParamSpec
 
 AUTO = 'auto'
@@ -63,7 +65,7 @@ SIMULATOR = (
               low=0.0, high=1e6),
     ParamSpec('qos', 'reliable', 'QoS of state topics and command subscriptions',
               kind='string', choices=QOS_CHOICES, read_only=True),
-)
+) + ACTUATORS + sensor_specs.SIMULATOR  # wheels and CMGs (actuator_specs); seed, sensors.*
 
 D = control.PARAMETER_DEFAULTS
 CONTROLLER = (
@@ -117,7 +119,7 @@ CONTROLLER = (
               kind='string'),
     ParamSpec('qos', 'reliable', 'QoS of state subscriptions and torque_command',
               kind='string', choices=QOS_CHOICES, read_only=True),
-)
+) + sensor_specs.CONTROLLER  # feedback, estimator.*
 
 
 def frame_id_problem(frame: str) -> Optional[str]:

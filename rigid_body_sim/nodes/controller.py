@@ -8,6 +8,10 @@ Topics (relative names, remappable):
     sub ``attitude`` (geometry_msgs/QuaternionStamped, body→``frame_id``),
         ``angular_velocity`` (geometry_msgs/Vector3Stamped, body frame),
         ``attitude_target`` (geometry_msgs/QuaternionStamped, in the attitude's frame_id or empty).
+        With ``feedback: sensors``, instead of attitude and angular_velocity: ``gyro``
+        (sensor_msgs/Imu, body frame) and ``star_tracker`` (geometry_msgs/QuaternionStamped)
+        through ``sensors.estimator.AttitudeEstimator``; the estimate is the state (its
+        age is the last gyro reading's; no state before the first fix).
     pub ``torque_command`` (geometry_msgs/Vector3Stamped, body frame ``child_frame_id``,
         stamped with the node clock), ``/diagnostics``.
 
@@ -35,9 +39,11 @@ from rcl_interfaces.msg import SetParametersResult
 
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import QuaternionStamped, Vector3Stamped
+from sensor_msgs.msg import Imu
 
 from .. import control
 from ..engine import ControlLaw, ControlSettings, specs
+from ..sensors.estimator import AttitudeEstimator
 from .common import (changed_values, coerce_parameters, declare_parameters, diagnostic_status,
                      frame_id_problem, qos_profile, signals_ignored, stamp_to_seconds,
                      validate_update)
@@ -104,9 +110,16 @@ class Controller(Node):
         self._pub = self.create_publisher(Vector3Stamped, 'torque_command', qos)
         self._diag_pub = self.create_publisher(DiagnosticArray, '/diagnostics',
                                                qos_profile('reliable'))
-        self.create_subscription(QuaternionStamped, 'attitude', self._on_attitude, qos)
-        self.create_subscription(Vector3Stamped, 'angular_velocity', self._on_angular_velocity,
-                                 qos)
+        self._estimator = None
+        if self._p['feedback'] == 'sensors':  # the law sees the estimator, never the truth
+            self._estimator = AttitudeEstimator(self._p['estimator.bandwidth'])
+            self.create_subscription(Imu, 'gyro', self._on_gyro, qos)
+            self.create_subscription(QuaternionStamped, 'star_tracker', self._on_star_tracker,
+                                     qos)
+        else:
+            self.create_subscription(QuaternionStamped, 'attitude', self._on_attitude, qos)
+            self.create_subscription(Vector3Stamped, 'angular_velocity',
+                                     self._on_angular_velocity, qos)
         self.create_subscription(QuaternionStamped, 'attitude_target', self._on_target, qos)
         self._timer = self.create_timer(1.0 / self._p['control_rate'], self._tick)
         self.create_timer(DIAGNOSTICS_PERIOD_S, self._publish_diagnostics,
@@ -162,6 +175,32 @@ class Controller(Node):
         self._w = w
         self._w_stamp = self._stamp_or_now(msg.header)
 
+    def _on_gyro(self, msg: Imu):
+        """A gyro reading (body frame): propagate the estimate; it becomes the state."""
+        v = msg.angular_velocity
+        w = np.array((v.x, v.y, v.z))
+        if not np.all(np.isfinite(w)):
+            self._rejected_states += 1
+            return self._warn('bad_gyro', f'gyro {w.tolist()} ignored: not finite')
+        t = self._stamp_or_now(msg.header)
+        t_ns = round(t * 1e9)
+        self._estimator.gyro(t_ns, w)
+        estimate = self._estimator.estimate(t_ns)
+        if estimate is not None:  # after the first star-tracker fix
+            self._q, self._w = estimate
+            self._q_stamp = self._w_stamp = t
+
+    def _on_star_tracker(self, msg: QuaternionStamped):
+        """A star-tracker fix (body -> frame_id): correct the estimate."""
+        o = msg.quaternion
+        q = np.array((o.x, o.y, o.z, o.w))
+        if not (np.all(np.isfinite(q)) and np.linalg.norm(q) > 1e-6):
+            self._rejected_states += 1
+            return self._warn('bad_fix', f'star_tracker {q.tolist()} ignored: not a rotation '
+                                         '(NaN/Inf or zero)')
+        self._estimator.star_tracker(round(self._stamp_or_now(msg.header) * 1e9), q)
+        self._attitude_frame = msg.header.frame_id.lstrip('/')
+
     def _on_target(self, msg: QuaternionStamped):
         o = msg.quaternion
         frame = msg.header.frame_id.lstrip('/')
@@ -185,7 +224,8 @@ class Controller(Node):
         self._last = None
         if self._q is None or self._w is None:
             self._age = math.inf
-            self._stale_reason = 'no state received yet'
+            self._stale_reason = 'no state received yet' if self._estimator is None else \
+                'no estimate yet (it needs gyro readings and a star_tracker fix)'
         else:
             self._age = now - min(self._q_stamp, self._w_stamp)
             if self._age > self._p['state_timeout']:
@@ -273,7 +313,12 @@ class Controller(Node):
             'states_rejected': self._rejected_states,
             'commands_published': self._published,
             'max_torque': c.torque_limit if math.isfinite(c.torque_limit) else 0.0,
+            'feedback': self._p['feedback'],
         }
+        if self._estimator is not None:
+            values.update(gyro_readings=self._estimator.readings,
+                          star_tracker_fixes=self._estimator.fixes,
+                          gyro_bias_estimate=' '.join(f'{x:.6g}' for x in self._estimator.bias))
         if self._stale_reason:
             level = 'OK' if self._ctl.mode == 'off' else 'WARN'
             message = f'{self._ctl.mode}: zero torque, {self._stale_reason}'

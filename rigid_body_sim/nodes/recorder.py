@@ -34,7 +34,8 @@ from rigid_body_sim.nodes.common import signals_ignored
 DEFAULT_TOPICS = [
     'attitude', 'pose', 'transform', 'odometry', 'angular_velocity', 'angular_momentum',
     'angular_momentum_body', 'kinetic_energy', 'imu', 'torque_command', 'wrench_command',
-    'attitude_target', '/diagnostics', '/tf',
+    'attitude_target', '/diagnostics', '/tf', 'gyro', 'star_tracker',
+    'wheel_states', 'gimbal_states', 'actuator_command',  # scenes with wheels / CMGs
 ]
 # Messages taken per callback beyond the one the executor delivered (see _callback).
 DRAIN_LIMIT = 200
@@ -75,6 +76,16 @@ class Recorder(Node):
                                 max_bag_size=int(get('max_bag_size').value),
                                 flush_period=float(get('flush_period').value),
                                 compression=get('compression').value)
+        try:
+            self._start(get)
+        except BaseException:
+            # Ctrl-C during start-up (rclpy shuts the context down under a call, which then
+            # raises) must still leave a finished bag, not an MCAP without its summary
+            with signals_ignored():
+                self.writer.close()
+            raise
+
+    def _start(self, get) -> None:
         self.get_logger().info(f'recording to {self.writer.directory} '
                                f'({"all topics" if self._all else sorted(self._wanted)})')
         self._subs: dict[str, Any] = {}

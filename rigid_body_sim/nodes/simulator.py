@@ -23,12 +23,17 @@ import sys
 import time
 
 import rclpy
-from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.executors import ExternalShutdownException
+# rclpy's C++ events executor: the node turns its loop at every sample (100 Hz), and the
+# Python SingleThreadedExecutor rebuilds its wait set over every service and subscription
+# each turn (~0.6 ms; the simulator has ~20), which cost more than the physics.
+from rclpy.experimental import EventsExecutor
 from rclpy.node import Node
 
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import Vector3Stamped, WrenchStamped
 from rosgraph_msgs.msg import Clock
+from std_msgs.msg import Float64MultiArray
 from std_srvs.srv import Trigger
 
 from ..engine import NS, Engine, EngineConfig, specs
@@ -38,6 +43,7 @@ from .commands import CommandFilter
 from .common import (changed_values, declare_parameters, diagnostic_status, qos_profile,
                      signals_ignored, validate_update)
 from .sim_services import AVAILABLE as SIM_SERVICES, SimulationServices
+from .sensor_messages import SensorMessages, sensors_summary
 from .state_messages import StateMessages
 
 try:  # /tf only where tf2_msgs exists (a full ROS install); the PyPI venv has none
@@ -77,15 +83,25 @@ class Simulator(Node):
         except ValueError as exc:
             raise SceneError(str(exc)) from None
         self._log = self.get_logger()
-        self._msgs = StateMessages(self._p['frame_id'], self._p['child_frame_id'])
+        actuators = self._engine.config.actuators
+        self._msgs = StateMessages(self._p['frame_id'], self._p['child_frame_id'],
+                                   actuators=actuators)
+        for note in actuators.notes if actuators is not None else ():
+            self._log.info(note)
         self._clock_msg = Clock()
         qos = qos_profile(self._p['qos'])
         state_qos = qos_profile(self._p['qos'], STATE_DEPTH)
         pub = self.create_publisher
-        self._pubs = [(pub(type(msg), name, state_qos), msg) for name, msg in self._msgs.topics()]
         if TFMessage is not None:
-            self._pubs.append((pub(TFMessage, '/tf', qos_profile('reliable', 100)),
-                               TFMessage(transforms=[self._msgs.transform])))
+            self._msgs.add_topic('/tf', TFMessage(transforms=[self._msgs.transform]))
+        # every state message of a sample is published as CDR bytes (state_messages: why)
+        self._pubs = [(pub(type(msg), name, qos_profile('reliable', 100) if name == '/tf'
+                           else state_qos), name) for name, msg in self._msgs.topics()]
+        self._sensor_msgs, self._sensor_pubs = None, {}  # gyro / star_tracker, if simulated
+        if self._engine.config.sensors is not None:
+            self._sensor_msgs = SensorMessages(self._engine.config.sensors, *self.frames)
+            self._sensor_pubs = {name: pub(type(msg), name, state_qos)
+                                 for name, msg in self._sensor_msgs.topics()}
         self._clock_pub = None
         if self._p['publish_clock']:
             self._clock_pub = pub(Clock, '/clock', qos_profile('reliable'))
@@ -96,6 +112,10 @@ class Simulator(Node):
             m.header, m.vector, 'torque_command'), qos)
         self.create_subscription(WrenchStamped, 'wrench_command', lambda m: self._on_command(
             m.header, m.wrench.torque, 'wrench_command'), qos)
+        if actuators is not None:  # ros2_control forward-command convention
+            self._actuator_warn = 0.0
+            self.create_subscription(Float64MultiArray, 'actuator_command',
+                                     self._on_actuator_command, qos)
         self.create_service(Trigger, '~/reset', self._on_reset)
         self.paused = False
         self._quit_at = None  # wall time at which a requested quit ends the loop
@@ -159,13 +179,17 @@ class Simulator(Node):
 
     def _publish(self, block, late=True):
         msgs, rtf = self._msgs, (self._p['real_time_factor'] if late else 0)
+        if block.sensors is not None:  # readings at their own instants, stamped likewise
+            for _, name, msg in self._sensor_msgs.messages(block.sensors, self.stamp_ns):
+                self._sensor_pubs[name].publish(msg)
         for i in range(len(block)):
             t_ns = int(block.t_ns[i])
-            msgs.fill(block, i, self.stamp_ns(t_ns))
+            data = msgs.encoded(block, i, self.stamp_ns(t_ns)) if self._active else None
             if self._clock_pub is not None:
                 self._clock_msg.clock.sec, self._clock_msg.clock.nanosec = divmod(t_ns, NS)
-            for publisher, msg in self._active:
-                publisher.publish(msg)
+                self._clock_pub.publish(self._clock_msg)
+            for publisher, name in self._active:
+                publisher.publish(data[name])
             if rtf > 0:
                 late = time.monotonic() - self._due_wall(t_ns)
                 self._worst_late = max(self._worst_late, late)
@@ -207,13 +231,11 @@ class Simulator(Node):
         return min(max(wait, 0.0), self._next_diag_wall - now, 0.1)
 
     def _refresh_subscribers(self):
-        self._active = [(p, m) for p, m in self._pubs if p.get_subscription_count() > 0]
-        if self._clock_pub is not None:
-            self._active.append((self._clock_pub, self._clock_msg))
+        self._active = [(p, name) for p, name in self._pubs if p.get_subscription_count() > 0]
 
     def run(self):
         """Spin until shutdown or ``duration`` is reached."""
-        executor = SingleThreadedExecutor(context=self.context)
+        executor = EventsExecutor(context=self.context)
         executor.add_node(self)
         self._base_stamp(self.get_clock().now().nanoseconds)
         self._anchor()  # pace from the first turn of the loop, not from construction
@@ -283,6 +305,22 @@ class Simulator(Node):
             self._catch_up()  # what was due before the arrival runs with the previous command
             self._engine.apply_command((vector.x, vector.y, vector.z))
 
+    def _on_actuator_command(self, msg):
+        """Wheel torques then gimbal rates; a bad one is counted by the engine's actuators
+        (diagnostics) and warned about (throttled); the last valid command stays."""
+        if self._fault or self._engine.finished:
+            return
+        self._catch_up()
+        try:
+            self._engine.apply_actuator_command(msg.data)
+        except ValueError as exc:
+            now = time.monotonic()
+            if now >= self._actuator_warn:
+                self._actuator_warn = now + 2.0
+                n = self._engine.actuators.rejected
+                self._log.warn(f'actuator_command rejected: {exc}; the last valid command is '
+                               f'held ({n} rejections so far)')
+
     def _on_reset(self, request, response):
         self._engine.reset()
         self._fault = None
@@ -309,6 +347,8 @@ class Simulator(Node):
             self._log.info('inertia and initial state take effect on ~/reset')
         if 'frame_id' in changed or 'child_frame_id' in changed:
             self._msgs.set_frames(self._p['frame_id'], self._p['child_frame_id'])
+            if self._sensor_msgs is not None:
+                self._sensor_msgs.set_frames(self._p['frame_id'], self._p['child_frame_id'])
         if self._p['publish_clock'] and self._clock_pub is None:
             self._clock_pub = self.create_publisher(Clock, '/clock', qos_profile('reliable'))
         self._anchor()
@@ -332,7 +372,7 @@ class Simulator(Node):
                 f'publish {NS / e.config.sample_period_ns:g} Hz, {rtf}, '
                 f'clock {"on" if p["publish_clock"] else "off"}, '
                 f'frames {p["frame_id"]} <- {p["child_frame_id"]}, qos {p["qos"]}, '
-                f'duration {duration}')
+                f'duration {duration}' + sensors_summary(e.config.sensors))
 
     def _publish_diagnostics(self):
         now, e = time.monotonic(), self._engine

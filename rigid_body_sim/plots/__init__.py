@@ -1,0 +1,74 @@
+"""PNG figures of a run, chosen by what the scene is for (from the samples' sim-time stamps).
+
+Every run: omega.png, invariants.png, poinsot.png (plots.free). Then the scene's own story
+(plots.story), with the analytic expectation beside the simulation:
+* a free asymmetric tumble that flips: flips.png (2K/λ);
+* a free axisymmetric body: precession.png (body and space cones; the Earth's wobble);
+* an axisymmetric body with double-bracket dissipation: nutation.png (tan θ ∝ e^{ct});
+* a controlled run: control.png (critically damped slew, exponential detumble).
+"""
+import numpy as np
+
+from ..physics import analytic
+from . import free, story
+from .actuators import write_actuator_plot
+from .common import Figure, time_unit
+
+__all__ = ['Figure', 'free_until', 'write_actuator_plot', 'write_figures', 'write_plots']
+
+
+def free_until(t, torque):
+    """Time of the first nonzero torque sample (inf when the run is torque-free)."""
+    applied = np.nonzero(np.any(np.asarray(torque) != 0.0, axis=1))[0]
+    return float(t[applied[0]]) if applied.size else np.inf
+
+
+def write_figures(samples, body, out_dir, title, free_end=np.inf, scene=None):
+    """Write the run's figures into ``out_dir``; returns their :class:`Figure` records.
+
+    samples: t (N,) sim time s, attitude (N, 4) body→inertial, angular_velocity (N, 3) body
+    frame, angular_momentum (N, 3) inertial, kinetic_energy (N,); optionally
+    angular_momentum_body (N, 3) and torque (N, 3), body frame. Poinsot's picture holds
+    only without torque: it shows the samples before ``free_end`` (s). ``scene`` (a
+    scene.SceneFile) says what the run is for: its dissipation and its controller.
+    """
+    s = {k: np.asarray(samples[k]) for k in ('t', 'attitude', 'angular_velocity',
+                                              'angular_momentum', 'kinetic_energy')}
+    w = s['angular_velocity']
+    s['angular_momentum_body'] = _field(samples, 'angular_momentum_body', w @ body.inertia)
+    s['torque'] = _field(samples, 'torque', np.zeros_like(w))
+    unit, scale = time_unit(s['t'])
+    figures = [free.omega(s, out_dir, title, unit, scale),
+               free.invariants(s, out_dir, title, unit, scale),
+               free.poinsot(s, body, out_dir, title, unit, scale, free_end)]
+    sim = scene.simulator if scene is not None else {}
+    dissipative = sim.get('dissipation.model', 'none') != 'none'
+    symmetric = analytic.symmetry_axis(body.principal_moments) is not None
+    n_free = int(np.count_nonzero(s['t'] < free_end))
+    if n_free >= 3 and not dissipative:
+        w0 = body.to_principal(w[0])
+        if symmetric:
+            figures.append(story.precession(s, body, out_dir, title, unit, scale))
+        elif np.isfinite(analytic.flip_interval(body.principal_moments, w0)):
+            figures.append(story.flips(s, body, out_dir, title, unit, scale, free_end))
+    if dissipative and symmetric and sim.get('dissipation.model') == 'double_bracket' \
+            and not np.isfinite(free_end):
+        figures.append(story.nutation(s, body, out_dir, title, unit, scale,
+                                      sim['dissipation.coefficient']))
+    if scene is not None and scene.controlled:
+        ctl = dict(scene.controller)
+        ctl.setdefault('max_torque', sim.get('max_torque', np.inf))
+        figures.append(story.control(s, out_dir, title, unit, scale, ctl, free_end))
+    return figures
+
+
+def write_plots(samples, body, out_dir, title, free_end=np.inf, scene=None):
+    """:func:`write_figures`, returning the paths only."""
+    return [f.path for f in write_figures(samples, body, out_dir, title, free_end, scene)]
+
+
+def _field(samples, key, default):
+    try:
+        return np.asarray(samples[key])
+    except (KeyError, AttributeError):
+        return default

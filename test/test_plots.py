@@ -1,0 +1,168 @@
+"""Each scene's figures show what the scene is for: they exist, every axis has a unit, and
+the numbers they draw agree with the analytic laws to the physics tests' tolerances
+(test_scenes.py: flip interval 5e-3, wobble period 1e-3, nutation law 0.1°)."""
+import os
+
+import numpy as np
+import pytest
+
+from rigid_body_sim.offline import simulate
+from rigid_body_sim.physics import analytic
+from rigid_body_sim.plots import free_until, write_figures
+from rigid_body_sim.scene import load
+
+REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+# the source tree's scene files (an installed share/ may hold another checkout's)
+CONFIG = os.path.join(REPO, 'config')
+EXPECTED = {
+    'tennis_racket': {'omega.png', 'invariants.png', 'poinsot.png', 'flips.png'},
+    'symmetric_top': {'omega.png', 'invariants.png', 'poinsot.png', 'precession.png'},
+    'rigid_earth': {'omega.png', 'invariants.png', 'poinsot.png', 'precession.png'},
+    'explorer1': {'omega.png', 'invariants.png', 'poinsot.png', 'nutation.png'},
+    'default': {'omega.png', 'invariants.png', 'poinsot.png', 'flips.png', 'control.png'},
+    'slew': {'omega.png', 'invariants.png', 'poinsot.png', 'control.png'},
+    'detumble': {'omega.png', 'invariants.png', 'poinsot.png', 'control.png'},
+}
+
+
+def scene(name):
+    return load(os.path.join(CONFIG, f'{name}.yaml'))
+
+
+def figures_of(name, tmp_path):
+    sc = scene(name)
+    r = simulate(sc, keep='plot')
+    s = r.samples
+    return sc, s, {os.path.basename(f.path): f for f in write_figures(
+        s, r.body, str(tmp_path), name, free_until(s.t, s.torque), sc)}
+
+
+@pytest.mark.parametrize('name', sorted(EXPECTED))
+def test_figures_exist_with_units_on_every_axis(name, tmp_path):
+    _, _, figs = figures_of(name, tmp_path)
+    assert set(figs) == EXPECTED[name]
+    for fname, fig in figs.items():
+        assert os.path.getsize(fig.path) > 10_000, fname
+        assert fig.axes, fname
+        for xlabel, ylabel in fig.axes:
+            for label in (xlabel, ylabel):
+                if label:  # a colour bar has one label only
+                    assert '[' in label and ']' in label, f'{fname}: {label!r} has no unit'
+        assert any('t [' in x and 'sim time' in x for x, _ in fig.axes) \
+            or fname == 'poinsot.png', fname
+    # Explorer 1's 1 Hz samples cannot follow its 10 rev/s spin: points, not aliased lines
+    assert figs['omega.png'].values['aliased'] == (name == 'explorer1')
+    # conserved quantities are drawn as drift, never as the value on 14-digit ticks
+    inv = figs['invariants.png']
+    if name in ('tennis_racket', 'symmetric_top', 'rigid_earth'):
+        assert [y for _, y in inv.axes] == ['T/T₀ − 1 [1]', '|L|/|L₀| − 1 [1]']
+    if name == 'explorer1':
+        assert [y for _, y in inv.axes] == ['T [J]', '|L|/|L₀| − 1 [1]']
+
+
+def test_tennis_racket_figure_draws_the_elliptic_flip_interval(tmp_path):
+    _, _, figs = figures_of('tennis_racket', tmp_path)
+    v = figs['flips.png'].values
+    measured, predicted = v['flip_interval']
+    assert v['flips'] >= 4
+    assert measured == pytest.approx(predicted, rel=5e-3)
+
+
+def test_symmetric_top_figure_draws_both_cone_rates(tmp_path):
+    sc, _, figs = figures_of('symmetric_top', tmp_path)
+    v = figs['precession.png'].values
+    inertia = np.asarray(sc.simulator['inertia'])
+    w = np.asarray(sc.simulator['initial_angular_velocity'])
+    body_rate = (inertia[2] - inertia[0]) * w[2] / inertia[0]  # written out, not the helper
+    space_rate = np.linalg.norm(inertia * w) / inertia[0]
+    assert v['body_cone_rate'][1] == pytest.approx(body_rate, rel=1e-12)
+    assert v['space_cone_rate'][1] == pytest.approx(space_rate, rel=1e-12)
+    for key in ('body_cone_rate', 'space_cone_rate'):
+        assert v[key][0] == pytest.approx(v[key][1], rel=1e-3)
+
+
+def test_rigid_earth_figure_marks_the_304_day_wobble(tmp_path):
+    _, _, figs = figures_of('rigid_earth', tmp_path)
+    v = figs['precession.png'].values
+    measured, predicted = (p / analytic.SIDEREAL_DAY for p in v['wobble_period'])
+    assert predicted == pytest.approx(304.46, rel=1e-4)
+    assert measured == pytest.approx(predicted, rel=1e-3)
+    assert 'space_cone_rate' not in v  # one sample a day cannot show the daily space cone
+    assert any('arcsec' in x for x, _ in figs['precession.png'].axes)
+
+
+def test_explorer1_figure_follows_the_nutation_law(tmp_path):
+    sc, s, figs = figures_of('explorer1', tmp_path)
+    v = figs['nutation.png'].values
+    assert v['nutation_max_error_deg'][0] < 0.1
+    i_s, i_t = sc.simulator['inertia'][:2]
+    G = np.linalg.norm(s['angular_momentum'][0])
+    c = sc.simulator['dissipation.coefficient'] * G ** 2 * (1 / i_s - 1 / i_t)
+    assert v['nutation_rate'][1] == pytest.approx(c, rel=1e-12)
+    T0, T1 = v['energy']
+    assert T0 == pytest.approx(79.0, rel=0.01) and T1 == pytest.approx(15.8, rel=0.01)
+
+
+def test_default_free_phase_shows_one_full_flip_then_the_predicted_control(tmp_path):
+    """free_time (default.yaml) is derived from the flip: after the first sign change t₁
+    of ω_mid plus half the flip interval (ω_mid at its opposite extreme) and before the
+    next flip back (t₁ + 2K/λ)."""
+    sc, s, figs = figures_of('default', tmp_path)
+    free_time = sc.controller['mission.free_time']
+    moments = np.asarray(sc.simulator['inertia'])
+    interval = analytic.flip_interval(moments, sc.simulator['initial_angular_velocity'])
+    assert interval == pytest.approx(14.49, abs=0.01)
+    w_mid = s['angular_velocity'][:, 1]
+    t1 = s.t[np.argmax(np.sign(w_mid) != np.sign(w_mid[0]))]
+    assert t1 + interval / 2 <= free_time <= t1 + interval
+    assert figs['flips.png'].values['flips'] == 1
+    v = figs['control.png'].values
+    assert v['slew_max_error_deg'][0] < 1.0  # the eigen-axis law, within 1° over the slew
+    measured, predicted = v['detumble_rate']
+    assert measured == pytest.approx(predicted, rel=0.02)
+
+
+@pytest.mark.parametrize('name', ['slew', 'detumble'])
+def test_control_figures_follow_the_prediction(name, tmp_path):
+    _, _, figs = figures_of(name, tmp_path)
+    v = figs['control.png'].values
+    if name == 'slew':
+        assert v['slew_max_error_deg'][0] < 1.0
+    else:
+        measured, predicted = v['detumble_rate']
+        assert measured == pytest.approx(predicted, rel=0.02)
+
+
+def test_bench_chart_never_plots_the_reference_against_itself(tmp_path):
+    from types import SimpleNamespace
+
+    from rigid_body_sim.bench import charts
+    rows = [dict(scene='s', method=m, family='ours', status='ok', cpu_s=c, attitude_error=e)
+            for m, c, e in (('exact', 1e-4, 1e-17), ('exact', 2e-4, 1e-17),
+                            ('rk4', 1e-3, 1e-6), ('rk4', 1e-2, 1e-10),
+                            ('dop853', 1e-3, 1e-8), ('dop853', 1e-1, 0.0))]
+    assert charts.plotted_methods(rows, 's', 'exact') == ['rk4', 'dop853']
+    assert charts.plotted_methods(rows, 's', 'dop853 rtol 1e-13') == ['exact', 'rk4', 'dop853']
+    scene = SimpleNamespace(name='s', title='S', description='d')
+    path = tmp_path / 'wp.png'
+    charts.work_precision(rows, scene, str(path), reference_label='exact')
+    assert path.stat().st_size > 10_000
+
+
+def test_tour_writes_five_small_thumbnails_that_the_readme_shows(tmp_path):
+    import subprocess
+    import sys
+
+    from rigid_body_sim.tour import MAX_BYTES, TOUR, thumbnail_name
+    cli = os.path.join(os.path.dirname(sys.executable), 'rigid-body-sim')
+    out = subprocess.run([cli, 'tour', '--out', str(tmp_path)], capture_output=True, text=True,
+                         timeout=300)
+    assert out.returncode == 0, out.stderr
+    readme = open(os.path.join(REPO, 'README.md'), encoding='utf-8').read()
+    assert len(TOUR) == 5
+    for _, scene_name, figure in TOUR:
+        name = thumbnail_name(scene_name, figure)
+        assert 10_000 < (tmp_path / name).stat().st_size <= MAX_BYTES, name
+        committed = os.path.join(REPO, 'docs', 'tour', name)
+        assert os.path.getsize(committed) <= MAX_BYTES and f'docs/tour/{name}' in readme
+        assert f'rigid-body-sim run {scene_name}' in readme
