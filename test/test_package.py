@@ -46,7 +46,7 @@ def test_venv_is_an_ament_prefix_for_this_package():
 def test_cli_lists_its_subcommands():
     out = _run([os.path.join(os.path.dirname(sys.executable), 'rigid-body-sim'), '--help'])
     assert out.returncode == 0
-    for sub in ('run', 'scenes', 'demo', 'bag', 'bench'):
+    for sub in ('run', 'scenes', 'demo', 'bag', 'bench', 'campaign'):
         assert sub in out.stdout, sub
 
 
