@@ -19,6 +19,7 @@ channel) are answered by the SDK with a status message; :class:`Rejections` coun
 the SDK's log records, which is the only place the SDK reports them.
 """
 import logging
+from collections import deque
 import math
 import threading
 
@@ -142,6 +143,10 @@ class View:
         self.body = None
         self.polhode = geometry.Trace(trace_length, 0.0)
         self.herpolhode = geometry.Trace(trace_length, 0.0)
+        # the traces as the SDK's points, built once per kept point: rebuilding 2 × 600 of
+        # them at every scene update was the viewer's largest cost
+        self._points = {'polhode': deque(maxlen=int(trace_length)),
+                        'herpolhode': deque(maxlen=int(trace_length))}
         self.reset()
 
     def reset(self):
@@ -152,6 +157,8 @@ class View:
         self.next_scene_ns = None
         self.polhode.clear()
         self.herpolhode.clear()
+        for points in self._points.values():
+            points.clear()
 
     def set_body(self, body):
         """``body``: physics.body.RigidBody (principal moments and axes)."""
@@ -218,8 +225,12 @@ class View:
         if self.state.has_sinks():
             self.state.log(row, log_time=stamp_ns)
         # traces every sample (cheap), drawn at scene rate
-        self.polhode.add(omega * self.scale)
-        self.herpolhode.add(geometry.rotate_vector(q, omega) * self.scale)
+        for name, trace, p in (('polhode', self.polhode, omega * self.scale),
+                               ('herpolhode', self.herpolhode,
+                                geometry.rotate_vector(q, omega) * self.scale)):
+            if trace.add(p):
+                x, y, z = p.tolist()
+                self._points[name].append(Point3(x=x, y=y, z=z))
         if self.next_scene_ns is None or stamp_ns >= self.next_scene_ns:
             self.next_scene_ns = stamp_ns + self.scene_period_ns
             if self.tf_poinsot.has_sinks():
@@ -247,8 +258,7 @@ class View:
 
         def line(points, color):
             return LinePrimitive(thickness=0.01 * size, scale_invariant=False,
-                                 points=[Point3(x=p[0], y=p[1], z=p[2])
-                                         for p in points.tolist()], color=color)
+                                 points=list(points), color=color)
 
         w_dir = omega / (np.linalg.norm(omega) or 1.0)
         L_norm = float(np.linalg.norm(L_world))
@@ -267,7 +277,7 @@ class View:
             color=_color(0.9, 0.8, 0.3, 0.35))]))
         if self.polhode.count > 1:
             entities.append(entity(POINSOT_BODY_FRAME, 'polhode', lines=[line(
-                self.polhode.ordered(), _color(1.0, 0.3, 0.2))]))
+                self._points['polhode'], _color(1.0, 0.3, 0.2))]))
         if L_norm > 0.0:
             normal, dist = geometry.invariable_plane(L_world, T)
             centre = normal * dist * self.scale
@@ -282,7 +292,7 @@ class View:
                 size=_vec((0.05 * size,) * 3), color=_color(1.0, 0.3, 0.2))]))
             if self.herpolhode.count > 1:
                 entities.append(entity(POINSOT_FRAME, 'herpolhode', lines=[line(
-                    self.herpolhode.ordered(), _color(0.2, 0.5, 1.0))]))
+                    self._points['herpolhode'], _color(0.2, 0.5, 1.0))]))
         self.scene.log(SceneUpdate(entities=entities), log_time=stamp_ns)
 
     def publish_diagnostics(self, stamp_ns: int, cdr: bytes):
