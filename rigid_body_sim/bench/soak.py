@@ -2,8 +2,9 @@
 
     python -m rigid_body_sim.bench.soak [--minutes 60] [--every 10] [--out docs/bench]
 
-Starts the recorder, the simulator (default scene, open-ended, 100 Hz) and the controller
-(slew and hold) as separate processes, and every ``--every`` seconds samples each
+Starts the recorder, the simulator (default scene, open-ended, 100 Hz), the controller
+(slew and hold) and the Foxglove viewer (on a free port; ``--no-viewer`` leaves it out) as
+separate processes, and every ``--every`` seconds samples each
 process's resident memory and the simulator's diagnostics (achieved real-time factor,
 missed deadlines). At the end it stops them with SIGINT and counts the `attitude`
 messages in the bag against the samples the simulator published meanwhile.
@@ -61,6 +62,7 @@ def main(argv=None) -> int:
     parser.add_argument('--minutes', type=float, default=60.0)
     parser.add_argument('--every', type=float, default=10.0, help='seconds between samples')
     parser.add_argument('--out', default='out/soak', help='directory for soak.csv and the bag')
+    parser.add_argument('--no-viewer', action='store_true', help='without the Foxglove viewer')
     args = parser.parse_args(argv)
     os.environ.setdefault('ROS_DOMAIN_ID', str(random.randint(101, 200)))
     os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
@@ -85,6 +87,10 @@ def main(argv=None) -> int:
                                           stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     procs['controller'] = subprocess.Popen(_exe('controller') + common,
                                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    if not args.no_viewer:
+        procs['viewer'] = subprocess.Popen(_exe('viewer') + [
+            '--ros-args', '-r', f'__ns:={ns}', '-p', 'port:=0'],
+            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     rclpy.init()
     node = rclpy.create_node('soak_probe')
     diag = {}
@@ -111,7 +117,9 @@ def main(argv=None) -> int:
         pass
     finally:
         last_t = float(diag.get('sim_time', 'nan')) if diag else float('nan')
-        for name in ('controller', 'simulator', 'recorder'):
+        for name in ('viewer', 'controller', 'simulator', 'recorder'):
+            if name not in procs:
+                continue
             procs[name].send_signal(signal.SIGINT)
             try:
                 procs[name].wait(30)
