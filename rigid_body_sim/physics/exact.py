@@ -72,7 +72,8 @@ import math
 
 import numpy as np
 
-from . import exact_kernel, rotation
+from . import exact_build, exact_kernel, rotation
+from .kernels import COMPILED
 from .exact_build import MOMENT_RTOL, SEPARATRIX_RTOL, STEADY_RTOL  # one rule, both paths
 from .exact_kernel import CLOSED as _CLOSED, ELLIPTIC as _ELLIPTIC, SEPARATRIX as _SEPARATRIX
 from .exact_numpy import NumpyPath
@@ -171,10 +172,10 @@ class TorqueFreeSolution(NumpyPath):
         self._G, self._order = G, order
         self._numpy_ready = False                        # at_numpy's constants, on first use
 
-        # The compiled kernel's constants (double-double, exact_kernel.pack); its anchor
+        # The compiled kernel's constants (double-double, exact_build.pack); its anchor
         # C = q0 ⊗ w ⊗ E(0)* and P0 = P_r(u0) come from the very code of at(t), so at(0)
         # returns q0 to round-off whatever φ(0) is (2j0·cphi·Π need not vanish).
-        self._rows = exact_kernel.pack(self)             # built and anchored
+        self._rows = exact_build.pack(self)             # built and anchored
         self._row0 = self._rows[0]                       # at(t)'s one-body fast path
         el = kind == _ELLIPTIC                           # periods from the kernel's 2K/λ
         flip[el] = self._rows[el, exact_kernel.TK_H] / self._rows[el, exact_kernel.LAM_H]
@@ -209,3 +210,18 @@ class TorqueFreeSolution(NumpyPath):
         m = np.empty((tt.size, 3))
         exact_kernel.evaluate(self._rows, body, tt, q, m)
         return q.reshape(shape + (4,)), m.reshape(shape + (3,))
+
+
+def warm():
+    """Compile (or load from the cache) the exact kernels (exact_kernel, exact_build) on one
+    body of each kind."""
+    for moments, m0 in (((1.0, 2.0, 3.0), (0.1, 1.0, 0.2)), ((1.0, 2.0, 3.0), (0.0, 1.0, 0.0)),
+                        ((2.0, 3.0, 6.0), (1.0, 0.5, 1.0))):      # elliptic, steady, separatrix
+        sol = TorqueFreeSolution(moments, (0.0, 0.0, 0.0, 1.0), m0)
+        sol.at(0.5)
+        sol.at(np.array([0.5, 1.0]))
+        exact_build.flow(np.array(moments), np.array([0.0, 0.0, 0.0, 1.0]), np.array(m0),
+                         0.5, np.empty(4), np.empty(3))
+    TorqueFreeSolution((1.0, 2.0, 3.0), (0.0, 0.0, 0.0, 1.0),
+                       ((0.1, 1.0, 0.2), (0.3, 0.2, 0.1))).at(0.5)
+    return COMPILED

@@ -181,3 +181,17 @@ def flow(moments, q, m, t, q_out, m_out):
 
 for _kernel in (_rotate, _quat_of_transpose, build, flow):
     depends_on(_kernel, double_double, elliptic_kernel, exact_constants, exact_kernel, kernels)
+
+
+def pack(sol):
+    """(n, NCONST) anchored rows for a TorqueFreeSolution's bodies, each built by compiled
+    code (:func:`.exact_build.build`: the same classification and frames, the rates, K, Π
+    and what follows from them in double-double)."""
+    n = len(sol._kind)
+    rows = np.empty((n, NCONST))
+    for b in range(n):
+        kind = build(sol.moments, sol._q0[b], sol._m0[b], rows[b])
+        if kind != sol._kind[b]:                         # the two classifications are one rule
+            raise RuntimeError(f'exact_build classified body {b} as kind {kind}, '
+                               f'TorqueFreeSolution as {sol._kind[b]}')
+    return rows

@@ -24,7 +24,7 @@ import numpy as np
 from . import double_double, elliptic_kernel, exact_constants, kernels
 from .double_double import dd_add, dd_mul_d, dd_reduce, reduce_4pi
 from .elliptic_kernel import ellipj, rf, rj
-from .kernels import COMPILED, depends_on, jit
+from .kernels import depends_on, jit
 
 # Row layout. Closed form: L̂ (space), q0, m0, e (body), rates (hi, lo) of the space
 # precession G/I_t and the body spin ω_s.
@@ -37,21 +37,6 @@ MX, MY, MZ, S, SIGD, SIGX, G, N, KP, KP2, KF, U0, P0, CPHI = range(35, 49)
 LAM_H, LAM_L, TK_H, TK_L, K_H, K_L, R0_H, R0_L, CP_H, CP_L, RS_H, RS_L = range(49, 61)
 NCONST = 61
 CLOSED, ELLIPTIC, SEPARATRIX = 0, 1, 2
-
-
-def pack(sol):
-    """(n, NCONST) anchored rows for a TorqueFreeSolution's bodies, each built by compiled
-    code (:func:`.exact_build.build`: the same classification and frames, the rates, K, Π
-    and what follows from them in double-double)."""
-    from .exact_build import build
-    n = len(sol._kind)
-    rows = np.empty((n, NCONST))
-    for b in range(n):
-        kind = build(sol.moments, sol._q0[b], sol._m0[b], rows[b])
-        if kind != sol._kind[b]:                         # the two classifications are one rule
-            raise RuntimeError(f'exact_build classified body {b} as kind {kind}, '
-                               f'TorqueFreeSolution as {sol._kind[b]}')
-    return rows
 
 
 @jit
@@ -206,19 +191,3 @@ def anchor_one(c):
 
 for _kernel in (fill_elliptic, _moving, evaluate_into, evaluate, at_one, at_times, anchor_one):
     depends_on(_kernel, double_double, elliptic_kernel, exact_constants, kernels)
-
-
-def warm():
-    """Compile (or load from the cache) the kernels on one body of each kind."""
-    from .exact import TorqueFreeSolution
-    from .exact_build import flow
-    for moments, m0 in (((1.0, 2.0, 3.0), (0.1, 1.0, 0.2)), ((1.0, 2.0, 3.0), (0.0, 1.0, 0.0)),
-                        ((2.0, 3.0, 6.0), (1.0, 0.5, 1.0))):      # elliptic, steady, separatrix
-        sol = TorqueFreeSolution(moments, (0.0, 0.0, 0.0, 1.0), m0)
-        sol.at(0.5)
-        sol.at(np.array([0.5, 1.0]))
-        flow(np.array(moments), np.array([0.0, 0.0, 0.0, 1.0]), np.array(m0), 0.5,
-             np.empty(4), np.empty(3))
-    TorqueFreeSolution((1.0, 2.0, 3.0), (0.0, 0.0, 0.0, 1.0),
-                       ((0.1, 1.0, 0.2), (0.3, 0.2, 0.1))).at(0.5)
-    return COMPILED

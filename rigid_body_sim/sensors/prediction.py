@@ -17,10 +17,9 @@ averaged over whole star-tracker periods once the loop has settled. A turn-on bi
 outages only move the mean, which decays. Rate random walk is left out (the bias is not
 stationary then; the error still is, but this model does not carry it).
 
-``python -m rigid_body_sim.sensors.prediction SCENE`` prints it for a scene.
+``python -m rigid_body_sim.bench.pointing SCENE`` prints it for a scene.
 """
 import math
-import sys
 
 import numpy as np
 
@@ -87,42 +86,3 @@ def pointing_variance(sim, ctl, h=None, star_every=None, duration=300.0, settle=
                 total, count = total + cov[0, 0], count + 1
         out.append(total / count)
     return np.array(out)
-
-
-def main(argv=None) -> int:
-    """Print the predicted RMS pointing error per body axis of a scene (and, with --run,
-    the RMS a run of it shows after ``settle`` s)."""
-    import argparse
-    from .. import offline, scene as S
-    parser = argparse.ArgumentParser(prog='python -m rigid_body_sim.sensors.prediction')
-    parser.add_argument('scene')
-    parser.add_argument('--run', action='store_true', help='also run the scene and compare')
-    parser.add_argument('--settle', type=float, default=100.0, help='s ignored at the start')
-    offline.add_set_argument(parser)
-    args = parser.parse_args(argv)
-    try:
-        scene = S.load(args.scene, args.set)
-        sim, ctl = scene.simulator, scene.controller
-        rms = np.sqrt(pointing_variance(sim, ctl, duration=sim['duration'], settle=args.settle))
-    except (ValueError, KeyError) as exc:
-        print(f'error: {exc}', file=sys.stderr)
-        return 2
-    def fmt(x):
-        return '[' + ', '.join(f'{v:.3e}' for v in x) + ']'
-    print(f'predicted RMS pointing error per body axis: {fmt(rms)} rad')
-    if args.run:
-        result = offline.simulate(scene, keep='all')
-        s = result.samples
-        from ..physics import rotation
-        target = np.asarray(ctl['target_attitude'], float)
-        d = rotation.multiply(rotation.conjugate(target), s.attitude[s.t >= args.settle])
-        err = 2.0 * np.where(d[:, 3:4] < 0, -d, d)[:, :3]
-        measured = np.sqrt(np.mean(err ** 2, axis=0))
-        print(f'measured  RMS pointing error per body axis: '
-              f'{fmt(measured)} rad (ratio '
-              f'{np.array2string(measured / rms, precision=3)}, seed {sim["seed"]})')
-    return 0
-
-
-if __name__ == '__main__':
-    sys.exit(main())
