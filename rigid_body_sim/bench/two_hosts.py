@@ -9,8 +9,9 @@ DDS would otherwise use between processes of one machine, is not available betwe
 
 * host A runs the simulator, host B the controller and the recorder, on the slew scene.
   With ``ROS_AUTOMATIC_DISCOVERY_RANGE=SUBNET`` (the ROS 2 default) the loop must close
-  across the link: the recorder on B has the simulator's samples (loss counted against
-  ``duration × publish_rate``), the controller's torques, and the body ends at the target.
+  across the link: the recorder on B has the simulator's samples (losses counted from gaps
+  in their stamps; samples published before B discovered A counted apart), the
+  controller's torques, and the body ends at the target.
 * The same with ``LOCALHOST``: each host only sees itself, so B records nothing of A.
 
 Prints a table and one JSON line; ``--out DIR`` also writes DIR/two_hosts.json.
@@ -26,6 +27,8 @@ import subprocess
 import sys
 import tempfile
 import time
+
+import numpy as np
 
 SCENE = 'slew'
 SUBNET = '10.77.0'
@@ -114,14 +117,20 @@ def closed_loop(hosts: Hosts, discovery_range: str, seconds: float, workdir: str
         codes = {name: _stop(p) for name, p in reversed(list(procs.items()))}
         for f in logs.values():
             f.close()
-    attitude, torques = [], 0
+    attitude, stamps, torques = [], [], 0
     if os.path.isdir(bag):
         for m in iter_messages(bag):
             if m.topic == '/attitude':
-                attitude.append(deserialize_message(m.data, QuaternionStamped).quaternion)
+                msg = deserialize_message(m.data, QuaternionStamped)
+                attitude.append(msg.quaternion)
+                stamps.append(msg.header.stamp.sec * 10**9 + msg.header.stamp.nanosec)
             elif m.topic == '/torque_command':
                 torques += 1
     expected = int(round(seconds * rate)) + 1
+    # samples are stamped exactly one period apart: a gap after the first received one is
+    # a loss on the way; what is missing before it was published before B had discovered A
+    period_ns = round(1e9 / rate)
+    gaps = sum(int(d) // period_ns - 1 for d in np.diff(sorted(stamps))) if stamps else 0
     error = None
     if attitude:
         q = attitude[-1]
@@ -130,7 +139,8 @@ def closed_loop(hosts: Hosts, discovery_range: str, seconds: float, workdir: str
         error = math.degrees(2 * math.atan2(math.sqrt(sum(c * c for c in d[:3])), abs(d[3])))
     return {'discovery_range': discovery_range, 'exit_codes': codes,
             'attitude_received_on_b': len(attitude), 'attitude_published_on_a': expected,
-            'loss': max(0, expected - len(attitude)) / expected,
+            'lost_after_first': gaps,
+            'not_yet_discovered_at_start': max(0, expected - len(attitude) - gaps),
             'torque_commands_recorded_on_b': torques, 'final_pointing_error_deg': error}
 
 
@@ -157,7 +167,8 @@ def main(argv=None) -> int:
     for r in results:
         err = r['final_pointing_error_deg']
         print(f"{r['discovery_range']:>9}: B received {r['attitude_received_on_b']} of "
-              f"{r['attitude_published_on_a']} samples from A (loss {100 * r['loss']:.2f} %), "
+              f"{r['attitude_published_on_a']} samples from A ({r['lost_after_first']} lost "
+              f"after the first, {r['not_yet_discovered_at_start']} before discovery), "
               f"{r['torque_commands_recorded_on_b']} torque commands, final pointing error "
               f"{'n/a' if err is None else f'{err:.4f}°'}, exit codes {r['exit_codes']}")
     print(json.dumps(results))
