@@ -109,7 +109,7 @@ class _Watcher:
         for status in msg.status:
             if status.name.startswith('attitude_controller'):
                 for kv in status.values:
-                    if kv.key == 'mission_phase':
+                    if kv.key == 'mission_phase' and kv.value != 'waiting':
                         if kv.value == 'slew' and self.phase != 'slew':
                             self.slew_start = self.t
                         self.phase = kv.value
@@ -138,7 +138,8 @@ class _Watcher:
         if self.t0 is None or self.w is None or self.L is None or self.T is None:
             return ''
         parts = [f't = {self.t:7.2f} s']
-        if math.isfinite(self.rtf):  # the first diagnostics come after 1 s
+        # the first diagnostics come after 1 s, and their rate covers the start-up wait
+        if math.isfinite(self.rtf) and self.t >= 1.0:
             parts.append(f'rtf {self.rtf:5.2f}')
         parts += [f'error {self.error_deg():7.3f}°', f'|ω| {np.linalg.norm(self.w):.3e} rad/s',
                   f'T {self.T:.6e} J', f'|L| {np.linalg.norm(self.L):.6e} kg·m²/s',

@@ -293,7 +293,9 @@ class Controller(Node):
         c = self._ctl.config
         values = {
             'mode': self._ctl.mode,
-            'mission_phase': 'free' if self._law.free else self._ctl.mode,
+            # waiting: no state yet, so the schedule (free phase first) has not started
+            'mission_phase': 'waiting' if self._q is None else
+            'free' if self._law.free else self._ctl.mode,
             'attitude_error_angle': angle,
             'attitude_error_angle_deg': math.degrees(angle),
             'rate_norm': rate,
