@@ -248,17 +248,17 @@ def test_chunk_indexes_are_held_packed_and_the_file_is_unchanged(tmp_path, monke
         return held, summary.chunk_indexes, messages
 
     held, packed_indexes, packed_messages = record(tmp_path / 'packed')
-    assert len(held) == 20 and all(isinstance(h, writer_module._PackedChunkIndex)
-                                   for h in held)
+    assert len(held) == 1 and isinstance(held[0], writer_module._PackedChunkIndexes)
+    assert held[0].count == 20
     monkeypatch.setattr(writer_module._File, 'pack_chunk_indexes', lambda self: None)
     plain, plain_indexes, plain_messages = record(tmp_path / 'plain')
-    assert not any(isinstance(h, writer_module._PackedChunkIndex) for h in plain)
+    assert len(plain) == 20
     assert packed_indexes == plain_indexes and len(packed_indexes) == 20
     assert packed_messages == plain_messages and len(packed_messages) == 2400
 
     def size(index):  # memory held per chunk index: the object and what only it refers to
-        if isinstance(index, writer_module._PackedChunkIndex):
-            return sys.getsizeof(index) + sys.getsizeof(index.record)
+        if isinstance(index, writer_module._PackedChunkIndexes):
+            return sys.getsizeof(index) + sys.getsizeof(index.records)
         d = index.message_index_offsets
         return (sys.getsizeof(index) + sys.getsizeof(index.__dict__) + sys.getsizeof(d)
                 + sum(sys.getsizeof(v) for v in d.values()))
