@@ -231,6 +231,23 @@ def signals_ignored():
     yield
 
 
+def quiet_interrupted_futures() -> None:
+    """Ctrl-C can land inside rclpy's ``Future.__init__`` (the executor makes one per
+    callback) before it has set ``_exception``; when the half-made object is collected its
+    ``__del__`` raises AttributeError, which Python prints as "Exception ignored ... Traceback"
+    on a clean stop. Only that case is silenced; every other unraisable error is reported
+    as before."""
+    from rclpy.task import Future
+    previous = sys.unraisablehook
+
+    def hook(unraisable):
+        if unraisable.exc_type is AttributeError and \
+                getattr(unraisable.object, '__qualname__', '') == Future.__del__.__qualname__:
+            return
+        previous(unraisable)
+    sys.unraisablehook = hook
+
+
 def run_node(node_name: str, build, run=None, args=None, fatal=(ValueError,),
              exit_codes=None, close=None) -> int:
     """Every node's entry point (``ros2 run``); returns the exit code.
@@ -246,6 +263,7 @@ def run_node(node_name: str, build, run=None, args=None, fatal=(ValueError,),
     except Exception as exc:  # noqa: BLE001 - bad --ros-args (e.g. a bad remap): no traceback
         print(f'[FATAL] [{node_name}]: cannot initialise ROS: {exc}', file=sys.stderr)
         return 2
+    quiet_interrupted_futures()
     node = None
     try:
         try:

@@ -26,7 +26,7 @@ from rigid_body_sim.bag.recover import unfinished_files
 from rigid_body_sim.bag.reader import recover_hint
 from rigid_body_sim.bag.schema import TypeNotFound, message_class, qos_to_dict, qos_yaml
 from rigid_body_sim.bag.writer import BagWriter
-from rigid_body_sim.nodes.common import signals_ignored
+from rigid_body_sim.nodes.common import quiet_interrupted_futures, signals_ignored
 
 # What the simulator and controller publish (relative names resolve in our namespace).
 # /clock is left out: replay --clock regenerates it from the log time. /tf appears only
@@ -258,6 +258,7 @@ def _hidden(topic: str) -> bool:
 
 def main(argv: list[str] | None = None) -> int:
     rclpy.init(args=argv)
+    quiet_interrupted_futures()
     node = None
     code = 0
     try:
