@@ -15,7 +15,7 @@ import numpy as np
 from ..engine import EngineConfig
 from ..engine.actuators import Actuators
 from ..physics import kernels
-from .common import cpu
+from .common import best_of
 
 TARGET = 2.0
 MOMENTS = np.array([4.0, 5.0, 3.0])
@@ -26,15 +26,6 @@ TAU = np.array([0.01, -0.02, 0.015])
 H = 1e-3
 
 
-def _best_of(run, repeats=5):
-    best = np.inf
-    for _ in range(repeats):
-        t0 = cpu()
-        run()
-        best = min(best, cpu() - t0)
-    return best
-
-
 def _body(n):
     weights = np.array([1.0])
 
@@ -42,7 +33,7 @@ def _body(n):
         kernels.splitting_run(Q0.copy(), M0.copy(), H, n, weights, AXES, MOMENTS, TAU, True,
                               0, 0.0, False)
     run()
-    return _best_of(run)
+    return best_of(run)
 
 
 def _gyrostat(n, **params):
@@ -55,7 +46,7 @@ def _gyrostat(n, **params):
         act.set_body_torque(TAU)
         act.run(Q0.copy(), M0.copy(), H, n, MOMENTS, AXES, None)
     run()
-    return _best_of(run)
+    return best_of(run)
 
 
 def measure(n):

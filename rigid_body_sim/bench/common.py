@@ -1,4 +1,5 @@
 """Timing, error metrics and references shared by the benchmark sections."""
+import math
 import time
 
 import numpy as np
@@ -14,6 +15,17 @@ EPS = np.finfo(float).eps
 def cpu():
     """Process CPU time (s): robust to other load on the machine, counts Python overhead."""
     return time.process_time()
+
+
+def best_of(run, repeats=5) -> float:
+    """The least CPU time (s) of ``repeats`` calls of ``run()``: the run least disturbed by
+    the rest of the machine."""
+    best = math.inf
+    for _ in range(repeats):
+        t0 = cpu()
+        run()
+        best = min(best, cpu() - t0)
+    return best
 
 
 def invariants(moments, m):

@@ -12,7 +12,7 @@ import importlib.util
 import numpy as np
 
 from ..physics import Dissipation, Dynamics, create
-from .common import cpu
+from .common import best_of, cpu
 
 FIELDS = ('what', 'method', 'count', 'cpu_s', 'us_per_unit', 'unit')
 MOMENTS = (1.0, 2.0, 3.0)
@@ -20,20 +20,11 @@ Q0, M0 = np.array([0.1, -0.2, 0.3, 0.9]) / np.linalg.norm([0.1, -0.2, 0.3, 0.9])
     np.array([0.3, 0.6, 2.7])
 
 
-def _best_of(run, repeats=5):
-    best = np.inf
-    for _ in range(repeats):
-        t0 = cpu()
-        run()
-        best = min(best, cpu() - t0)
-    return best
-
-
 def _ours(model, n):
     d = Dissipation(model, 0.1) if model != 'none' else Dissipation()
     integ = create('splitting2', Dynamics(np.array(MOMENTS), d))
     integ.run(Q0, M0, 1e-3, 10)  # compiled (or loaded) before timing
-    return _best_of(lambda: integ.run(Q0, M0, 1e-3, n))
+    return best_of(lambda: integ.run(Q0, M0, 1e-3, n))
 
 
 def _mujoco_euler(n):
@@ -49,7 +40,7 @@ def _mujoco_euler(n):
         data.qpos[3:7] = (Q0[3], Q0[0], Q0[1], Q0[2])
         data.qvel[3:6] = M0 / np.array(i)
         mujoco.mj_step(model, data, nstep=n)
-    return _best_of(run)
+    return best_of(run)
 
 
 def _offline(scene_name, duration, **overrides):
