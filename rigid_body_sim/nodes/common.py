@@ -231,6 +231,32 @@ def signals_ignored():
     yield
 
 
+_ROS_STARTED = []  # set once rclpy.init has run (see stop_between_callbacks)
+
+
+def stop_between_callbacks() -> None:
+    """Call just before ``rclpy.init``: from then on SIGINT/SIGTERM stop the node between
+    callbacks, never inside one.
+
+    By default Python raises KeyboardInterrupt wherever the interpreter is; a recorder hit
+    inside the MCAP writer finished a file whose chunk index pointed past a chunk (a strict
+    reader, rosbags, refused it). This handler does nothing once ROS is up: rclpy's own
+    handler, which ``init`` installs on top of it and which calls it, shuts the context
+    down, and the executor stops at its next turn (ExternalShutdownException). Before
+    ``init`` it raises KeyboardInterrupt, as Ctrl-C always did."""
+    def handler(signum, frame):
+        if not _ROS_STARTED:
+            raise KeyboardInterrupt
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(sig, handler)
+    _ROS_STARTED.clear()
+
+
+def ros_started() -> None:
+    """Mark rclpy as initialised for stop_between_callbacks' handler."""
+    _ROS_STARTED.append(True)
+
+
 def quiet_interrupted_futures() -> None:
     """Ctrl-C can land inside rclpy's ``Future.__init__`` (the executor makes one per
     callback) before it has set ``_exception``; when the half-made object is collected its

@@ -26,7 +26,8 @@ from rigid_body_sim.bag.recover import unfinished_files
 from rigid_body_sim.bag.reader import recover_hint
 from rigid_body_sim.bag.schema import TypeNotFound, message_class, qos_to_dict, qos_yaml
 from rigid_body_sim.bag.writer import BagWriter
-from rigid_body_sim.nodes.common import quiet_interrupted_futures, signals_ignored
+from rigid_body_sim.nodes.common import (quiet_interrupted_futures, ros_started,
+                                         signals_ignored, stop_between_callbacks)
 
 # What the simulator and controller publish (relative names resolve in our namespace).
 # /clock is left out: replay --clock regenerates it from the log time. /tf appears only
@@ -257,7 +258,9 @@ def _hidden(topic: str) -> bool:
 
 
 def main(argv: list[str] | None = None) -> int:
+    stop_between_callbacks()  # never inside a write: the bag stays consistent
     rclpy.init(args=argv)
+    ros_started()
     quiet_interrupted_futures()
     node = None
     code = 0
