@@ -68,6 +68,7 @@ class _Watcher:
         self.phase = None  # the controller's mission phase (free, detumble, slew), if any
         self.slew_start = None  # sim time at which the controller reported the slew
         self.rtf = math.nan
+        self._rtf_reports = 0
         self.torque_seen = False
         self.free = {'T': [], 'L': []}  # T and |L| while no torque has been commanded yet
         qos = qos_profile('reliable', 100)
@@ -115,9 +116,12 @@ class _Watcher:
                         self.phase = kv.value
             if status.name.startswith('attitude_simulator'):
                 for kv in status.values:
+                    # the simulator's first report spans its start-up, not its pacing
                     if kv.key == 'real_time_factor_achieved':
+                        self._rtf_reports += 1
                         try:
-                            self.rtf = float(kv.value)
+                            if self._rtf_reports > 1:
+                                self.rtf = float(kv.value)
                         except ValueError:
                             pass
 

@@ -44,6 +44,18 @@ def test_demo_status_line_is_empty_until_the_first_sample_then_has_no_nan():
     assert 'rtf' not in w.status()
     w.t, w.rtf, w.phase = 2.0, 1.0, 'slew'
     assert 'rtf  1.00' in w.status() and w.ended_in() == 'slew'
+    # from the simulator's diagnostics: its first report spans start-up and is not shown
+    from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+    fresh = _Watcher(_FakeNode(), np.array([0.0, 0.0, 0.0, 1.0]), time_scale=1.0)
+
+    def report(rtf):
+        return DiagnosticArray(status=[DiagnosticStatus(
+            name='attitude_simulator: simulation',
+            values=[KeyValue(key='real_time_factor_achieved', value=str(rtf))])])
+    fresh._on_diag(report(0.02))
+    assert np.isnan(fresh.rtf)
+    fresh._on_diag(report(0.998))
+    assert fresh.rtf == 0.998
 
 
 def test_setup_stage_is_one_line_and_shows_the_log_only_on_failure(tmp_path):
