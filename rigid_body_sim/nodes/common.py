@@ -17,6 +17,7 @@ Numeric parameters are declared with ``dynamic_typing`` so that a params file ma
 integers and doubles, rejects everything else, and checks the range with a readable reason.
 """
 import contextlib
+import os
 import signal
 import sys
 from typing import Any, Dict, Iterable, List, Mapping, Sequence, Tuple
@@ -274,6 +275,18 @@ def quiet_interrupted_futures() -> None:
     sys.unraisablehook = hook
 
 
+def prefer_asynchronous_publication():
+    """Call before ``rclpy.init``: Fast DDS (Jazzy's default RMW) sends from its own thread
+    unless the user chose otherwise (``RMW_FASTRTPS_PUBLICATION_MODE``; other RMWs ignore
+    it). Why: a synchronous write delivers to every matched reader inside ``publish``;
+    measured here, one raw publish to a subscriber in another process cost 7.1 µs
+    synchronous and 3.2 µs asynchronous, and the simulator with every state topic
+    subscribed went from 4.7 % to 3.0 % of a core at real time and from 64× to 145× as
+    fast as possible (``python -m rigid_body_sim.bench.live_simulator --subscribe``).
+    Delivery guarantees are the QoS's either way (reliable history, acknowledgements)."""
+    os.environ.setdefault('RMW_FASTRTPS_PUBLICATION_MODE', 'ASYNCHRONOUS')
+
+
 def run_node(node_name: str, build, run=None, args=None, fatal=(ValueError,),
              exit_codes=None, close=None) -> int:
     """Every node's entry point (``ros2 run``); returns the exit code.
@@ -284,6 +297,7 @@ def run_node(node_name: str, build, run=None, args=None, fatal=(ValueError,),
     (default rclpy.spin). SIGINT/SIGTERM end the node with 0 and no traceback, also when
     they land in the middle of an rclpy call (rclpy shut the context down, so the call
     raised). Shutdown runs with the signals ignored: ``close(node)``, then destroy."""
+    prefer_asynchronous_publication()
     try:
         rclpy.init(args=args)
     except Exception as exc:  # noqa: BLE001 - bad --ros-args (e.g. a bad remap): no traceback

@@ -158,6 +158,8 @@ def main(argv: list[str] | None = None) -> int:
     import rclpy.logging
     ours, ros_args = split_ros_args(sys.argv if argv is None else argv)
     args = parse_args(ours)
+    from .common import prefer_asynchronous_publication
+    prefer_asynchronous_publication()
     rclpy.init(args=ros_args)
     node = rclpy.create_node('mcap_replay')
     code = 0
