@@ -159,7 +159,7 @@ def test_the_kernel_allocates_as_the_reference_inverse():
     t, want, work = np.empty((4, 3)), np.empty(4), np.empty((4, 3))
     gk.cmg_jacobian(a.g, a.s0, a.delta, t)
     measure = gk.sr_rates(t, a.config.momentum, tau, 0.01, 10.0, want, work)
-    a.run(e._q, e._m, 0.01, 1, e.dynamics.moments, e._split_axes, None)
+    a.run(e._q, e._m, 0.01, 1, e.dynamics.moments, a.split_axes, None)
     assert np.allclose(a.rate, want, rtol=1e-13, atol=0)
     assert a.status[gk.ST_SINGULARITY] == pytest.approx(measure, rel=1e-13)
 

@@ -170,6 +170,9 @@ class Actuators:
     def __init__(self, config: ActuatorConfig, body):
         self.config, self.body = config, body
         c = config
+        # outer, middle, inner axis of the Strang composition, as the body's splittings
+        # order them (integrators/splitting.py _ORDER: smallest, largest, intermediate)
+        self.split_axes = np.argsort(body.principal_moments, kind='stable')[[0, 2, 1]]
         to_p = body.to_principal
         self.wa = np.ascontiguousarray(to_p(c.axes)) if c.wheels else np.zeros((0, 3))
         self.g = np.ascontiguousarray(to_p(c.gimbal)) if c.cmgs else np.zeros((0, 3))
@@ -248,7 +251,7 @@ class Actuators:
         n = max(1, math.ceil(span_ns / (engine.step_max * NS) - 1e-9))
         h = span_ns / (n * NS)
         failed = self.run(engine._q, engine._m, h, n, engine.dynamics.moments,
-                          engine._split_axes, engine._tau_p)
+                          self.split_axes, engine._tau_p)
         if failed >= 0:
             engine.steps += failed + 1
             raise IntegrationError(engine.method, h, (engine.t_ns + (failed + 1) * h * NS) / NS,

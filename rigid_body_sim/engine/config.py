@@ -94,6 +94,26 @@ class EngineConfig:
     def sample_period(self) -> float:
         return self.sample_period_ns / NS
 
+    def event_spacing(self) -> float:
+        """The longest step the engine may take (s): the sample and control period, and a
+        fixed method's ``step`` too. ``auto`` is not capped by ``step``: it picks its own,
+        dividing the spacing."""
+        h = self.sample_period if self.integrator == specs.AUTO else \
+            min(self.step, self.sample_period)
+        if self.control is not None:
+            h = min(h, self.control.period_ns / NS)
+        return h
+
+    def torque_rate(self) -> float:
+        """Rate scale (1/s) of the torque ``auto`` must expect: the in-process control
+        law's bandwidth, else that of the largest command, √(√3·max_torque/I_min)."""
+        if self.control is not None:
+            cfg = self.control.config
+            i = cfg.body.principal_moments
+            return float(max(np.max(np.sqrt(cfg.kp_principal / i)), np.max(cfg.kd_principal / i),
+                             np.max(cfg.rate_gain_principal / i)))
+        return math.sqrt(math.sqrt(3.0) * self.max_torque / self.body.principal_moments.min())
+
     def replace(self, **changes) -> 'EngineConfig':
         return replace(self, **changes)
 

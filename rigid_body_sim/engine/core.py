@@ -23,7 +23,7 @@ import numpy as np
 from ..physics import Dynamics, IntegrationError, create, rotation
 from ..physics.exact import TorqueFreeSolution
 from ..physics.selection import select, selecting
-from . import closed_loop, sensing
+from . import closed_loop, health, sensing
 from .actuators import Actuators
 from .config import NS, EngineConfig
 from .samples import BlockBuilder, SampleBlock
@@ -84,7 +84,6 @@ class Engine:
         self.actuators = None if c.actuators is None else Actuators(c.actuators, self.body)
         if self.actuators is not None:
             self.actuators.reset(self._m / self.body.principal_moments)
-            self._split_axes = np.argsort(self.body.principal_moments, kind='stable')[[0, 2, 1]]
         self.t_ns = t_ns
         self.start_ns = t_ns
         self.fault: Optional[str] = None
@@ -166,27 +165,6 @@ class Engine:
         return self._tau_body
 
     # ------------------------------------------------------------------ methods
-    def _max_step(self) -> float:
-        """The event spacing (sample and control period); a fixed method's ``step`` too.
-        ``auto`` is not capped by ``step``: it picks its own, dividing the spacing."""
-        c = self.config
-        h = c.sample_period if c.integrator == AUTO else min(c.step, c.sample_period)
-        if c.control is not None:
-            h = min(h, c.control.period_ns / NS)
-        return h
-
-    def _torque_rate(self) -> float:
-        """Rate scale (1/s) of the torque auto must expect: the in-process control law's
-        bandwidth, else that of the largest command, √(√3·max_torque/I_min)."""
-        c = self.config
-        moments = self.body.principal_moments
-        if c.control is not None:
-            cfg = c.control.config
-            i = cfg.body.principal_moments
-            return float(max(np.max(np.sqrt(cfg.kp_principal / i)), np.max(cfg.kd_principal / i),
-                             np.max(cfg.rate_gain_principal / i)))
-        return math.sqrt(math.sqrt(3.0) * c.max_torque / moments.min())
-
     def _use(self, name, h_max, reason, **options):
         if name != self.method or options:
             self._integ = create(name, self.dynamics, **options)
@@ -201,20 +179,20 @@ class Engine:
         if self.actuators is not None:
             self._integ = None
             self.method, self._anchor = GYROSTAT, None
-            self.step_max = min(c.step, self._max_step())
+            self.step_max = min(c.step, c.event_spacing())
             self.reason = ('actuators (wheels/CMGs): gyrostat Strang splitting, |H| kept to '
                            'round-off; at the scene\'s step')
             return
         if c.integrator != AUTO:
-            self._use(c.integrator, self._max_step(),
+            self._use(c.integrator, c.event_spacing(),
                       f'set by the scene or parameter ({c.integrator})',
                       **dict(c.integrator_options))
             return
         torque = self._torque_seen
         # the budget covers the rest of the run (what went before was exact or is done)
         left = (self.end_ns - self.t_ns) / NS if c.duration_ns > 0 else 0.0
-        kw = dict(torque=torque, accuracy=c.accuracy, duration=left, max_step=self._max_step(),
-                  torque_rate=self._torque_rate() if torque else 0.0)
+        kw = dict(torque=torque, accuracy=c.accuracy, duration=left, max_step=c.event_spacing(),
+                  torque_rate=c.torque_rate() if torque else 0.0)
         state = (self.body, c.dissipation, self.attitude, self.angular_velocity)
         if not torque and not c.dissipation.active:
             sel = select(*state, **kw)
@@ -251,11 +229,11 @@ class Engine:
             sel = done.value
             self._selection = None
             self.selected = sel
-            self._use(sel.name, min(sel.step, self._max_step()) if sel.step > 0
-                      else self._max_step(), f'auto: {sel.reason}')
+            self._use(sel.name, min(sel.step, self.config.event_spacing()) if sel.step > 0
+                      else self.config.event_spacing(), f'auto: {sel.reason}')
         except (ValueError, IntegrationError) as exc:
             self._selection = None
-            self._use('splitting2', min(self.config.step, self._max_step()),
+            self._use('splitting2', min(self.config.step, self.config.event_spacing()),
                       f'auto: selection failed ({exc}); splitting2 at the scene\'s step')
         finally:
             self.selection_cpu += time.process_time() - cpu0
@@ -423,38 +401,7 @@ class Engine:
         self._base = (self.kinetic_energy, self.angular_momentum.copy(), self.t_ns)
 
     def diagnostics(self) -> dict:
-        """The physics' health: method, step, invariants and their drift over the current
-        torque-free stretch, quaternion norm error, dissipated energy, command counters."""
-        T, L = self.kinetic_energy, self.angular_momentum
-        T0, L0, t0 = self._base
-        n0, n = float(np.linalg.norm(L0)), float(np.linalg.norm(L))
-        applied = torque_on = self._tau_body is not None
-        na = 'n/a (torque applied)'
-        if self.actuators is not None:  # allocated torque is internal: H is still kept
-            torque_on = self._tau_p is not None
-
-        def rel(a, b):
-            return (a - b) / b if b > 0 else 0.0
-
-        c = self.command
-        return {
-            'integrator': self.method, 'integrator_reason': self.reason,
-            'step': self.step_max, 'publish_rate': NS / self.config.sample_period_ns,
-            'sim_time': self.t, 'kinetic_energy': T, 'angular_momentum_norm': n,
-            'drift_since': t0 / NS,
-            'kinetic_energy_drift': na if torque_on else
-            'n/a (actuators do work)' if self.actuators is not None else rel(T, T0),
-            'angular_momentum_norm_drift': na if torque_on else rel(n, n0),
-            'angular_momentum_inertial_drift': na if torque_on else
-            (float(np.linalg.norm(L - L0)) / n0 if n0 > 0 else 0.0),
-            'quaternion_norm_error': abs(float(np.linalg.norm(self._q)) - 1.0),
-            'energy_dissipated': max(0.0, T0 - T)
-            if self.dynamics.dissipation.active and not torque_on else 0.0,
-            'torque_applied': applied,
-            'commands_accepted': c.accepted, 'commands_saturated': c.saturated,
-            'commands_timed_out': c.timed_out,
-            'selection_pending': self.selection_pending,
-            **({} if self.actuators is None else
-               self.actuators.diagnostics(self._m, self.dynamics.moments)),
-        }
-
+        """The physics' health (``engine.health.diagnostics``): method, step, invariants and
+        their drift over the current torque-free stretch, quaternion norm error, dissipated
+        energy, command counters."""
+        return health.diagnostics(self)
