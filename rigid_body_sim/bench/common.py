@@ -1,5 +1,7 @@
 """Timing, error metrics and references shared by the benchmark sections."""
+import json
 import math
+import os
 import time
 
 import numpy as np
@@ -10,6 +12,16 @@ from ..physics import IntegrationError, RigidBody, rotation
 
 REF_RTOL = 1e-13
 EPS = np.finfo(float).eps
+
+
+def report(result, out=None, name=None):
+    """Print ``result`` as one JSON line (what scripts and the README quote) and, with
+    ``out``, also write it to ``out/name`` (e.g. docs/bench/flood.json)."""
+    print(json.dumps(result))
+    if out:
+        os.makedirs(out, exist_ok=True)
+        with open(os.path.join(out, name), 'w') as f:
+            json.dump(result, f, indent=1)
 
 
 def cpu():

@@ -20,6 +20,7 @@ import subprocess
 import sys
 import time
 
+from .common import report
 from .live_simulator import _rss_mb
 from .soak import _exe
 
@@ -107,11 +108,7 @@ def main(argv=None) -> int:
     result = run(args.seconds, args.rate)
     result['command'] = ('python -m rigid_body_sim.bench.flood_report --seconds '
                          f'{args.seconds:g} --rate {args.rate:g}')
-    print(json.dumps(result))
-    if args.out:
-        os.makedirs(args.out, exist_ok=True)
-        with open(os.path.join(args.out, 'flood.json'), 'w') as f:
-            json.dump(result, f, indent=1)
+    report(result, args.out, 'flood.json')
     return 0
 
 

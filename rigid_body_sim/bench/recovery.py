@@ -15,7 +15,6 @@ receipt of the messages):
 Prints one JSON line; ``--out DIR`` writes DIR/recovery.json.
 """
 import argparse
-import json
 import os
 import random
 import signal
@@ -25,6 +24,7 @@ import time
 
 import numpy as np
 
+from .common import report
 from .soak import _exe
 
 MAX_TORQUE = 0.05
@@ -118,11 +118,7 @@ def main(argv=None) -> int:
     args = parser.parse_args(argv)
     result = run()
     result['command'] = 'python -m rigid_body_sim.bench.recovery'
-    print(json.dumps(result))
-    if args.out:
-        os.makedirs(args.out, exist_ok=True)
-        with open(os.path.join(args.out, 'recovery.json'), 'w') as f:
-            json.dump(result, f, indent=1)
+    report(result, args.out, 'recovery.json')
     return 0
 
 

@@ -17,7 +17,6 @@ DDS would otherwise use between processes of one machine, is not available betwe
 Prints a table and one JSON line; ``--out DIR`` also writes DIR/two_hosts.json.
 """
 import argparse
-import json
 import math
 import os
 import random
@@ -29,6 +28,8 @@ import tempfile
 import time
 
 import numpy as np
+
+from .common import report
 
 SCENE = 'slew'
 SUBNET = '10.77.0'
@@ -109,8 +110,14 @@ def closed_loop(hosts: Hosts, discovery_range: str, seconds: float, workdir: str
         'controller': hosts.start(1, _exe('controller') + ['--ros-args', *params], env,
                                   logs['controller'])}
     time.sleep(2.0)  # B listening before A starts, as in the demo
+    # the duration in a second params file: a -p loses against the scene's node section
+    # (rcl lets a node-specific entry win over the /** one -p makes), so an earlier
+    # version of this bench always ran the scene's 15 s whatever --seconds said
+    duration = os.path.join(workdir, 'duration.yaml')
+    with open(duration, 'w') as f:
+        f.write(f'/**/attitude_simulator:\n  ros__parameters:\n    duration: {float(seconds)!r}\n')
     procs['simulator'] = hosts.start(0, _exe('simulator') + [
-        '--ros-args', *params, '-p', f'duration:={seconds}'], env, logs['simulator'])
+        '--ros-args', *params, '--params-file', duration], env, logs['simulator'])
     try:
         procs['simulator'].wait(seconds + 60)
     finally:
@@ -171,12 +178,8 @@ def main(argv=None) -> int:
               f"after the first, {r['not_yet_discovered_at_start']} before discovery), "
               f"{r['torque_commands_recorded_on_b']} torque commands, final pointing error "
               f"{'n/a' if err is None else f'{err:.4f}°'}, exit codes {r['exit_codes']}")
-    print(json.dumps(results))
-    if args.out:
-        os.makedirs(args.out, exist_ok=True)
-        with open(os.path.join(args.out, 'two_hosts.json'), 'w') as f:
-            json.dump({'command': 'sudo python -m rigid_body_sim.bench.two_hosts --seconds '
-                       f'{args.seconds:g}', 'results': results}, f, indent=1)
+    report({'command': 'sudo python -m rigid_body_sim.bench.two_hosts --seconds '
+            f'{args.seconds:g}', 'results': results}, args.out, 'two_hosts.json')
     return 0
 
 
