@@ -91,7 +91,9 @@ class TorqueFreeSolution(NumpyPath):
     """
 
     def __init__(self, moments, q0, m0):
-        moments = np.asarray(moments, float)
+        # a writable copy: the kernels are compiled for one array type, and a read-only
+        # view (Dynamics.moments) would load a second specialisation in mid-run
+        moments = np.array(moments, float)
         if moments.shape != (3,) or not np.all(np.isfinite(moments)) or np.any(moments <= 0.0):
             raise ValueError(f'moments must be 3 finite positive values, got {moments.tolist()}')
         q0 = rotation.validated(q0, 'q0')
