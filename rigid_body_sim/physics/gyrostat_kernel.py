@@ -27,15 +27,8 @@ import math
 
 import numpy as np
 
-from .kernels import _finite, jit
-
-try:
-    from numba import njit
-    # the helpers take many arrays: called out of line, each call pays a reference-count
-    # round trip per array (≈ 0.15 µs per call, 5× the body's whole step); inlined, none
-    inline = njit(cache=True, nogil=True, error_model='numpy', inline='always')
-except ImportError:  # pragma: no cover - numba is a pinned dependency
-    inline = jit
+from . import kernels
+from .kernels import _finite, _rotate_half, depends_on, inline, jit
 
 # status slots (counters of steps on which a limit acted, and the last values)
 ST_WHEEL_TORQUE_SAT, ST_WHEEL_SPEED_SAT, ST_GIMBAL_RATE_SAT, ST_GIMBAL_ANGLE_SAT = 0, 1, 2, 3
@@ -335,28 +328,12 @@ def _momentum(hw, wa, s0, gxs, h0, out, cd, sd):
 def _flow(q, H, hA, axis, t, moments):
     """Exact flow of (H_axis − h_A,axis)²/(2 I_axis) for time t: H turns by −φ about the
     axis, q by +φ, φ = t (H_axis − h_A,axis)/I_axis (constant: H_axis does not change)."""
-    _rotate_about(q, H, axis, t * (H[axis] - hA[axis]) / moments[axis])
+    _rotate_half(q, H, axis, 0.5 * (t * (H[axis] - hA[axis]) / moments[axis]))
 
 
-@inline
-def _rotate_about(q, m, axis, phi):
-    """m turns by −φ, q by +φ about ``axis`` (the rotation _axis_flow applies)."""
-    b = (axis + 1) % 3
-    c = (axis + 2) % 3
-    half = 0.5 * phi
-    s = math.sin(half)
-    w = math.cos(half)
-    cos_phi = w * w - s * s
-    sin_phi = 2.0 * s * w
-    mb = m[b]
-    mc = m[c]
-    m[b] = cos_phi * mb + sin_phi * mc
-    m[c] = cos_phi * mc - sin_phi * mb
-    qa, qb, qc, qw = q[axis], q[b], q[c], q[3]
-    q[axis] = w * qa + s * qw
-    q[b] = w * qb + s * qc
-    q[c] = w * qc - s * qb
-    q[3] = w * qw - s * qa
+# numba's disk cache checks only this file; gyrostat_run embeds kernels' _finite and
+# _rotate_half
+depends_on(gyrostat_run, kernels)
 
 
 def warm():
