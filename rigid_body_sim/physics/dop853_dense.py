@@ -41,8 +41,26 @@ POWER = _coefficients.INTERPOLATOR_POWER  # 7 rows of F
 # C_EXTRA, the extra stages' nodes, is not needed: the system is autonomous.
 EXTENSION = (np.ascontiguousarray(_coefficients.A[N_STAGES + 1:]),
              np.ascontiguousarray(_coefficients.D))
-CLOCK = 4  # pos (the last output, from the step's start), h (its length), built, h_abs
-LAST = 17  # q (4), m (3) returned, torque (3), raw y returned (7)
+A_EXTRA, D = EXTENSION
+A, B, E3, E5 = dop853_kernel.TABLEAU  # constants compiled into advance: fewer arguments
+# The memory, one flat array (each array argument costs numba's dispatch ~0.1 µs, and a
+# call's whole work can be 1 µs): y, f, y_old (7 each), K (16·7), F (7·7), clock (4):
+# pos (the last output, from the step's start), h (its length), built, h_abs; last (17):
+# q (4), m (3) and torque (3) of the last call, raw y it returned (7).
+_Y, _F_, _Y_OLD, _K = 0, DIM, 2 * DIM, 3 * DIM
+_FF = _K + N_EXTENDED * DIM
+_CLOCK = _FF + POWER * DIM
+_LAST = _CLOCK + 4
+MEMORY = _LAST + 17
+
+
+@jit
+def views(memory):
+    """(y, f, y_old, K (16, 7), F (7, 7), clock, last): views into the flat memory."""
+    return (memory[_Y:_F_], memory[_F_:_Y_OLD], memory[_Y_OLD:_K],
+            memory[_K:_FF].reshape((N_EXTENDED, DIM)),
+            memory[_FF:_CLOCK].reshape((POWER, DIM)), memory[_CLOCK:_LAST],
+            memory[_LAST:MEMORY])
 
 
 @jit
@@ -93,20 +111,20 @@ def _interpolate(y_old, F, x, out):
 
 
 @jit
-def advance(q, m, span, tau, y, f, y_old, K, F, clock, last, moments, model, coefficient,
-            rtol, atol, A, B, E3, E5, A_EXTRA, D):
+def advance(q, m, span, tau, memory, moments, model, coefficient, rtol, atol):
     """One output step of ``span`` s for an integrator that keeps its memory between calls.
 
     q (4,), m (3,): the state to advance, overwritten with the result (q normalised).
-    Memory the caller owns (zero ``clock`` to start afresh): y, f (7,) the raw state at the
-    end of the step in progress and its derivative; y_old (7,) the state at its start;
-    K (16, 7) its stages; F (7, 7) its interpolant; clock (4,) = (pos, h, built, h_abs):
-    the last output's position in the step, the step's length, whether F is built, the
-    step proposed next (0: no memory); last (17,) the q, m and torque of the last call and
-    the raw state it returned.
+    ``memory`` (MEMORY,), the caller's (zero it to start afresh; :func:`views` names its
+    parts): y, f (7,) the raw state at the end of the step in progress and its
+    derivative; y_old (7,) the state at its start; K (16, 7) its stages; F (7, 7) its
+    interpolant; clock (4,) = (pos, h, built, h_abs): the last output's position in the
+    step, the step's length, whether F is built, the step proposed next (0: no memory);
+    last (17,) the q, m and torque of the last call and the raw state it returned.
 
     Returns (status, t from the call's start reached, step proposed next — or the failing
     step —, evaluations)."""
+    y, f, y_old, K, F, clock, last = views(memory)
     nfev = 0
     h_abs = clock[3]
     warm = h_abs > 0.0
@@ -144,8 +162,11 @@ def advance(q, m, span, tau, y, f, y_old, K, F, clock, last, moments, model, coe
         target -= h_step
         for i in range(DIM):
             K[0, i] = f[i]
-        status, _, h, h_abs, n = attempt(y, base, np.inf, h_abs, K, y_stage, y_new, moments,
-                                         tau, model, coefficient, rtol, atol, A, B, E3, E5)
+        # each step from local time 0: h exactly h_abs, so the steps (and the trajectory)
+        # do not depend on where the outputs fall; the floor is from the call's time
+        status, _, h, h_abs, n = attempt(y, 0.0, base, np.inf, h_abs, K, y_stage, y_new,
+                                         moments, tau, model, coefficient, rtol, atol, A, B,
+                                         E3, E5)
         nfev += n
         if status != OK:
             clock[3] = 0.0
@@ -188,20 +209,15 @@ def advance(q, m, span, tau, y, f, y_old, K, F, clock, last, moments, model, coe
 
 
 # numba's disk cache checks only this file; these embed dop853_kernel's and kernels' code
-for _kernel in (_build, _interpolate, advance):
+# (and advance its tableau, imported from scipy through dop853_kernel)
+for _kernel in (views, _build, _interpolate, advance):
     depends_on(_kernel, kernels, dop853_kernel)
-
-
-def memory():
-    """Fresh memory for :func:`advance`: (y, f, y_old, K, F, clock, last)."""
-    return (np.zeros(DIM), np.zeros(DIM), np.zeros(DIM), np.zeros((N_EXTENDED, DIM)),
-            np.zeros((POWER, DIM)), np.zeros(CLOCK), np.zeros(LAST))
 
 
 def warm():
     """Compile (or load from the cache) the kernel on representative arguments."""
     q = np.array([0.0, 0.0, 0.0, 1.0])
     m = np.array([0.1, 1.0, 0.2])
-    advance(q, m, 1e-3, np.zeros(3), *memory(), np.array([1.0, 2.0, 3.0]), 1, 0.1, 1e-10,
-            1e-12, *dop853_kernel.TABLEAU, *EXTENSION)
+    advance(q, m, 1e-3, np.zeros(3), np.zeros(MEMORY), np.array([1.0, 2.0, 3.0]), 1, 0.1,
+            1e-10, 1e-12)
     return COMPILED

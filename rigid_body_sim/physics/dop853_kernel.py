@@ -1,4 +1,4 @@
-"""Compiled adaptive Dormand–Prince 8(5,3) (DOP853) for one body, across output steps.
+"""Compiled adaptive Dormand–Prince 8(5,3) (DOP853) for one body: the method and its steps.
 
 The same method as scipy's ``solve_ivp(method='DOP853')`` — its tableau (imported from
 scipy, so the coefficients are the same numbers), its error estimator (the 5th and 3rd
@@ -7,16 +7,9 @@ initial step selection — so on the same right-hand side it takes the same step
 round-off. The right-hand side is the rigid body's ``kernels._rates`` on the packed state
 y = (q (4), m (3)), with the torque held over the call.
 
-What differs from calling solve_ivp once per output step: :func:`advance` keeps the
-proposed step and the last accepted state with its derivative (FSAL) in arrays the caller
-owns, so consecutive calls (event to event) continue the same integration instead of
-restarting from a fresh initial-step guess each time. Each call lands exactly on its end
-time, clipping the last step as scipy does; the step proposed afterwards is the one the
-clipped step interrupted (unless the clipped step's error asks for less). A torque change
-is a discontinuity: the step is kept, the derivative is recomputed.
-
-The system is autonomous (the torque is held over a call), so each call integrates local
-time 0 → span; the caller adds its t0 when reporting a failure.
+:func:`integrate` is solve_ivp over one interval (landing on its end by clipping the last
+step); :func:`attempt` is one accepted step. The integrator runs across output steps with
+:mod:`dop853_dense` instead: natural steps, outputs from the dense output, no restarts.
 
 Plain numerical Python on float arrays, compiled by ``kernels.jit``; with
 NUMBA_DISABLE_JIT=1 the same source runs as ordinary Python (the tests compare the two).
@@ -136,16 +129,17 @@ def _error_norm(y, y_new, h, K, rtol, atol, E3, E5):
 
 
 @jit
-def attempt(y, t, t_bound, h_abs, K, y_stage, y_new, moments, tau, model, coefficient, rtol,
-            atol, A, B, E3, E5):
+def attempt(y, t, t_floor, t_bound, h_abs, K, y_stage, y_new, moments, tau, model,
+            coefficient, rtol, atol, A, B, E3, E5):
     """One accepted step from (t, y), K[0] = f(y) given, of the step ``h_abs`` or less
-    (rejections shrink it; a step past ``t_bound`` is clipped to it, as scipy does).
+    (rejections shrink it; a step past ``t_bound`` is clipped to it, as scipy does). The
+    step is rounded as t + h − t, and fails below 10 ulps of ``t_floor``.
 
     Returns (status, t reached, step taken — or the failing step —, step proposed next,
     evaluations); on OK y_new and K[1:13] hold the step (K[12] = f(y_new))."""
     nfev = 0
-    # scipy's floor: 10 ulps of t (t is local time, so never coarser than scipy's)
-    min_step = 10.0 * (np.nextafter(t, np.inf) - t)
+    # scipy's floor: 10 ulps of t (local time here, so never coarser than scipy's)
+    min_step = 10.0 * (np.nextafter(t_floor, np.inf) - t_floor)
     if h_abs < min_step:
         h_abs = min_step
     rejected = False
@@ -209,7 +203,7 @@ def integrate(y, f, span, h_abs, fresh, moments, tau, model, coefficient, rtol, 
     while t < span:
         for i in range(DIM):
             K[0, i] = f[i]
-        status, t_new, h, h_abs, n = attempt(y, t, span, h_abs, K, y_stage, y_new, moments,
+        status, t_new, h, h_abs, n = attempt(y, t, t, span, h_abs, K, y_stage, y_new, moments,
                                              tau, model, coefficient, rtol, atol, A, B, E3, E5)
         nfev += n
         if status != OK:

@@ -36,11 +36,11 @@ class DOP853(Integrator):
         self._zero = np.zeros(3)
         # the kernel's memory between calls: the step in progress, its interpolant, the
         # last output and torque (dop853_dense.advance)
-        self._memory = dop853_dense.memory()
+        self._memory = np.zeros(dop853_dense.MEMORY)
         self.reset()
 
     def reset(self):
-        self._memory[5][:] = 0.0  # the clock: no step in progress, no proposal (afresh)
+        self._memory[:] = 0.0  # no step in progress, no step proposed: afresh
 
     def run(self, q, m, h, n, torque=None, t0=0.0):
         """One body: one integration over n·h (h is an output interval, not a step)."""
@@ -59,10 +59,9 @@ class DOP853(Integrator):
         q = np.array(q, dtype=float)  # fresh arrays: the kernel writes the result into them
         m = np.array(m, dtype=float)
         tau = self._zero if torque is None else np.asarray(torque, dtype=float).reshape(3)
-        status, t, h, nfev = dop853_dense.advance(
-            q, m, float(span), tau, *self._memory, self._moments, self._model,
-            self._coefficient, self.rtol, self.atol, *dop853_kernel.TABLEAU,
-            *dop853_dense.EXTENSION)
+        status, t, h, nfev = dop853_dense.advance(q, m, float(span), tau, self._memory,
+                                                  self._moments, self._model,
+                                                  self._coefficient, self.rtol, self.atol)
         self.nfev += nfev
         if status != dop853_kernel.OK:
             self.reset()  # the state is garbage: start afresh next time
