@@ -159,6 +159,7 @@ def advance(q, m, span, tau, memory, moments, model, coefficient, rtol, atol):
         _rhs(y, f, moments, tau, model, coefficient)
         nfev += 1
         if not (_finite(y[:4], y[4:]) and _finite(f[:4], f[4:])):
+            clock[3] = 0.0  # no memory left: the next call starts afresh
             return NON_FINITE, 0.0, h_abs, nfev
         if h_abs == 0.0:  # no interval to cap the guess: the integration has no set end
             h_abs = _initial_step(y, f, np.inf, moments, tau, model, coefficient, rtol, atol,
