@@ -1,4 +1,4 @@
-"""Compiled adaptive Dormand–Prince 8(5,3) (DOP853) for one body, across output steps.
+"""Compiled adaptive Dormand–Prince 8(5,3) (DOP853) for one body: the method and its steps.
 
 The same method as scipy's ``solve_ivp(method='DOP853')`` — its tableau (imported from
 scipy, so the coefficients are the same numbers), its error estimator (the 5th and 3rd
@@ -7,16 +7,9 @@ initial step selection — so on the same right-hand side it takes the same step
 round-off. The right-hand side is the rigid body's ``kernels._rates`` on the packed state
 y = (q (4), m (3)), with the torque held over the call.
 
-What differs from calling solve_ivp once per output step: :func:`advance` keeps the
-proposed step and the last accepted state with its derivative (FSAL) in arrays the caller
-owns, so consecutive calls (event to event) continue the same integration instead of
-restarting from a fresh initial-step guess each time. Each call lands exactly on its end
-time, clipping the last step as scipy does; the step proposed afterwards is the one the
-clipped step interrupted (unless the clipped step's error asks for less). A torque change
-is a discontinuity: the step is kept, the derivative is recomputed.
-
-The system is autonomous (the torque is held over a call), so each call integrates local
-time 0 → span; the caller adds its t0 when reporting a failure.
+:func:`integrate` is solve_ivp over one interval (landing on its end by clipping the last
+step); :func:`attempt` is one accepted step. The integrator runs across output steps with
+:mod:`dop853_dense` instead: natural steps, outputs from the dense output, no restarts.
 
 Plain numerical Python on float arrays, compiled by ``kernels.jit``; with
 NUMBA_DISABLE_JIT=1 the same source runs as ordinary Python (the tests compare the two).
@@ -136,11 +129,61 @@ def _error_norm(y, y_new, h, K, rtol, atol, E3, E5):
 
 
 @jit
+def attempt(y, t, t_floor, t_bound, h_abs, K, y_stage, y_new, moments, tau, model,
+            coefficient, rtol, atol, A, B, E3, E5):
+    """One accepted step from (t, y), K[0] = f(y) given, of the step ``h_abs`` or less
+    (rejections shrink it; a step past ``t_bound`` is clipped to it, as scipy does). The
+    step is rounded as t + h − t, and fails below 10 ulps of ``t_floor``.
+
+    Returns (status, t reached, step taken — or the failing step —, step proposed next,
+    evaluations); on OK y_new and K[1:13] hold the step (K[12] = f(y_new))."""
+    nfev = 0
+    # scipy's floor: 10 ulps of t (local time here, so never coarser than scipy's)
+    min_step = 10.0 * (np.nextafter(t_floor, np.inf) - t_floor)
+    if h_abs < min_step:
+        h_abs = min_step
+    rejected = False
+    while True:
+        if h_abs < min_step:
+            return STEP_UNDERFLOW, t, h_abs, h_abs, nfev
+        t_new = t + h_abs
+        clipped = t_new > t_bound
+        if clipped:
+            t_new = t_bound  # land on the end exactly
+        h = t_new - t  # the step actually taken, rounded as scipy rounds it
+        _rk_step(y, h, K, y_stage, y_new, moments, tau, model, coefficient, A, B)
+        nfev += N_STAGES
+        err = _error_norm(y, y_new, h, K, rtol, atol, E3, E5)
+        if err < 1.0:
+            if err == 0.0:
+                factor = MAX_FACTOR
+            else:
+                factor = min(MAX_FACTOR, SAFETY * err ** ERROR_EXPONENT)
+            if rejected:
+                factor = min(1.0, factor)
+            if clipped:
+                # The next call should resume at the step this one interrupted, not at
+                # ≤ 10× a possibly tiny clipped step; the clipped step's own (uncapped)
+                # proposal still wins if it asks for less.
+                if err > 0.0:
+                    h_abs = min(h_abs, h * SAFETY * err ** ERROR_EXPONENT)
+            else:
+                h_abs = h * factor
+            return OK, t_new, h, h_abs, nfev
+        # rejected; a NaN error (overflow inside the step) shrinks by the most, as in scipy
+        factor = SAFETY * err ** ERROR_EXPONENT if err == err else MIN_FACTOR
+        h_abs = h * max(MIN_FACTOR, factor)
+        rejected = True
+
+
+@jit
 def integrate(y, f, span, h_abs, fresh, moments, tau, model, coefficient, rtol, atol,
               A, B, E3, E5):
-    """Advance y (7,) in place from local time 0 to ``span`` exactly; f holds dy/dt at y
-    (recomputed first if ``fresh``) and on return at the new y. ``h_abs`` > 0: the step to
-    try first; otherwise scipy's initial step selection picks it.
+    """solve_ivp over (0, span): advance y (7,) in place to ``span`` exactly, clipping the
+    last step; f holds dy/dt at y (recomputed first if ``fresh``) and on return at the new
+    y. ``h_abs`` > 0: the step to try first; otherwise scipy's initial step selection
+    (over the interval ``span``) picks it. The integrator uses :mod:`dop853_dense`
+    instead, which never clips; this is the one-interval method the tests hold to scipy.
 
     Returns (status, t reached, step proposed next — or the failing step —, evaluations)."""
     nfev = 0
@@ -158,44 +201,13 @@ def integrate(y, f, span, h_abs, fresh, moments, tau, model, coefficient, rtol, 
         nfev += 1
     t = 0.0
     while t < span:
-        # scipy's floor: 10 ulps of t (local time here, so never coarser than scipy's)
-        min_step = 10.0 * (np.nextafter(t, np.inf) - t)
-        if h_abs < min_step:
-            h_abs = min_step
-        rejected = False
-        while True:
-            if h_abs < min_step:
-                return STEP_UNDERFLOW, t, h_abs, nfev
-            t_new = t + h_abs
-            clipped = t_new > span
-            if clipped:
-                t_new = span  # land on the end exactly
-            h = t_new - t  # the step actually taken, rounded as scipy rounds it
-            for i in range(DIM):
-                K[0, i] = f[i]
-            _rk_step(y, h, K, y_stage, y_new, moments, tau, model, coefficient, A, B)
-            nfev += N_STAGES
-            err = _error_norm(y, y_new, h, K, rtol, atol, E3, E5)
-            if err < 1.0:
-                if err == 0.0:
-                    factor = MAX_FACTOR
-                else:
-                    factor = min(MAX_FACTOR, SAFETY * err ** ERROR_EXPONENT)
-                if rejected:
-                    factor = min(1.0, factor)
-                if clipped:
-                    # The next call should resume at the step this one interrupted, not at
-                    # ≤ 10× a possibly tiny clipped step; the clipped step's own (uncapped)
-                    # proposal still wins if it asks for less.
-                    if err > 0.0:
-                        h_abs = min(h_abs, h * SAFETY * err ** ERROR_EXPONENT)
-                else:
-                    h_abs = h * factor
-                break
-            # rejected; a NaN error (overflow inside the step) shrinks by the most, as in scipy
-            factor = SAFETY * err ** ERROR_EXPONENT if err == err else MIN_FACTOR
-            h_abs = h * max(MIN_FACTOR, factor)
-            rejected = True
+        for i in range(DIM):
+            K[0, i] = f[i]
+        status, t_new, h, h_abs, n = attempt(y, t, t, span, h_abs, K, y_stage, y_new, moments,
+                                             tau, model, coefficient, rtol, atol, A, B, E3, E5)
+        nfev += n
+        if status != OK:
+            return status, t, h, nfev
         t = t_new
         for i in range(DIM):
             y[i] = y_new[i]
@@ -205,59 +217,14 @@ def integrate(y, f, span, h_abs, fresh, moments, tau, model, coefficient, rtol, 
     return OK, t, h_abs, nfev
 
 
-@jit
-def advance(q, m, span, tau, h_abs, y, f, last, moments, model, coefficient, rtol, atol,
-            A, B, E3, E5):
-    """One output step of ``span`` for an integrator that keeps its memory between calls.
-
-    q (4,), m (3,): the state to advance, overwritten with the result (q normalised).
-    Memory the caller owns: y (7,) the raw (unnormalised) last accepted state, f (7,) its
-    derivative, last (10,) the q, m returned last time and the torque used, h_abs the step
-    proposed last time (0: no memory). When (q, m) is what was returned last time the
-    integration continues from y with that step (derivative recomputed if the torque
-    changed); any other state starts afresh. Returns what :func:`integrate` returns."""
-    warm = h_abs > 0.0
-    for i in range(4):
-        warm = warm and q[i] == last[i]
-    for i in range(3):
-        warm = warm and m[i] == last[4 + i]
-    fresh = True
-    if warm:
-        fresh = tau[0] != last[7] or tau[1] != last[8] or tau[2] != last[9]
-    else:
-        for i in range(4):
-            y[i] = q[i]
-        for i in range(3):
-            y[4 + i] = m[i]
-        h_abs = 0.0
-    status, t, h, nfev = integrate(y, f, span, h_abs, fresh, moments, tau, model, coefficient,
-                                   rtol, atol, A, B, E3, E5)
-    if status != OK:
-        return status, t, h, nfev
-    # q is returned normalised (the caller's state stays unit); y keeps the raw solution
-    # so that continuing reproduces one long integration.
-    norm = math.sqrt(y[0] * y[0] + y[1] * y[1] + y[2] * y[2] + y[3] * y[3])
-    for i in range(4):
-        q[i] = y[i] / norm
-        last[i] = q[i]
-    for i in range(3):
-        m[i] = y[4 + i]
-        last[4 + i] = m[i]
-        last[7 + i] = tau[i]
-    if not _finite(q, m):  # q fell to zero
-        return NON_FINITE, t, h, nfev
-    return OK, t, h, nfev
-
-
 # numba's disk cache checks only this file; each of these embeds kernels._rates or _finite
-for _kernel in (_rhs, _initial_step, _rk_step, integrate, advance):
+for _kernel in (_rhs, _initial_step, _rk_step, attempt, integrate):
     depends_on(_kernel, kernels)
 
 
 def warm():
     """Compile (or load from the cache) the kernel on representative arguments."""
-    q = np.array([0.0, 0.0, 0.0, 1.0])
-    m = np.array([0.1, 1.0, 0.2])
-    advance(q, m, 1e-3, np.zeros(3), 0.0, np.empty(DIM), np.empty(DIM), np.empty(10),
-            np.array([1.0, 2.0, 3.0]), 1, 0.1, 1e-10, 1e-12, *TABLEAU)
+    y = np.array([0.0, 0.0, 0.0, 1.0, 0.1, 1.0, 0.2])
+    integrate(y, np.empty(DIM), 1e-3, 0.0, True, np.array([1.0, 2.0, 3.0]), np.zeros(3), 1,
+              0.1, 1e-10, 1e-12, *TABLEAU)
     return COMPILED

@@ -3,7 +3,7 @@ solve_ivp for a batch."""
 import numpy as np
 from scipy.integrate import solve_ivp
 
-from .. import dop853_kernel, kernels
+from .. import dop853_dense, dop853_kernel, kernels
 from .base import IntegrationError, Integrator
 
 
@@ -11,11 +11,13 @@ class DOP853(Integrator):
     """Dormand–Prince 8(5,3), adaptive with rtol/atol; continues across output steps.
 
     Options: rtol (default 1e-10), atol (default 1e-12). One body runs the compiled kernel
-    (``physics.dop853_kernel``: scipy's method, same steps): ``run``/``step`` integrate the
-    whole interval landing on its end, and consecutive calls continue one integration —
-    the step size and the last state's derivative carry over (the derivative is recomputed
-    after a torque change; any other input state, or ``reset``, starts afresh). q is
-    returned normalised. A batch is one system for scipy's solve_ivp, restarted each step.
+    (``physics.dop853_dense``: scipy's method, same steps, dense output): ``run``/``step``
+    return the state at the end of the interval, and consecutive calls continue one
+    integration of natural steps — an end inside a step is interpolated (7th order, as
+    scipy's dense output), so outputs cost 3 evaluations per step that has any, not a
+    clipped step each. A torque change restarts from the returned state keeping the step
+    size; any other input state, or ``reset``, starts afresh. q is returned normalised.
+    A batch is one system for scipy's solve_ivp, restarted each step.
     """
     name = 'dop853'
     order = 8
@@ -32,12 +34,13 @@ class DOP853(Integrator):
         self._coefficient = d.coefficient
         self._moments = np.array(dynamics.moments, dtype=float)
         self._zero = np.zeros(3)
-        # the kernel's memory between calls: raw state, its derivative, last output + torque
-        self._y, self._f, self._last = np.zeros(7), np.zeros(7), np.zeros(10)
+        # the kernel's memory between calls: the step in progress, its interpolant, the
+        # last output and torque (dop853_dense.advance)
+        self._memory = np.zeros(dop853_dense.MEMORY)
         self.reset()
 
     def reset(self):
-        self._h = 0.0  # the step the kernel proposed last (0: start afresh next call)
+        self._memory[:] = 0.0  # no step in progress, no step proposed: afresh
 
     def run(self, q, m, h, n, torque=None, t0=0.0):
         """One body: one integration over n·h (h is an output interval, not a step)."""
@@ -56,15 +59,14 @@ class DOP853(Integrator):
         q = np.array(q, dtype=float)  # fresh arrays: the kernel writes the result into them
         m = np.array(m, dtype=float)
         tau = self._zero if torque is None else np.asarray(torque, dtype=float).reshape(3)
-        status, t, h, nfev = dop853_kernel.advance(
-            q, m, float(span), tau, self._h, self._y, self._f, self._last, self._moments,
-            self._model, self._coefficient, self.rtol, self.atol, *dop853_kernel.TABLEAU)
+        status, t, h, nfev = dop853_dense.advance(q, m, float(span), tau, self._memory,
+                                                  self._moments, self._model,
+                                                  self._coefficient, self.rtol, self.atol)
         self.nfev += nfev
         if status != dop853_kernel.OK:
-            self._h = 0.0  # the state is garbage: start afresh next time
+            self.reset()  # the state is garbage: start afresh next time
             raise IntegrationError(self.name, h if h > 0.0 else span, t0 + t,
                                    dop853_kernel.REASONS[status])
-        self._h = h
         return q, m
 
     def _scipy_step(self, q, m, h, torque, t):
