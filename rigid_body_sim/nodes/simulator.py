@@ -120,6 +120,7 @@ class Simulator(Node):
         self._sim_services = SimulationServices(self) if SIM_SERVICES else None
         self._fault = None
         self._missed = self._missed_at_last_diag = 0
+        self._resets = 0  # ~/reset and set_state: viewers restart their drift and traces on it
         self._worst_late = 0.0
         self._method = self._engine.method
         self._base_stamp(self.get_clock().now().nanoseconds)
@@ -289,6 +290,7 @@ class Simulator(Node):
         self._engine.set_state(attitude, angular_velocity)
         self._fault = None
         self._log.info(f'state set at t = {self._engine.t:.6g} s')
+        self._new_run()
 
     def quit(self):
         """End the run loop shortly: the reply to the request still reaches the caller."""
@@ -327,8 +329,15 @@ class Simulator(Node):
         response.message = (f'reset to the initial state at t = {e.t:.6g} s; integrator '
                             f'{e.method} ({e.reason})')
         self._log.info(response.message)
-        self._next_diag_wall = time.monotonic()
+        self._new_run()
         return response
+
+    def _new_run(self):
+        """A reset or a set state: counted in diagnostics (``resets``), published now, before
+        the new state's first sample, so that subscribers (the viewer) see the count change
+        before that sample."""
+        self._resets += 1
+        self._publish_diagnostics()
 
     def _apply_parameters(self, params):
         changed = changed_values(SPECS, self._p, params)
@@ -384,7 +393,7 @@ class Simulator(Node):
                   'missed_deadlines_in_period': self._missed - self._missed_at_last_diag,
                   'worst_lateness_in_period': self._worst_late,
                   'deadline_tolerance': self._p['deadline_tolerance'],
-                  'fault': self._fault or ''}
+                  'fault': self._fault or '', 'resets': self._resets}
         missed = self._missed - self._missed_at_last_diag
         if self._fault:
             level, message = 'ERROR', f'stopped: {self._fault}'

@@ -8,6 +8,9 @@ Topics (relative names, remappable):
     sub ``imu`` (sensor_msgs/Imu: the attitude base_link → world and ω in base_link of one
         sample, one stamp; the simulator's ideal IMU, the same values as its ``attitude``
         and ``angular_velocity``), ``attitude_target`` (QuaternionStamped), ``/diagnostics``.
+    The simulator's ``resets`` diagnostics value (counting ``~/reset``, ResetSimulation and
+    set_state) restarts the drift baselines and the traces: sim time keeps running across a
+    reset, so the stamps alone do not show one.
     pub ``/diagnostics`` (this node's status: subscriptions, samples served, client
         messages refused by reason).
 
@@ -89,6 +92,9 @@ class Viewer(Node):
         self.started = time.monotonic()
         self.said_waiting = False
         self.reported = self.rejections.snapshot()
+        ns = self.get_namespace().rstrip('/')
+        self._simulator = f'{ns}/{p["simulator_node"]}'  # its diagnostics' hardware_id
+        self._resets = None  # the simulator's resets count last seen
         from rclpy.parameter_client import AsyncParameterClient
         self._params = {'inertia': AsyncParameterClient(self, p['simulator_node']),
                         'target_attitude': AsyncParameterClient(self, p['controller_node'])}
@@ -150,6 +156,25 @@ class Viewer(Node):
     def _on_diagnostics(self, cdr):
         # logged at the latest state's stamp, so it lines up with the state in playback
         self.view.publish_diagnostics(self.last_stamp_ns or time.time_ns(), cdr)
+        if b'resets' in cdr:  # decoded only when it may be the simulator's (~1 Hz)
+            self._check_reset(cdr)
+
+    def _check_reset(self, cdr):
+        from rclpy.serialization import deserialize_message
+        for status in deserialize_message(cdr, DiagnosticArray).status:
+            if status.hardware_id != self._simulator:
+                continue
+            value = next((kv.value for kv in status.values if kv.key == 'resets'), None)
+            if value is None or not value.isdigit():
+                continue
+            n = int(value)
+            if self._resets is not None and n != self._resets:
+                # a new count, or a restarted simulator (back to 0): a new run
+                self.view.reset()
+                self.get_logger().info(
+                    f'simulator reset (resets = {n}): drift baselines and polhode/herpolhode '
+                    'traces restarted')
+            self._resets = n
 
     def _diagnostics(self):
         counts = self.rejections.snapshot()

@@ -275,9 +275,10 @@ class View:
         entities.append(entity(POINSOT_BODY_FRAME, 'energy_ellipsoid', spheres=[SpherePrimitive(
             pose=Pose(position=origin, orientation=p2b), size=_vec(2.0 * semi),
             color=_color(0.9, 0.8, 0.3, 0.35))]))
-        if self.polhode.count > 1:
-            entities.append(entity(POINSOT_BODY_FRAME, 'polhode', lines=[line(
-                self._points['polhode'], _color(1.0, 0.3, 0.2))]))
+        # the traces even when (just after a reset) too short to draw: an entity left out of
+        # an update would keep its old points on the client
+        entities.append(entity(POINSOT_BODY_FRAME, 'polhode', lines=[line(
+            self._points['polhode'], _color(1.0, 0.3, 0.2))]))
         if L_norm > 0.0:
             normal, dist = geometry.invariable_plane(L_world, T)
             centre = normal * dist * self.scale
@@ -290,9 +291,8 @@ class View:
                 pose=Pose(position=_vec(geometry.rotate_vector(q, omega) * self.scale),
                           orientation=_quat((0, 0, 0, 1))),
                 size=_vec((0.05 * size,) * 3), color=_color(1.0, 0.3, 0.2))]))
-            if self.herpolhode.count > 1:
-                entities.append(entity(POINSOT_FRAME, 'herpolhode', lines=[line(
-                    self._points['herpolhode'], _color(0.2, 0.5, 1.0))]))
+            entities.append(entity(POINSOT_FRAME, 'herpolhode', lines=[line(
+                self._points['herpolhode'], _color(0.2, 0.5, 1.0))]))
         self.scene.log(SceneUpdate(entities=entities), log_time=stamp_ns)
 
     def publish_diagnostics(self, stamp_ns: int, cdr: bytes):
