@@ -45,6 +45,9 @@ class RunResult:
     pilot_steps: int = 0  # steps auto's pilot ran (a deterministic measure of its cost)
     kernel_load_cpu_seconds: float = 0.0  # loading the compiled kernels before the run
     actuators: object = None  # the scene's ActuatorConfig (wheels / CMGs), or None
+    # right-hand-side evaluations or sub-flows (closed-form evaluations for exact), the pilot's
+    # not included: comparable across methods where ``steps`` (outputs for dop853) is not
+    evaluations: int = 0
 
     def summary(self) -> dict:
         keep = ('attitude', 'angular_velocity', 'angular_momentum', 'kinetic_energy')
@@ -52,7 +55,7 @@ class RunResult:
                 'duration': self.duration, 'step': self.step, 'steps': self.steps,
                 'samples': self.sample_count, 'cpu_seconds': round(self.cpu_seconds, 6),
                 'selection_cpu_seconds': round(self.selection_cpu_seconds, 6),
-                'pilot_steps': self.pilot_steps,
+                'evaluations': self.evaluations, 'pilot_steps': self.pilot_steps,
                 'kernel_load_cpu_seconds': round(self.kernel_load_cpu_seconds, 6),
                 'initial': {k: self.initial[k] for k in keep},
                 'final': {k: self.final[k] for k in keep}, 'bag': self.bag, 'plots': self.plots}
@@ -175,7 +178,7 @@ def simulate(scene: SceneFile, duration=None, integrator=None, step=None, accura
                      cpu - engine.selection_cpu, engine.selection_cpu, samples, first, last,
                      count, engine.body,
                      pilot_steps=engine.selected.pilot_steps if engine.selected else 0,
-                     actuators=engine.config.actuators)
+                     actuators=engine.config.actuators, evaluations=engine.total_evaluations)
 
 
 class BagSink:

@@ -139,6 +139,19 @@ def test_run_json_reports_selection_cpu_and_sample_count(tmp_path):
     from rigid_body_sim.physics.selection import CANDIDATES
     assert summary['integrator'] in [c.name for c in CANDIDATES]
     assert summary['pilot_steps'] > 0  # dissipation, no torque: auto ran its pilot
+    assert summary['evaluations'] >= summary['steps'] > 0
+
+
+def test_evaluations_count_what_each_method_did():
+    """``evaluations`` counts right-hand sides, where ``steps`` counts steps (outputs for
+    DOP853): RK4 four per step; DOP853 twelve per natural step, far more than its outputs."""
+    from rigid_body_sim.offline import simulate
+    from rigid_body_sim.scene import load
+    scene = load('explorer1')
+    rk4 = simulate(scene, duration=5.0, integrator='rk4', step=0.01)
+    assert rk4.steps == 500 and rk4.evaluations == 4 * 500
+    dop = simulate(scene, duration=5.0, integrator='dop853')
+    assert dop.evaluations > 10 * dop.steps
 
 
 def _closed_loop_pair(sim, ctl):

@@ -66,6 +66,7 @@ class Engine:
         self._builder = BlockBuilder(config.body, block_size)
         self.steps = 0
         self.evaluations = 0   # closed-form evaluations (exact, torque-free)
+        self._integ, self._retired_nfev = None, 0  # evaluations of methods replaced since
         self.selection_cpu = 0.0
         self.selected = None  # auto's last Selection (method, step, predicted error, pilot)
         self._next_sample = 0
@@ -160,6 +161,12 @@ class Engine:
         return self._integ
 
     @property
+    def total_evaluations(self) -> int:
+        """Right-hand-side evaluations (or sub-flows) of every method stepped so far, free
+        exact stretches' closed-form evaluations included, auto's pilot not."""
+        return self._retired_nfev + (self._integ.nfev if self._integ else 0) + self.evaluations
+
+    @property
     def torque(self):
         """Total held torque now (body frame, N·m), None if none."""
         return self._tau_body
@@ -167,6 +174,7 @@ class Engine:
     # ------------------------------------------------------------------ methods
     def _use(self, name, h_max, reason, **options):
         if name != self.method or options:
+            self._retired_nfev += self._integ.nfev if self._integ else 0
             self._integ = create(name, self.dynamics, **options)
         self.method, self.reason = name, reason
         self.step_max = float(h_max)
@@ -177,6 +185,7 @@ class Engine:
         c = self.config
         self._selection = None
         if self.actuators is not None:
+            self._retired_nfev += self._integ.nfev if self._integ else 0
             self._integ = None
             self.method, self._anchor = GYROSTAT, None
             self.step_max = min(c.step, c.event_spacing())

@@ -48,12 +48,21 @@ class Dissipation:
 
 @dataclass(frozen=True, eq=False)
 class Dynamics:
-    """Right-hand side and invariants for principal moments ``moments`` (3,), kg·m²."""
+    """Right-hand side and invariants for principal moments ``moments`` (3,), kg·m².
+
+    ``inverse_moment_spread`` = 1/I_min − 1/I_max (1/(kg·m²)), set from the moments: the
+    scale of the dissipation's stiffness and of its path from the minor to the major axis."""
     moments: np.ndarray
     dissipation: Dissipation = Dissipation()
 
     def __post_init__(self):
-        object.__setattr__(self, 'moments', np.asarray(self.moments, float).reshape(3))
+        moments = np.asarray(self.moments, float).reshape(3)
+        object.__setattr__(self, 'moments', moments)
+        # as floats: asked per step size by auto's selection, where numpy's reductions on
+        # three numbers cost more than the rest of the question
+        i_min, i_max = float(moments.min()), float(moments.max())
+        object.__setattr__(self, 'inverse_moment_spread', 1.0 / i_min - 1.0 / i_max)
+        object.__setattr__(self, '_inverse_min', 1.0 / i_min)
 
     def angular_velocity(self, m):
         """Ω = m / I, principal frame, rad/s."""
@@ -103,6 +112,5 @@ class Dynamics:
         if not d.active:
             return 0.0
         if d.model == 'double_bracket':
-            return (d.coefficient * momentum_norm ** 2
-                    * (1.0 / self.moments.min() - 1.0 / self.moments.max()))
-        return d.coefficient / self.moments.min()
+            return d.coefficient * momentum_norm ** 2 * self.inverse_moment_spread
+        return d.coefficient * self._inverse_min

@@ -60,10 +60,10 @@ class Level:
 def path_rate(dynamics, momentum_norm: float) -> float:
     """κ, 1/s: rate of ln tan β, β the angle of the momentum from the minor axis towards the
     major axis in the (minor, major) plane, under the scene's dissipation (0 without)."""
-    d, moments = dynamics.dissipation, dynamics.moments
+    d = dynamics.dissipation
     if not d.active:
         return 0.0
-    spread = 1.0 / moments.min() - 1.0 / moments.max()
+    spread = dynamics.inverse_moment_spread  # 1/I_min − 1/I_max
     if d.model == 'double_bracket':
         return d.coefficient * momentum_norm ** 2 * spread
     return d.coefficient * spread  # viscous: m_i ∝ exp(−c t / I_i)
@@ -71,11 +71,13 @@ def path_rate(dynamics, momentum_norm: float) -> float:
 
 def _beta(moments, m):
     """β of the plane state with the energy of m (same |m|)."""
-    i_a, i_c = moments.min(), moments.max()
-    G2 = float(m @ m)
+    # plain floats: asked once per selection, where numpy's per-call cost would dominate
+    moments, m = list(map(float, moments)), list(map(float, m))
+    i_a, i_c = min(moments), max(moments)
+    G2 = sum(x * x for x in m)
     if i_c - i_a <= 1e-12 * i_c or G2 == 0.0:
         return BETA_LIMIT
-    two_t = float(np.sum(m * m / moments))
+    two_t = sum(x * x / i for x, i in zip(m, moments))
     s2 = (1.0 / i_a - two_t / G2) / (1.0 / i_a - 1.0 / i_c)
     return min(max(math.asin(math.sqrt(min(max(s2, 0.0), 1.0))), BETA_LIMIT),
                0.5 * math.pi - BETA_LIMIT)
@@ -87,7 +89,7 @@ def levels(dynamics, q0, m0, horizon: float, rate: float, periods: bool = True):
     ``rate`` (rad/s) bounds |ω|; ``periods``: resolve each polhode period (costs a
     closed-form set-up per level, so short runs skip it)."""
     moments = dynamics.moments
-    G = float(np.linalg.norm(m0))
+    G = math.sqrt(sum(float(x) ** 2 for x in m0))
     rotation_time = ROTATIONS * 2 * math.pi / rate
     beta0 = _beta(moments, m0)
     u0 = math.log(math.tan(beta0))
@@ -95,19 +97,18 @@ def levels(dynamics, q0, m0, horizon: float, rate: float, periods: bool = True):
                 math.log(math.tan(0.5 * math.pi - BETA_LIMIT)))
     count = 1 + min(MAX_LEVELS - 1, math.ceil((u_end - u0) / LEVEL_SPACING - END_LEVEL_FROM))
     states = [(np.asarray(q0, float), np.asarray(m0, float), math.degrees(beta0))]
-    a, c = int(np.argmin(moments)), int(np.argmax(moments))
+    a, c = (int(np.argmin(moments)), int(np.argmax(moments))) if count > 1 else (0, 0)
     for k in range(1, count):
         beta = math.atan(math.exp(u0 + (u_end - u0) * k / (count - 1)))
         m = np.zeros(3)
         m[a], m[c] = G * math.cos(beta), G * math.sin(beta)
         states.append((np.array([0.0, 0.0, 0.0, 1.0]), m, math.degrees(beta)))
-    period = np.full(len(states), np.inf)
+    period = [math.inf] * len(states)
     if periods:
         period = TorqueFreeSolution(moments, np.array([s[0] for s in states]),
-                                    np.array([s[1] for s in states])).omega_period
-    horizons = np.maximum(rotation_time, np.where(np.isfinite(period), period, 0.0))
-    return [Level(q, m, float(min(hz, horizon)), b, float(p))
-            for (q, m, b), hz, p in zip(states, horizons, period)]
+                                    np.array([s[1] for s in states])).omega_period.tolist()
+    return [Level(q, m, min(max(rotation_time, p if math.isfinite(p) else 0.0), horizon), b,
+                  float(p)) for (q, m, b), p in zip(states, period)]
 
 
 def angle(a, b) -> float:

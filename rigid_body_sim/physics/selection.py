@@ -140,11 +140,12 @@ class _Scene:
     def __init__(self, dyn, q, m, accuracy, horizon, max_step, torque_rate):
         self.dyn, self.q, self.m = dyn, q, m
         self.accuracy, self.horizon, self.max_step = accuracy, horizon, max_step
-        self.G = float(np.linalg.norm(m))
+        self.G = math.sqrt(sum(x * x for x in m.tolist()))  # floats: numpy's per-call cost
         self.stiffness = dyn.dissipation_stiffness(self.G)
-        self.omega = self.G / dyn.moments.min() + torque_rate + self.stiffness
+        spin = self.G / float(dyn.moments.min())
+        self.omega = spin + torque_rate + self.stiffness
         self.events = max(1, math.ceil(horizon / max_step - 1e-9))
-        self.turned = self.G / dyn.moments.min() * horizon  # rad, for the round-off
+        self.turned = spin * horizon  # rad, for the round-off
         d = dyn.dissipation
         self.damping = d.model if d.active else None
         self.integrators = {}
@@ -197,6 +198,12 @@ class _Scene:
 
     def cap(self, c, plausible=False):
         """The largest step worth considering for c (``plausible``: where a pilot starts)."""
+        key = ('cap', c.name, plausible)
+        if key not in self.memo:
+            self.memo[key] = self._cap(c, plausible)
+        return self.memo[key]
+
+    def _cap(self, c, plausible):
         h = (H_OMEGA_PLAUSIBLE if plausible and c.geometric else H_OMEGA_PRIOR) / self.omega
         h = min(h, c.stability / max(self.omega, self.stiffness))
         if plausible and not c.geometric and math.isfinite(c.k):
@@ -219,6 +226,12 @@ class _Scene:
 
     def prior_step(self, c):
         """The a-priori step of c (the largest meeting the budget), or None."""
+        key = ('prior', c.name)
+        if key not in self.memo:
+            self.memo[key] = self._prior_step(c)
+        return self.memo[key]
+
+    def _prior_step(self, c):
         if not math.isfinite(c.k):
             return None
         h = self.cap(c)
@@ -242,8 +255,11 @@ class _Scene:
     def applicable(self, c, torque):
         if c.coupled_only and not (torque or self.damping):
             return False
-        if c.stiff_only and self.stiffness * self.cap(c, True) < 1.0:
-            return False  # A-stability only pays off when dissipation is stiff at the step
+        # A-stability only pays off when dissipation is stiff at the step; the bound on cap
+        # first (cap ≤ H_OMEGA_PLAUSIBLE/Ω) spares building the method to ask its order
+        if c.stiff_only and (self.stiffness * H_OMEGA_PLAUSIBLE < self.omega
+                             or self.stiffness * self.cap(c, True) < 1.0):
+            return False
         return True
 
 
@@ -348,8 +364,8 @@ def _piloted(s, usable, best):
     spent, steps, notes = 0.0, 0, []
     levels, safety = None, SAFETY_LOCAL
     measured = {}  # method → (step, error) of its last pilot
-    queue = [(s.run_cost(c, s.cap(c, True)), i, c, s.cap(c, True), 0)
-             for i, c in enumerate(usable)]
+    queue = [(s.run_cost(c, h), i, c, h, 0)
+             for i, c in enumerate(usable) for h in (s.cap(c, True),)]
     while queue:
         queue.sort(key=lambda item: item[:2])
         estimate, i, c, h, rounds = queue.pop(0)

@@ -6,6 +6,8 @@ constant over the step (zero-order hold). Methods differ only in ``_step``.
 """
 from typing import ClassVar, FrozenSet, Optional
 
+import math
+
 import numpy as np
 
 from ..dynamics import Dynamics
@@ -78,7 +80,7 @@ class Integrator:
 
     def _run_kernel(self, kernel, q, m, h, n, torque, t0):
         """Shared shell of the compiled loops: copies in, checks, failure with its time."""
-        if not (np.isfinite(h) and h > 0.0):
+        if not (math.isfinite(h) and h > 0.0):
             raise IntegrationError(self.name, h, t0, 'step must be finite and positive')
         q = np.array(q, dtype=float)
         m = np.array(m, dtype=float)

@@ -129,6 +129,7 @@ class Splitting2(Integrator):
                              np.array(dynamics.moments, dtype=float))
         self._model = kernels.MODEL_CODES[d.model] if d.active else 0
         self._coefficient = d.coefficient
+        self._weight_max = max(abs(w) for w in self.weights)
 
     def inner_dissipation(self, m, h) -> bool:
         """Whether damping goes inside every stage of the composition (symmetric flow): for
@@ -137,12 +138,15 @@ class Splitting2(Integrator):
         stays outside (no stage runs damping backwards) and the coupling is order 2."""
         if self._model == 0 or len(self.weights) == 1:
             return False
+        if np.ndim(m) == 1:  # one body, asked per step size by auto: plain floats
+            x, y, z = m.tolist() if isinstance(m, np.ndarray) else m
+            return bool(self._weak_damping(math.sqrt(x * x + y * y + z * z), h))
         return bool(self._weak_damping(float(np.max(np.linalg.norm(m, axis=-1))), h))
 
     def _weak_damping(self, norms, h):
         """|w|·h·λ(|m|) ≤ INNER_LIMIT for a momentum norm or an array of them."""
         stiffness = self.dynamics.dissipation_stiffness(norms)
-        return stiffness * h * max(abs(w) for w in self.weights) <= INNER_LIMIT
+        return stiffness * h * self._weight_max <= INNER_LIMIT
 
     def effective_order(self, m, h) -> int:
         """The order this method has on this dynamics at step h (see inner_dissipation)."""
