@@ -176,7 +176,8 @@ def _run(args) -> int:
 
     # 5. live
     log('\n== 5. live ==')
-    live_res = {'simulator': live.simulator(quick, log), 'recorder': live.recorder(quick, log)}
+    live_res = {'simulator': live.simulator(quick, log), 'recorder': live.recorder(quick, log),
+                'viewer': live.viewer(quick, log)}
     for k, v in live_res.items():
         log(f'  live {k}: ' + (v['status'] if v['status'] != 'ok' else
                                json.dumps({a: b for a, b in v.items() if a != 'output'})))
@@ -247,6 +248,18 @@ def _run(args) -> int:
     else:
         t_rows.append(targets.simple('recorder messages/s with zero loss', math.nan, 1e4, None,
                                      rec['status']))
+    view = live_res['viewer']
+    if view['status'] == 'ok':
+        t_rows.append(targets.simple(
+            'live viewer CPU share of a core at 50 Hz', view['viewer_cpu_share'], 0.05,
+            view['viewer_cpu_share'] <= 0.05, view['viewer_phase']))
+        ratio = view['simulator_rtf_with_viewer'] / view['simulator_rtf_alone']
+        t_rows.append(targets.simple(
+            'live simulator RTF with the viewer / alone', ratio, 0.99, ratio >= 0.99,
+            f'{view["simulator_rtf_with_viewer"]:.4f} / {view["simulator_rtf_alone"]:.4f}'))
+    else:
+        t_rows.append(targets.simple('live viewer CPU share of a core at 50 Hz', math.nan,
+                                     0.05, None, view['status']))
     warm = [r for r in c_rows if r['phase'] == 'warm']
     t_rows.append(targets.simple(
         'kernels ready from the cache (warm start, s)', warm[0]['total_s'] if warm else math.nan,

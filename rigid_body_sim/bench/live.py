@@ -2,7 +2,8 @@
 
 * simulator: ``rigid_body_sim.bench.live_simulator`` (real-time factor as fast as possible
   at 1 kHz physics / 100 Hz publishing, CPU share at real time);
-* recorder: ``rigid_body_sim.bench.recorder_load`` (messages/s through a real recorder, loss).
+* recorder: ``rigid_body_sim.bench.recorder_load`` (messages/s through a real recorder, loss);
+* viewer: ``rigid_body_sim.bench.viewer`` (the Foxglove viewer's CPU beside a 50 Hz simulator).
 Absent modules or failures are reported as 'not measured (<reason>)', never as errors.
 """
 import importlib.util
@@ -65,6 +66,32 @@ def simulator(quick, log=print):
         result['cpu_share_at_real_time'] = float(real.group(1)) / 100.0
     if proc.returncode != 0 and not out:
         result['status'] = f'not measured ({mod} failed: {proc.stderr.strip()[-300:]})'
+    return result
+
+
+def viewer(quick, log=print):
+    """The Foxglove viewer beside a real-time simulator at 50 Hz (``bench.viewer``): its CPU
+    share of a core with one client on every channel, the simulator's RTF with and without."""
+    mod = 'rigid_body_sim.bench.viewer'
+    skipped = _not_measured(mod, quick)
+    if skipped:
+        return skipped
+    try:
+        proc = subprocess.run([sys.executable, '-m', mod, '--seconds', '8'],
+                              capture_output=True, text=True, timeout=300)
+    except subprocess.TimeoutExpired:
+        return {'status': f'not measured ({mod} timed out after 300 s)'}
+    result = {'status': 'ok' if proc.returncode == 0 else f'exit code {proc.returncode}'}
+    for line in reversed(proc.stdout.splitlines()):
+        try:
+            data = json.loads(line)
+        except ValueError:
+            continue
+        if isinstance(data, dict) and 'viewer_cpu_share' in data:
+            result.update(data)
+            break
+    else:
+        result['status'] = f'not measured ({mod}: {proc.stderr.strip()[-300:]})'
     return result
 
 

@@ -10,7 +10,8 @@ One run, three phases of ``--seconds`` each, the same simulator process througho
 
 Prints per phase: the simulator's achieved real-time factor (mean and minimum of its 1 s
 diagnostics), its missed deadlines, its CPU and the viewer's CPU in % of one core
-(/proc utime+stime over the phase). Target: viewer ≤ 5 % of a core, simulator RTF unchanged.
+(/proc utime+stime over the phase); then a summary line (JSON) and the verdict. Target:
+viewer ≤ 5 % of a core, simulator RTF unchanged (within 1 % of its RTF alone).
 """
 import argparse
 import json
@@ -107,16 +108,34 @@ def run(seconds=10.0, client=True, log=print) -> dict:
             results.append(phase('with viewer, 1 Foxglove client on every channel', proc))
         return {'publish_rate_hz': RATE, 'phases': results}
     finally:
-        for p in (viewer, sim):
-            if p is not None and p.poll() is None:
-                os.killpg(p.pid, 2)
-                try:
-                    p.wait(10)
-                except subprocess.TimeoutExpired:
-                    os.killpg(p.pid, 9)
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown()
+        _stop(viewer, sim, node)
+
+
+def summary(result) -> dict:
+    """The figures the targets need: the viewer's CPU share of a core with a client (or
+    without one, if no client ran) and the simulator's mean RTF alone and with the viewer
+    (the least of the viewer phases)."""
+    phases = result['phases']
+    viewer = phases[-1]
+    return {'viewer_cpu_share': viewer['viewer_cpu_percent'] / 100.0,
+            'viewer_phase': viewer['phase'],
+            'simulator_rtf_alone': phases[0]['simulator_rtf_mean'],
+            'simulator_rtf_with_viewer': min(p['simulator_rtf_mean'] for p in phases[1:])}
+
+
+def _stop(viewer, sim, node):
+    """Stop what ``run`` started (SIGINT, then SIGKILL after 10 s)."""
+    import rclpy
+    for p in (viewer, sim):
+        if p is not None and p.poll() is None:
+            os.killpg(p.pid, 2)
+            try:
+                p.wait(10)
+            except subprocess.TimeoutExpired:
+                os.killpg(p.pid, 9)
+    if node is not None:
+        node.destroy_node()
+    rclpy.try_shutdown()
 
 
 def main(argv=None):
@@ -124,7 +143,14 @@ def main(argv=None):
     parser.add_argument('--seconds', type=float, default=10.0, help='length of each phase')
     parser.add_argument('--no-client', action='store_true', help='skip the client phase')
     args = parser.parse_args(argv)
-    run(args.seconds, not args.no_client)
+    out = summary(run(args.seconds, not args.no_client))
+    print(json.dumps(out))
+    ok = out['viewer_cpu_share'] <= 0.05 and \
+        out['simulator_rtf_with_viewer'] >= 0.99 * out['simulator_rtf_alone']
+    print(f'{"PASS" if ok else "MISS"}: viewer {100 * out["viewer_cpu_share"]:.2f} % of a core '
+          f'({out["viewer_phase"]}; target ≤ 5 %), simulator RTF '
+          f'{out["simulator_rtf_with_viewer"]:.4f} with it, {out["simulator_rtf_alone"]:.4f} '
+          'alone')
     return 0
 
 
