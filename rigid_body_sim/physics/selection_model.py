@@ -1,0 +1,221 @@
+"""The a-priori model behind ``integrator: auto`` (:mod:`.selection`): the candidate
+methods with their measured costs and error constants, and :class:`RunModel`, the time
+scales of a run and what each candidate would cost and err on it.
+
+Kept apart from the search (selection.py, the pilot's best-first loop) so that a new
+method is one ``Candidate`` line here and nothing there.
+"""
+import math
+from dataclasses import dataclass
+from typing import Tuple
+
+import numpy as np
+
+from .integrators import create
+
+@dataclass(frozen=True)
+class Candidate:
+    """A method auto may choose.
+
+    cost: CPU µs per step (compiled loops, measured on a 2-core Xeon; only ratios matter),
+        free and with weak dissipation (inside the compositions); stiff double-bracket
+        damping outside a composition adds DAMP_SUBSTEP per substep.
+    k: a-priori error constant, the largest of E/((hΩ)^p·ΩT) over 80 random bodies and
+        states (near-symmetric bodies and near-axis spins included), 30 turns, hΩ ≤ 0.1;
+        inf: the method is chosen only after a pilot.
+    growth: 'linear' or 'drift' (energy drift: phase error ∝ T²).
+    stability: largest h·max(Ω, stiffness) (explicit methods).
+    stiff_only: considered only where dissipation is stiff at the step (A-stable methods).
+    exact_damping: the double bracket's sub-flow in closed form: considered with that
+        damping, in torque-free runs at any stiffness (the same splitting as splitting2, its
+        damping exact at a lower cost than splitting2's substeps; Explorer 1 over 30 s at
+        h = 0.0119 s: the same error, 0.92 against 1.17 ms) and with torque only where it
+        is stiff (the engine's compiled closed loop damps by substeps, so it runs event by
+        event there).
+    coupled_only: considered only with torque or dissipation (``exact`` splits them off).
+    geometric: Lie–Poisson (|L| exact, bounded energy error). Only these can err far less
+        than ``k`` says (a spin near a principal axis is an exact axis rotation for them),
+        so only they are piloted from hΩ = 2; and within PREFER of the cheapest they win.
+    stages: round-off weight: the attitude error from rounding is ROUNDOFF·stages·N·ΩT
+        after N steps (a rotation by the same angle every step rounds alike every step,
+        so |L| drifts and the phase error grows with N·T; measured on Explorer 1: 1e-6 rad
+        after 3·10⁵ steps of splitting6 over 300 s, ~5·10⁻⁸ after 5·10⁴ over 100 s).
+        ``exact`` evaluates a closed form at each step: no repeated rotation, 0.
+    call: µs per engine interval around the compiled loop (the compositions check the
+        damping's stiffness in Python on every call).
+    """
+    name: str
+    cost: Tuple[float, float]
+    k: float
+    stages: float
+    call: Tuple[float, float] = (2.5, 2.5)
+    growth: str = 'linear'
+    stability: float = math.inf
+    stiff_only: bool = False
+    exact_damping: bool = False
+    coupled_only: bool = False
+    geometric: bool = True
+
+
+CANDIDATES = (
+    Candidate('splitting2', (0.11, 0.43), 0.30, 1),
+    Candidate('splitting4', (0.27, 2.2), 0.07, 3, call=(2.5, 11.0)),
+    Candidate('splitting6', (0.59, 5.0), 1.2e-3, 7, call=(2.5, 11.0)),
+    Candidate('rk4', (0.31, 0.31), 1.2e-3, 4, growth='drift', stability=2.5, geometric=False),
+    Candidate('implicit_midpoint', (0.19, 0.19), 0.025, 1, stiff_only=True, geometric=False),
+    # L-stable: the double bracket's sub-flow in closed form, the same cost at any hλ
+    Candidate('splitting2_lstable', (0.11, 0.30), 0.30, 1, exact_damping=True),
+    # with dissipation or torque each step builds a closed form from its state (~18 µs)
+    # exact keeps hΩ ≤ 2 like the others, though it rotates exactly: at steps that are
+    # multiples of the rotation period its splitting error aliases (Explorer 1 spins at
+    # 10 rev/s; exact at h = 1 s and 0.5 s agree to 1e-6 and are 0.02 rad off after 690 s),
+    # which step doubling cannot see
+    Candidate('exact', (18.0, 18.0), math.inf, 0.0, coupled_only=True),
+)
+ROUNDOFF = 2.5e-17        # rad per stage, step and radian turned (see Candidate.stages)
+DAMP_SUBSTEP = 0.16       # µs per double-bracket substep outside a composition
+RUN_COST = 3e-4           # s: building and finishing a run (engine, first and last sample)
+EVENT_COST = 1.5e-5       # s per event interval (a sample or control instant from Python)
+DRIFT_TURNS = 30          # the calibration horizon of ``k``, in turns (growth 'drift')
+H_OMEGA_PRIOR = 1.0       # a-priori steps keep hΩ ≤ 1 (the asymptotic regime of k)
+H_OMEGA_PLAUSIBLE = 2.0   # the largest step a pilot starts from
+SPREAD = 30.0             # non-geometric methods err at least k/SPREAD (calibration: k/4 median)
+
+
+def is_symmetric(moments, rtol=1e-12):
+    a, b, c = np.sort(moments)
+    return abs(b - a) <= rtol * c or abs(c - b) <= rtol * c
+
+
+class RunModel:
+    """The time scales of a run, and the cost and a-priori error of a method on it."""
+
+    def __init__(self, dyn, q, m, accuracy, horizon, max_step, torque_rate):
+        self.dyn, self.q, self.m = dyn, q, m
+        self.accuracy, self.horizon, self.max_step = accuracy, horizon, max_step
+        self.G = math.sqrt(sum(x * x for x in m.tolist()))  # floats: numpy's per-call cost
+        self.stiffness = dyn.dissipation_stiffness(self.G)
+        spin = self.G / float(dyn.moments.min())
+        self.omega = spin + torque_rate + self.stiffness
+        self.events = max(1, math.ceil(horizon / max_step - 1e-9))
+        self.turned = spin * horizon  # rad, for the round-off
+        d = dyn.dissipation
+        self.damping = d.model if d.active else None
+        self.integrators = {}
+        self.memo = {}  # order and cost per (method, step): asked for many times
+
+    def integrator(self, c):
+        if c.name not in self.integrators:
+            self.integrators[c.name] = create(c.name, self.dyn)
+        return self.integrators[c.name]
+
+    def order(self, c, h):
+        """The effective order of c at h (``Integrator.effective_order``)."""
+        key = ('order', c.name, h)
+        if key not in self.memo:
+            self.memo[key] = self.integrator(c).effective_order(self.m, h)
+        return self.memo[key]
+
+    def snap(self, h):
+        """The largest step ≤ h that divides the event spacing."""
+        return self.max_step / max(1, math.ceil(self.max_step / h - 1e-9))
+
+    def step_cost(self, c, h):
+        """CPU s per step of c at h."""
+        key = ('cost', c.name, h)
+        if key not in self.memo:
+            self.memo[key] = self._step_cost(c, h)
+        return self.memo[key]
+
+    def _step_cost(self, c, h):
+        if self.damping is None:
+            return c.cost[0] * 1e-6
+        if not c.name.startswith('splitting') or c.name == 'splitting2_lstable':
+            return c.cost[1] * 1e-6
+        composed = c.name != 'splitting2'
+        if composed and self.order(c, h) > 2:  # the damping goes inside the composition
+            return c.cost[1] * 1e-6
+        if self.damping == 'viscous':
+            return c.cost[0] * 1.3e-6
+        substeps = max(1, math.ceil(self.stiffness * h))  # two half-steps of ≤ 0.5 each
+        return (c.cost[0] + 2 * DAMP_SUBSTEP * substeps) * 1e-6
+
+    def run_cost(self, c, h):
+        steps = self.events * round(self.max_step / h)
+        call = c.call[0 if self.damping is None else 1] * 1e-6
+        return RUN_COST + self.events * (EVENT_COST + call) + steps * self.step_cost(c, h)
+
+    def roundoff(self, c, h):
+        """Attitude error (rad) from rounding over the run at step h."""
+        return ROUNDOFF * c.stages * self.events * round(self.max_step / h) * self.turned
+
+    def cap(self, c, plausible=False):
+        """The largest step worth considering for c (``plausible``: where a pilot starts)."""
+        key = ('cap', c.name, plausible)
+        if key not in self.memo:
+            self.memo[key] = self._cap(c, plausible)
+        return self.memo[key]
+
+    def _cap(self, c, plausible):
+        h = (H_OMEGA_PLAUSIBLE if plausible and c.geometric else H_OMEGA_PRIOR) / self.omega
+        h = min(h, c.stability / max(self.omega, self.stiffness))
+        if plausible and not c.geometric and math.isfinite(c.k):
+            # no exact axis rotations: the error is within SPREAD of the bound k
+            prior = self.prior_step(c)
+            if prior is not None:
+                h = min(h, prior * SPREAD ** (1.0 / self.order(c, prior)))
+        return self.snap(min(self.max_step, h))
+
+    def growth(self, c):
+        if c.growth == 'drift':
+            return max(1.0, self.omega * self.horizon / (2 * math.pi * DRIFT_TURNS))
+        return 1.0
+
+    def prior_error(self, c, h):
+        """A-priori error bound at h: truncation (module docstring) plus round-off."""
+        p = self.order(c, h)
+        return (c.k * (h * self.omega) ** p * self.omega * self.horizon * self.growth(c)
+                + self.roundoff(c, h))
+
+    def prior_step(self, c):
+        """The a-priori step of c (the largest meeting the budget), or None."""
+        key = ('prior', c.name)
+        if key not in self.memo:
+            self.memo[key] = self._prior_step(c)
+        return self.memo[key]
+
+    def _prior_step(self, c):
+        if not math.isfinite(c.k):
+            return None
+        h = self.cap(c)
+        for _ in range(4):  # the order may change with h (damping inside or outside)
+            e = self.prior_error(c, h)
+            if e <= self.accuracy:
+                return h
+            room = self.accuracy - self.roundoff(c, h)
+            if room <= 0.0:
+                return None  # below its round-off floor
+            p = self.order(c, h)
+            h = self.snap(h * (room / (e - self.roundoff(c, h))) ** (1.0 / p))
+        return h if self.prior_error(c, h) <= self.accuracy else None
+
+    def most_accurate(self, c):
+        """(h, error): the step of c with the least a-priori error (best effort)."""
+        top = self.cap(c)
+        steps = [self.snap(top * 0.7 ** k) for k in range(40)]
+        return min(((h, self.prior_error(c, h)) for h in steps), key=lambda he: he[1])
+
+    def applicable(self, c, torque):
+        if c.coupled_only and not (torque or self.damping):
+            return False
+        if c.exact_damping:
+            if self.damping != 'double_bracket':
+                return False
+            if not torque:
+                return True
+        elif not c.stiff_only:
+            return True
+        # A-stability only pays off when dissipation is stiff at the step; the bound on cap
+        # first (cap ≤ H_OMEGA_PLAUSIBLE/Ω) spares building the method to ask its order
+        return not (self.stiffness * H_OMEGA_PLAUSIBLE < self.omega
+                    or self.stiffness * self.cap(c, True) < 1.0)
