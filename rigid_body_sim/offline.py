@@ -42,7 +42,10 @@ class RunResult:
     body: object = None
     bag: Optional[str] = None
     plots: list = field(default_factory=list)
-    pilot_steps: int = 0  # steps auto's pilot ran (a deterministic measure of its cost)
+    pilot_steps: int = 0  # steps auto's pilot ran
+    # auto's choice (physics.selection.Selection: predicted error and run cost, the pilot's
+    # predicted cost, a deterministic measure of what choosing cost), None for a fixed method
+    selection: object = None
     kernel_load_cpu_seconds: float = 0.0  # loading the compiled kernels before the run
     actuators: object = None  # the scene's ActuatorConfig (wheels / CMGs), or None
     # right-hand-side evaluations or sub-flows (closed-form evaluations for exact), the pilot's
@@ -56,6 +59,7 @@ class RunResult:
                 'samples': self.sample_count, 'cpu_seconds': round(self.cpu_seconds, 6),
                 'selection_cpu_seconds': round(self.selection_cpu_seconds, 6),
                 'evaluations': self.evaluations, 'pilot_steps': self.pilot_steps,
+                'predicted_error': self.selection.predicted_error if self.selection else None,
                 'kernel_load_cpu_seconds': round(self.kernel_load_cpu_seconds, 6),
                 'initial': {k: self.initial[k] for k in keep},
                 'final': {k: self.final[k] for k in keep}, 'bag': self.bag, 'plots': self.plots}
@@ -178,6 +182,7 @@ def simulate(scene: SceneFile, duration=None, integrator=None, step=None, accura
                      cpu - engine.selection_cpu, engine.selection_cpu, samples, first, last,
                      count, engine.body,
                      pilot_steps=engine.selected.pilot_steps if engine.selected else 0,
+                     selection=engine.selected,
                      actuators=engine.config.actuators, evaluations=engine.total_evaluations)
 
 

@@ -17,9 +17,12 @@ from .integrators import create
 class Candidate:
     """A method auto may choose.
 
-    cost: CPU µs per step (compiled loops, measured on a 2-core Xeon; only ratios matter),
-        free and with weak dissipation (inside the compositions); stiff double-bracket
-        damping outside a composition adds DAMP_SUBSTEP per substep.
+    cost: CPU µs per step (compiled loops; only ratios matter), free and with weak
+        dissipation (inside the compositions); stiff double-bracket damping outside a
+        composition adds DAMP_SUBSTEP per substep. Measured on a 2-core AMD EPYC by
+        ``python -m rigid_body_sim.bench.candidate_costs``, which flags a ratio gone stale
+        (the earlier table, from slower loops, had RK4 at 6× and the damped compositions at
+        2.5× their cost, and steered auto off them).
     k: a-priori error constant, the largest of E/((hΩ)^p·ΩT) over 80 random bodies and
         states (near-symmetric bodies and near-axis spins included), 30 turns, hΩ ≤ 0.1;
         inf: the method is chosen only after a pilot.
@@ -58,13 +61,14 @@ class Candidate:
 
 
 CANDIDATES = (
-    Candidate('splitting2', (0.11, 0.43), 0.30, 1),
-    Candidate('splitting4', (0.27, 2.2), 0.07, 3, call=(2.5, 11.0)),
-    Candidate('splitting6', (0.59, 5.0), 1.2e-3, 7, call=(2.5, 11.0)),
-    Candidate('rk4', (0.31, 0.31), 1.2e-3, 4, growth='drift', stability=2.5, geometric=False),
-    Candidate('implicit_midpoint', (0.19, 0.19), 0.025, 1, stiff_only=True, geometric=False),
+    Candidate('splitting2', (0.092, 0.23), 0.30, 1),
+    Candidate('splitting4', (0.24, 0.83), 0.07, 3, call=(2.5, 11.0)),
+    Candidate('splitting6', (0.52, 1.96), 1.2e-3, 7, call=(2.5, 11.0)),
+    Candidate('rk4', (0.047, 0.056), 1.2e-3, 4, growth='drift', stability=2.5,
+              geometric=False),
+    Candidate('implicit_midpoint', (0.12, 0.17), 0.025, 1, stiff_only=True, geometric=False),
     # L-stable: the double bracket's sub-flow in closed form, the same cost at any hλ
-    Candidate('splitting2_lstable', (0.11, 0.30), 0.30, 1, exact_damping=True),
+    Candidate('splitting2_lstable', (0.092, 0.16), 0.30, 1, exact_damping=True),
     # with dissipation or torque each step builds a closed form from its state (~18 µs)
     # exact keeps hΩ ≤ 2 like the others, though it rotates exactly: at steps that are
     # multiples of the rotation period its splitting error aliases (Explorer 1 spins at
@@ -73,7 +77,7 @@ CANDIDATES = (
     Candidate('exact', (18.0, 18.0), math.inf, 0.0, coupled_only=True),
 )
 ROUNDOFF = 2.5e-17        # rad per stage, step and radian turned (see Candidate.stages)
-DAMP_SUBSTEP = 0.16       # µs per double-bracket substep outside a composition
+DAMP_SUBSTEP = 0.068      # µs per double-bracket substep outside a composition
 RUN_COST = 3e-4           # s: building and finishing a run (engine, first and last sample)
 EVENT_COST = 1.5e-5       # s per event interval (a sample or control instant from Python)
 DRIFT_TURNS = 30          # the calibration horizon of ``k``, in turns (growth 'drift')
