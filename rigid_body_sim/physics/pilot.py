@@ -23,7 +23,10 @@ a-priori estimate of :mod:`.selection` is too uncertain to set the step.
   pilot looks linear (Explorer 1: RK4 looked 0.011 rad from a 0.4 s pilot and ended
   3.1 rad off), so its exponent is at least 2.
 * **Horizon:** at least four rotation periods 2π/Ω and, when the pilot budget allows, one
-  polhode period of each level (its error oscillates with that period).
+  polhode period of each level (its error oscillates with that period), but no more than
+  HORIZON_SHARE of the run: a run short against its polhode period (the stiff bench scene,
+  ~19 s, over 5 s) was piloted over its whole length on every level, and the pilot cost
+  5.8× the run it chose.
 """
 import math
 from dataclasses import dataclass
@@ -42,6 +45,7 @@ END_LEVEL_FROM = 0.1
 MAX_LEVELS = 6
 BETA_LIMIT = 1e-3      # rad: β kept this far from the axes (tan β finite)
 ROTATIONS = 4          # least pilot horizon, in rotation periods 2π/Ω
+HORIZON_SHARE = 0.02   # a level's pilot horizon at most this share of the run (see levels)
 MIN_STEPS = 16         # least coarse steps of a pilot run (the half-horizon check needs some)
 SUPERLINEAR = 2.5      # e(H)/e(H/2) above this is growth faster than linear
 YIELD_EVERY = 2048     # pilot steps per chunk (well under 1 ms compiled): a caller interleaves
@@ -107,7 +111,8 @@ def levels(dynamics, q0, m0, horizon: float, rate: float, periods: bool = True):
     if periods:
         period = TorqueFreeSolution(moments, np.array([s[0] for s in states]),
                                     np.array([s[1] for s in states])).omega_period.tolist()
-    return [Level(q, m, min(max(rotation_time, p if math.isfinite(p) else 0.0), horizon), b,
+    cap = max(rotation_time, horizon * HORIZON_SHARE)
+    return [Level(q, m, min(max(rotation_time, p if math.isfinite(p) else 0.0), cap, horizon), b,
                   float(p)) for (q, m, b), p in zip(states, period)]
 
 
