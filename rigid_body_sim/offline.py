@@ -42,7 +42,6 @@ class RunResult:
     body: object = None
     bag: Optional[str] = None
     plots: list = field(default_factory=list)
-    pilot_steps: int = 0  # steps auto's pilot ran
     # auto's choice (physics.selection.Selection: predicted error and run cost, the pilot's
     # predicted cost, a deterministic measure of what choosing cost), None for a fixed method
     selection: object = None
@@ -51,6 +50,11 @@ class RunResult:
     # right-hand-side evaluations or sub-flows (closed-form evaluations for exact), the pilot's
     # not included: comparable across methods where ``steps`` (outputs for dop853) is not
     evaluations: int = 0
+
+    @property
+    def pilot_steps(self) -> int:
+        """Steps auto's pilot ran (0 for a fixed method)."""
+        return self.selection.pilot_steps if self.selection else 0
 
     def summary(self) -> dict:
         keep = ('attitude', 'angular_velocity', 'angular_momentum', 'kinetic_energy')
@@ -181,7 +185,6 @@ def simulate(scene: SceneFile, duration=None, integrator=None, step=None, accura
                      engine.step_max, engine.steps + engine.evaluations,
                      cpu - engine.selection_cpu, engine.selection_cpu, samples, first, last,
                      count, engine.body,
-                     pilot_steps=engine.selected.pilot_steps if engine.selected else 0,
                      selection=engine.selected,
                      actuators=engine.config.actuators, evaluations=engine.total_evaluations)
 

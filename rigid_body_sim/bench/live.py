@@ -32,6 +32,18 @@ def _not_measured(mod, quick):
     return None
 
 
+def _last_json(out, key=None) -> dict:
+    """The last line of ``out`` that is a JSON object (holding ``key`` if given), or {}."""
+    for line in reversed(out.splitlines()):
+        try:
+            data = json.loads(line)
+        except ValueError:
+            continue
+        if isinstance(data, dict) and (key is None or key in data):
+            return data
+    return {}
+
+
 def simulator(quick, log=print):
     mod = 'rigid_body_sim.bench.live_simulator'
     skipped = _not_measured(mod, quick)
@@ -48,14 +60,7 @@ def simulator(quick, log=print):
     out = proc.stdout.strip()
     result = {'status': 'ok' if proc.returncode == 0 else f'exit code {proc.returncode}',
               'output': out[-2000:]}
-    for line in reversed(out.splitlines()):
-        try:
-            data = json.loads(line)
-        except ValueError:
-            continue
-        if isinstance(data, dict):
-            result.update(data)
-            break
+    result.update(_last_json(out))
     # text form: "real_time_factor 0 (...): achieved RTF 37.45, CPU 75.4 % of one core" and
     # "real_time_factor 1: achieved RTF 1.00, CPU 13.7 % of one core"
     fast = re.search(r'real_time_factor 0\b[^\n]*?achieved RTF ([\d.]+)', out)
@@ -82,15 +87,9 @@ def viewer(quick, log=print):
     except subprocess.TimeoutExpired:
         return {'status': f'not measured ({mod} timed out after 300 s)'}
     result = {'status': 'ok' if proc.returncode == 0 else f'exit code {proc.returncode}'}
-    for line in reversed(proc.stdout.splitlines()):
-        try:
-            data = json.loads(line)
-        except ValueError:
-            continue
-        if isinstance(data, dict) and 'viewer_cpu_share' in data:
-            result.update(data)
-            break
-    else:
+    summary = _last_json(proc.stdout, 'viewer_cpu_share')
+    result.update(summary)
+    if not summary:
         result['status'] = f'not measured ({mod}: {proc.stderr.strip()[-300:]})'
     return result
 

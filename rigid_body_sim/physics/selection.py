@@ -133,10 +133,9 @@ def selecting(body: RigidBody, dissipation: Dissipation, attitude, angular_veloc
         return Selection('splitting2', max_step, 'body at rest, no torque: any step is exact',
                          0.0, s.run_cost(CANDIDATES[0], max_step))
     usable = [c for c in CANDIDATES if s.applicable(c, torque)]
-    if not torque and any(c.exact_damping for c in usable):
-        # the same Strang splitting with its damping exact, at a lower cost per step: asking
-        # splitting2 too would only double the pilot
-        usable = [c for c in usable if c.name != 'splitting2']
+    if not torque:  # a method another one supersedes is not asked (Candidate.supersedes)
+        superseded = {c.supersedes for c in usable}
+        usable = [c for c in usable if c.name not in superseded]
     best, why = None, []
     for c in usable:
         h = s.prior_step(c)

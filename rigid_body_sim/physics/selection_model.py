@@ -35,6 +35,8 @@ class Candidate:
         h = 0.0119 s: the same error, 0.92 against 1.17 ms) and with torque only where it
         is stiff (the engine's compiled closed loop damps by substeps, so it runs event by
         event there).
+    supersedes: a candidate not asked where this one is usable without torque (the same
+        scheme at no lower cost: asking both would only double the pilot).
     coupled_only: considered only with torque or dissipation (``exact`` splits them off).
     geometric: Lie–Poisson (|L| exact, bounded energy error). Only these can err far less
         than ``k`` says (a spin near a principal axis is an exact axis rotation for them),
@@ -56,6 +58,7 @@ class Candidate:
     stability: float = math.inf
     stiff_only: bool = False
     exact_damping: bool = False
+    supersedes: str = ''
     coupled_only: bool = False
     geometric: bool = True
 
@@ -68,7 +71,8 @@ CANDIDATES = (
               geometric=False),
     Candidate('implicit_midpoint', (0.12, 0.17), 0.025, 1, stiff_only=True, geometric=False),
     # L-stable: the double bracket's sub-flow in closed form, the same cost at any hλ
-    Candidate('splitting2_lstable', (0.092, 0.16), 0.30, 1, exact_damping=True),
+    Candidate('splitting2_lstable', (0.092, 0.16), 0.30, 1, exact_damping=True,
+              supersedes='splitting2'),
     # with dissipation or torque each step builds a closed form from its state (~18 µs)
     # exact keeps hΩ ≤ 2 like the others, though it rotates exactly: at steps that are
     # multiples of the rotation period its splitting error aliases (Explorer 1 spins at
