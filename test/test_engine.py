@@ -131,11 +131,12 @@ def test_offline_memory_does_not_grow_with_the_run():
 
 def test_run_json_reports_selection_cpu_and_sample_count(tmp_path):
     import json
-    out = subprocess.run([CLI, 'run', 'explorer1', '--duration', '20', '--json', '--no-plots',
+    # 100 s: long enough that a pilot round fits in the selection's 10 % of the run
+    out = subprocess.run([CLI, 'run', 'explorer1', '--duration', '100', '--json', '--no-plots',
                           '--out', str(tmp_path)], capture_output=True, text=True, timeout=300)
     assert out.returncode == 0, out.stderr
     summary = json.loads(out.stdout)
-    assert summary['samples'] == 21 and summary['selection_cpu_seconds'] > 0.0
+    assert summary['samples'] == 101 and summary['selection_cpu_seconds'] > 0.0
     from rigid_body_sim.physics.selection import CANDIDATES
     assert summary['integrator'] in [c.name for c in CANDIDATES]
     assert summary['pilot_steps'] > 0  # dissipation, no torque: auto ran its pilot

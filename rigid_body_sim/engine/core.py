@@ -235,16 +235,18 @@ class Engine:
             while deadline is None or time.monotonic() < deadline:
                 next(work)
         except StopIteration as done:
+            self.selection_cpu += time.process_time() - cpu0  # setting up the run is the run's
             sel = done.value
             self._selection = None
             self.selected = sel
             self._use(sel.name, min(sel.step, self.config.event_spacing()) if sel.step > 0
                       else self.config.event_spacing(), f'auto: {sel.reason}')
         except (ValueError, IntegrationError) as exc:
+            self.selection_cpu += time.process_time() - cpu0
             self._selection = None
             self._use('splitting2', min(self.config.step, self.config.event_spacing()),
                       f'auto: selection failed ({exc}); splitting2 at the scene\'s step')
-        finally:
+        else:
             self.selection_cpu += time.process_time() - cpu0
         return self._selection is not None
 

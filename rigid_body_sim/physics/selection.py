@@ -47,7 +47,10 @@ __all__ = ['CANDIDATES', 'Candidate', 'Selection', 'select', 'selecting']
 
 
 PILOT_SHARE = 0.05        # pilot budget: this share of the predicted cost of the choice
-PILOT_FLOOR = 2.5e-4      # s: least pilot budget (a short run's fixed cost dominates)
+SELECTION_SHARE = 0.10    # the whole selection, a-priori pass included, at most this share
+PRIOR_COST = 1.0e-4       # s: the a-priori pass (measured 80–110 µs with dissipation)
+LEVELS_COST = 3.0e-5      # s: setting up the pilot's states (measured 23 µs for one)
+ROUND_COST = 3.0e-5       # s per pilot round besides its run calls (queue, notes, models)
 PILOT_CALL = 5e-6         # s per pilot run call (Python around the compiled loop)
 PERIODS_FROM = 5e-3       # s of pilot budget from which pilots resolve polhode periods
 SAFETY_LOCAL, SAFETY_PATH = 1.25, 2.0
@@ -127,8 +130,9 @@ def selecting(body: RigidBody, dissipation: Dissipation, attitude, angular_veloc
     if not torque and not dissipation.active:
         return _free_choice(moments, max_step, m)
     horizon = duration if duration > 0 else DEFAULT_HORIZON
-    q = body.attitude_to_principal(rotation.validated(attitude))
-    s = RunModel(Dynamics(moments, dissipation), q, m, accuracy, horizon, max_step, torque_rate)
+    # the attitude matters to the pilot only (set below): the a-priori pass skips its cost
+    s = RunModel(Dynamics(moments, dissipation), None, m, accuracy, horizon, max_step,
+                 torque_rate)
     if s.omega == 0.0:
         return Selection('splitting2', max_step, 'body at rest, no torque: any step is exact',
                          0.0, s.run_cost(CANDIDATES[0], max_step))
@@ -159,20 +163,28 @@ def selecting(body: RigidBody, dissipation: Dissipation, attitude, angular_veloc
     if torque or prior_only:
         c, h, cost, err = best
         return Selection(c.name, h, f'{head}; {prior}', err, cost)
-    found = yield from _piloted(s, usable, best)
+    found = yield from _piloted(
+        s, usable, best, lambda: body.attitude_to_principal(rotation.validated(attitude)))
     c, h, cost, err, steps, spent, notes = found
     return Selection(c.name, h, f'{head}; {prior}; pilot: ' + '; '.join(notes), err, cost,
                      steps, spent)
 
 
-def _piloted(s, usable, best):
+def _piloted(s, usable, best, principal_attitude):
     """Generator: refine ``best`` (candidate, h, cost, error), the a-priori choice, by pilots
     within the budget; returns (candidate, h, cost, error, pilot steps, pilot cost, notes).
+    ``principal_attitude()``: the initial attitude in the principal frame (asked only if a
+    pilot runs).
 
     Best first: every candidate waits with the cost it could reach, first at its largest
     plausible step, then at the step its last pilot extrapolates to; the lowest is piloted
     next, until none could beat the best verified choice or the budget is spent."""
     spent, steps, notes = 0.0, 0, []
+    if best[3] <= s.accuracy and (SELECTION_SHARE * best[2] - PRIOR_COST
+                                  < LEVELS_COST + ROUND_COST + 8 * PILOT_CALL):
+        c, h, cost, err = best  # no pilot round fits in the selection's share of this run
+        return c, h, cost, err, 0, 0.0, [f'none (a round would cost over '
+                                         f'{SELECTION_SHARE:.0%} of the run)']
     levels, safety = None, SAFETY_LOCAL
     measured = {}  # method → (step, error) of its last pilot
     queue = [(s.run_cost(c, h), i, c, h, 0)
@@ -182,18 +194,27 @@ def _piloted(s, usable, best):
         estimate, i, c, h, rounds = queue.pop(0)
         if not _better(c, estimate, best, s.accuracy):
             break  # nothing left can beat the best verified choice
-        # a share of what the run will cost: the best choice's, or this one's while
-        # nothing meets the budget
+        # the pilot: a share of what the run will cost (the best choice's, or this one's
+        # while nothing meets the budget); the whole selection, a-priori pass included, at
+        # most SELECTION_SHARE of the cheapest run still in view (the queue is sorted:
+        # nothing left is cheaper than this estimate), so of whatever run it picks
         run = best[2] if best[3] <= s.accuracy else max(best[2], estimate)
-        budget = max(PILOT_SHARE * run, PILOT_FLOOR)
-        if levels is None:
+        budget = min(PILOT_SHARE * run, SELECTION_SHARE * min(run, estimate) - PRIOR_COST)
+        if levels is None:  # the first round sets up the pilot's states
+            least = 3 * pilot.MIN_STEPS * s.step_cost(c, h) + 8 * PILOT_CALL + ROUND_COST
+            if spent + LEVELS_COST + least > budget:
+                notes.append(f'{c.name} h={h:.3g}: over the pilot budget '
+                             f'({max(budget, 0.0):.2g} s)')
+                continue
+            s.q = principal_attitude()
             levels = pilot.levels(s.dyn, s.q, s.m, s.horizon, s.omega,
                                   periods=budget >= PERIODS_FROM)
             safety = SAFETY_PATH if len(levels) > 1 else SAFETY_LOCAL
+            spent += LEVELS_COST * len(levels)
         n = sum(3 * pilot.steps_for(lv, h) for lv in levels)
-        cost = n * s.step_cost(c, h) + 8 * len(levels) * PILOT_CALL
+        cost = n * s.step_cost(c, h) + 8 * len(levels) * PILOT_CALL + ROUND_COST
         if spent + cost > budget:
-            notes.append(f'{c.name} h={h:.3g}: over the pilot budget ({budget:.2g} s)')
+            notes.append(f'{c.name} h={h:.3g}: over the pilot budget ({max(budget, 0.0):.2g} s)')
             continue
         p = s.order(c, h)
         least = 2.0 if c.growth == 'drift' else 1.0

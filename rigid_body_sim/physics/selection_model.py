@@ -11,7 +11,7 @@ from typing import Tuple
 
 import numpy as np
 
-from .integrators import create
+from .integrators import create, get_integrator
 
 @dataclass(frozen=True)
 class Candidate:
@@ -110,7 +110,8 @@ class RunModel:
         d = dyn.dissipation
         self.damping = d.model if d.active else None
         self.integrators = {}
-        self.memo = {}  # order and cost per (method, step): asked for many times
+        self.memo = {}  # costs and steps per (method, step): asked for many times
+        self.orders = {}  # effective order per (method, step)
 
     def integrator(self, c):
         if c.name not in self.integrators:
@@ -118,11 +119,12 @@ class RunModel:
         return self.integrators[c.name]
 
     def order(self, c, h):
-        """The effective order of c at h (``Integrator.effective_order``)."""
-        key = ('order', c.name, h)
-        if key not in self.memo:
-            self.memo[key] = self.integrator(c).effective_order(self.m, h)
-        return self.memo[key]
+        """The effective order of c at h (``Integrator.order_on``: no instance needed)."""
+        key = (c.name, h)
+        p = self.orders.get(key)
+        if p is None:
+            p = self.orders[key] = get_integrator(c.name).order_on(self.dyn, self.G, h)
+        return p
 
     def snap(self, h):
         """The largest step ≤ h that divides the event spacing."""
@@ -181,9 +183,10 @@ class RunModel:
 
     def prior_error(self, c, h):
         """A-priori error bound at h: truncation (module docstring) plus round-off."""
-        p = self.order(c, h)
-        return (c.k * (h * self.omega) ** p * self.omega * self.horizon * self.growth(c)
-                + self.roundoff(c, h))
+        return self._truncation(c, h, self.order(c, h)) + self.roundoff(c, h)
+
+    def _truncation(self, c, h, p):
+        return c.k * (h * self.omega) ** p * self.omega * self.horizon * self.growth(c)
 
     def prior_step(self, c):
         """The a-priori step of c (the largest meeting the budget), or None."""
@@ -197,14 +200,14 @@ class RunModel:
             return None
         h = self.cap(c)
         for _ in range(4):  # the order may change with h (damping inside or outside)
-            e = self.prior_error(c, h)
-            if e <= self.accuracy:
+            p = self.order(c, h)
+            truncation, roundoff = self._truncation(c, h, p), self.roundoff(c, h)
+            if truncation + roundoff <= self.accuracy:
                 return h
-            room = self.accuracy - self.roundoff(c, h)
+            room = self.accuracy - roundoff
             if room <= 0.0:
                 return None  # below its round-off floor
-            p = self.order(c, h)
-            h = self.snap(h * (room / (e - self.roundoff(c, h))) ** (1.0 / p))
+            h = self.snap(h * (room / truncation) ** (1.0 / p))
         return h if self.prior_error(c, h) <= self.accuracy else None
 
     def most_accurate(self, c):

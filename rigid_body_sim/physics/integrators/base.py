@@ -66,9 +66,17 @@ class Integrator:
         raise NotImplementedError
 
     def effective_order(self, m, h) -> int:
-        """The order on this dynamics at step h (measured by the tests per kind of scene);
-        methods whose order depends on the damping's stiffness override this."""
-        return self.order
+        """The order on this dynamics at step h for one body's momentum m (measured by the
+        tests per kind of scene): :meth:`order_on` at |m|."""
+        x, y, z = (float(v) for v in m)
+        return self.order_on(self.dynamics, math.sqrt(x * x + y * y + z * z), h)
+
+    @classmethod
+    def order_on(cls, dynamics: Dynamics, momentum_norm: float, h: float) -> int:
+        """The order on ``dynamics`` at step h for |m| = ``momentum_norm``, asked without
+        an instance (``auto`` asks it per candidate and step). Methods whose order depends
+        on the damping's stiffness override this."""
+        return cls.order
 
     def run(self, q, m, h: float, n: int, torque: Optional[np.ndarray] = None, t0: float = 0.0):
         """``n`` steps of ``h`` from (q, m) at time t0; new arrays. Methods with a compiled

@@ -32,7 +32,8 @@ class Exact(Splitting2):
         self._moments = np.ascontiguousarray(dynamics.moments, dtype=float)
         self.reset()
 
-    def effective_order(self, m, h) -> int:
+    @classmethod
+    def order_on(cls, dynamics, momentum_norm, h) -> int:
         """2: the order of its splitting with torque or dissipation (measured by the tests).
         Without either it has no stepping error, and ``auto`` never steps it then."""
         return 2

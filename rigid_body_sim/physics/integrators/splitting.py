@@ -26,6 +26,7 @@ Loops: one body runs ``kernels.splitting_run``; ``run`` on a batch runs
 ``batch_kernels.batch_run`` (bodies side by side, merged half-flows); ``step`` on a batch
 stays on numpy (the reference the compiled loops are tested against).
 """
+import functools
 import math
 
 import numpy as np
@@ -121,15 +122,20 @@ class Splitting2(Integrator):
 
     def __init__(self, dynamics):
         super().__init__(dynamics)
-        ranks = np.argsort(dynamics.moments, kind='stable')
-        self._axes = tuple(int(ranks[r]) for r in _ORDER)
         self._moments_list = [float(i) for i in dynamics.moments]
+        # plain Python (auto builds one per candidate to ask its order; numpy's per-call
+        # cost made that 7 µs); sorted() is stable like argsort(kind='stable')
+        ranks = sorted(range(3), key=self._moments_list.__getitem__)
+        self._axes = tuple(ranks[r] for r in _ORDER)
         d = dynamics.dissipation
-        self._kernel_args = (np.array(self.weights, dtype=float), np.array(self._axes),
-                             np.array(dynamics.moments, dtype=float))
         self._model = kernels.MODEL_CODES[d.model] if d.active else 0
         self._coefficient = d.coefficient
-        self._weight_max = max(abs(w) for w in self.weights)
+
+    @functools.cached_property
+    def _kernel_args(self):
+        """(weights, axes, moments) as arrays for the compiled loops, built on first use."""
+        return (np.array(self.weights, dtype=float), np.array(self._axes),
+                np.array(self.dynamics.moments, dtype=float))
 
     def inner_dissipation(self, m, h) -> bool:
         """Whether damping goes inside every stage of the composition (symmetric flow): for
@@ -145,14 +151,21 @@ class Splitting2(Integrator):
 
     def _weak_damping(self, norms, h):
         """|w|·h·λ(|m|) ≤ INNER_LIMIT for a momentum norm or an array of them."""
-        stiffness = self.dynamics.dissipation_stiffness(norms)
-        return stiffness * h * self._weight_max <= INNER_LIMIT
+        return self._weak(self.dynamics, norms, h)
 
-    def effective_order(self, m, h) -> int:
-        """The order this method has on this dynamics at step h (see inner_dissipation)."""
-        if self._model != 0 and not self.inner_dissipation(m, h):
-            return 2
-        return self.order
+    @classmethod
+    def _weak(cls, dynamics, norms, h):
+        stiffness = dynamics.dissipation_stiffness(norms)
+        return stiffness * h * max(map(abs, cls.weights)) <= INNER_LIMIT
+
+    @classmethod
+    def order_on(cls, dynamics, momentum_norm, h) -> int:
+        """The order at step h (see inner_dissipation): a composition keeps its own only
+        with the damping inside, where it is weak; the damping outside couples at order 2."""
+        if not dynamics.dissipation.active or len(cls.weights) == 1 or \
+                cls._weak(dynamics, momentum_norm, h):
+            return cls.order
+        return 2
 
     def _kernel(self, q, m, h, n, tau, has_tau):
         weights, axes, moments = self._kernel_args
