@@ -10,9 +10,11 @@ round-off if larger. Our step sizes are computed in local time, scipy's in absol
 (h = (t + h_abs) − t, rounded to ulps of t ≤ 12 s: 1.8e-15 s per step), and our error norm
 sums in another order (test_dop853); both move the solution by ~1e-14. The interpolant
 F[3:] = h·D·K sums 16 terms of up to Σ|D| = 1363 × h|f| into rows ~100× smaller, in
-another order than numpy's dot: its round-off is ≤ 16·eps·1363·h|f|, one rounding per
-term (3.9e-12 for the tumble at rtol 1e-6, steps ~1 s: measured 1.2e-12; the floor 1e-12
-at rtol 1e-10, steps ≤ 0.3 s: measured ≤ 1e-13).
+another order than numpy's dot, from stage derivatives K that our right-hand side sums in
+another order than scipy's: its round-off is ≤ 32·eps·1363·h|f|, a rounding per term and
+one in each K (7.8e-12 for the tumble at rtol 1e-6, steps ~1 s: measured 1.2e-12; 6.5e-12
+for the viscous torqued scene there: measured 3.6e-12 on an AVX-512 EPYC, over the bound of
+one rounding per term; the floor 1e-12 at rtol 1e-10, steps ≤ 0.3 s: measured ≤ 1e-13).
 """
 import numpy as np
 import pytest
@@ -63,11 +65,11 @@ def scipy_cost(rhs, y0, t0, times, rtol, atol, first_step=None):
 
 
 def tolerance(rhs, solver, ys):
-    """max(1e-12, 16·eps·Σ|D|·h_max·|f|_max): see the module docstring. ``solver`` has
+    """max(1e-12, 32·eps·Σ|D|·h_max·|f|_max): see the module docstring. ``solver`` has
     stepped past the outputs; ys are the reference states."""
     f_max = max(np.max(np.abs(rhs(0.0, y))) for y in ys)
     sum_d = np.max(np.sum(np.abs(dop853_dense.EXTENSION[1]), axis=1))
-    return max(TOL, 16 * np.finfo(float).eps * sum_d * solver.h_max * f_max)
+    return max(TOL, 32 * np.finfo(float).eps * sum_d * solver.h_max * f_max)
 
 
 def sampled(integ, q, m, spans, tau, t0=0.0):
@@ -98,7 +100,7 @@ def test_a_sampled_run_is_solve_ivp_t_eval_and_costs_no_more_per_sample(model, c
                     t_eval=times)
     cost, with_outputs, solver = scipy_cost(rhs, y0, 0.0, times, rtol, atol)
     tol = tolerance(rhs, solver, ref.y.T)
-    assert tol < 1e-11
+    assert tol < 2e-11  # the bound stays far below the method's own error (rtol ≥ 1e-10)
     np.testing.assert_allclose(got, normalised(ref.y.T), rtol=0, atol=tol)
     assert integ.nfev == cost
     one = create('dop853', dyn, rtol=rtol, atol=atol)
