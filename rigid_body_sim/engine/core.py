@@ -201,7 +201,7 @@ class Engine:
         # the budget covers the rest of the run (what went before was exact or is done)
         left = (self.end_ns - self.t_ns) / NS if c.duration_ns > 0 else 0.0
         kw = dict(torque=torque, accuracy=c.accuracy, duration=left, max_step=c.event_spacing(),
-                  torque_rate=c.torque_rate() if torque else 0.0)
+                  torque_rate=c.torque_rate() if torque else 0.0, dynamics=self.dynamics)
         state = (self.body, c.dissipation, self.attitude, self.angular_velocity)
         if not torque and not c.dissipation.active:
             sel = select(*state, **kw)

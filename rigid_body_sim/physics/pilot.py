@@ -19,9 +19,13 @@ a-priori estimate of :mod:`.selection` is too uncertain to set the step.
   oscillates with it), its secular part: m2 + (m2 − m1)·(T − H)/(H/2). That separates a
   bounded offset from growth: exact's splitting with weak damping errs 2·10⁻⁹ rad and
   back every nutation period on Explorer 1, while its secular growth is 10⁻¹⁰ per second.
-  A method whose energy drifts (RK4) has a phase error growing as T² even where a short
-  pilot looks linear (Explorer 1: RK4 looked 0.011 rad from a 0.4 s pilot and ended
-  3.1 rad off), so its exponent is at least 2.
+  A method whose energy and |L| drift (RK4) adds a phase error growing as T²: the pilot
+  measures both drifts (coarse against fine run, per second, the largest over its parts);
+  a relative error δ in T or |L| is one in the mean rate of rotation about L, 2T/|L|, so
+  a drift rate r turns the attitude by (2T/|L|)·r·T²/2 by the horizon. This replaced a
+  fixed T² law on the whole pilot error, which read RK4 on Explorer 1 100× too high (a
+  0.4 s pilot extrapolated 1.2 rad over 30 s at h = 0.0054 s; the run erred 0.013 rad,
+  growing linearly to 300 s) and kept auto off RK4 at any step a pilot could check.
 * **Horizon:** at least four rotation periods 2π/Ω and, when the pilot budget allows, one
   polhode period of each level (its error oscillates with that period), but no more than
   HORIZON_SHARE of the run: a run short against its polhode period (the stiff bench scene,
@@ -146,33 +150,51 @@ def _advance(integ, q, m, h, n):
     return q, m
 
 
-def error(integ, order: int, level: Level, h: float, horizon: float, least: float = 1.0):
+def _invariants(moments, m):
+    """(2T, |L|) of momentum m (floats: numpy's per-call cost dominates on 3 numbers)."""
+    a, b, c = m.tolist()
+    return a * a / moments[0] + b * b / moments[1] + c * c / moments[2], \
+        math.sqrt(a * a + b * b + c * c)
+
+
+def error(integ, order: int, level: Level, h: float, horizon: float, drift: bool = False):
     """Generator: the attitude error of ``integ`` at step h over ``horizon`` s from
-    ``level``, extrapolated from its pilot with the fitted growth law (module docstring),
-    growth exponent at least ``least``; its return value is (error, growth ratio), inf if
-    the method fails."""
+    ``level``, extrapolated from its pilot with the fitted growth law (module docstring);
+    ``drift``: the method's energy and |L| drift (RK4), whose measured rates add a phase
+    error growing as T². Its return value is (error, growth ratio), inf if the method
+    fails."""
     n = steps_for(level, h)
     span = n * h
     periodic = span >= 2.0 * level.period  # each half spans a polhode period
     parts = 4 if periodic else 2           # quarters only where the envelope is used
     ratio = 2.0 ** order / (2.0 ** order - 1.0)
     qc, mc, qf, mf = level.q, level.m, level.q, level.m
-    errors = []
+    moments = integ.dynamics.moments.tolist() if drift else None
+    errors, drift_rate, spin = [], 0.0, 0.0
     try:
-        for _ in range(parts):
+        for j in range(parts):
             qc, mc = yield from _advance(integ, qc, mc, h, n // parts)
             qf, mf = yield from _advance(integ, qf, mf, 0.5 * h, 2 * n // parts)
             errors.append(angle(qc, qf) * ratio)
+            if drift:  # relative energy and |L| error per second, the largest seen
+                (tc, lc), (tf, lf) = _invariants(moments, mc), _invariants(moments, mf)
+                spin = max(spin, tf / lf)  # 2T/|L|: the mean rate of rotation about L
+                rel = ratio * (abs(tc - tf) / tf + abs(lc - lf) / lf)
+                drift_rate = max(drift_rate, rel / (span * (j + 1) / parts))
             yield
     except IntegrationError:
         return math.inf, math.inf
-    if not all(map(math.isfinite, errors)):
+    if not all(map(math.isfinite, errors)) or not math.isfinite(drift_rate):
         return math.inf, math.inf
     m1, m2 = max(errors[:parts // 2]), max(errors)
     growth = m2 / m1 if m1 > 0.0 else 2.0
     later = max(1.0, horizon / span)
-    if growth > SUPERLINEAR or least > 1.0:
-        return m2 * later ** max(least, math.log2(growth)), growth
+    # a rate of rotation off by δ(t) = spin·drift_rate·t turns the attitude by that
+    # integral: spin·drift_rate·T²/2 (the mean rotation rate about L is 2T/|L|, so a
+    # relative error in T or |L| is one in that rate)
+    drifted = 0.5 * spin * drift_rate * horizon * horizon
+    if growth > SUPERLINEAR:
+        return m2 * later ** math.log2(growth) + drifted, growth
     if periodic:
-        return m2 + (m2 - m1) * 2.0 * (later - 1.0), growth
-    return m2 * later, growth
+        return m2 + (m2 - m1) * 2.0 * (later - 1.0) + drifted, growth
+    return m2 * later + drifted, growth

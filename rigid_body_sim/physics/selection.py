@@ -21,9 +21,13 @@
   its previous step and 4 times, until nothing left could beat the best verified choice.
   The measured error gets a safety factor (1.25 at the initial state alone, 2 along a
   path, where the largest rate × T was measured up to 1.3× short of the run's error).
-  The pilot may spend 5 % of the predicted cost of the best choice so far (at least
-  0.25 ms: a short run's fixed cost dominates anyway), counted in the same per-step
-  costs, so it costs a few % of any run long enough to matter.
+* **What choosing may cost:** the whole selection, this a-priori pass included, at most
+  10 % of the run it picks, in the run's own cost model (per-step costs, plus measured
+  costs of the a-priori pass, of setting up the pilot and of each round). A round starts
+  only if it fits in 10 % of the cheapest run still in view; where none fits (a short
+  run, whose fixed cost dominates), the a-priori choice stands. The a-priori pass asks
+  the candidates cheapest first by the least each could cost and skips one that could not
+  save what asking it costs (PRIOR_EACH).
 * **Commanded torque:** the pilot cannot know future commands, so controlled runs take
   the a-priori choice with the control bandwidth as the torque's rate scale: typically
   a high-order splitting at the control period, whose per-event work dominates the cost.
@@ -46,11 +50,15 @@ from .selection_model import CANDIDATES, Candidate, RunModel, is_symmetric
 __all__ = ['CANDIDATES', 'Candidate', 'Selection', 'select', 'selecting']
 
 
-PILOT_SHARE = 0.05        # pilot budget: this share of the predicted cost of the choice
 SELECTION_SHARE = 0.10    # the whole selection, a-priori pass included, at most this share
-PRIOR_COST = 1.0e-4       # s: the a-priori pass (measured 80–110 µs with dissipation)
-LEVELS_COST = 3.0e-5      # s: setting up the pilot's states (measured 23 µs for one)
-ROUND_COST = 3.0e-5       # s per pilot round besides its run calls (queue, notes, models)
+PAYBACK = 10.0            # ... unless a candidate could save this many times what it spent
+# what choosing costs, in the units of the run's cost model (RUN_COST, CANDIDATES), set
+# from Explorer 1's median selection CPU against its median run CPU at 10–690 s (its
+# Python runs between runs, with cold caches: 1.3–1.7× its cost in a tight loop)
+PRIOR_COST = 6e-5         # s: the a-priori pass
+PRIOR_EACH = 1e-5         # s: asking one candidate a priori (its step and cost)
+LEVELS_COST = 3e-5        # s: setting up the pilot's states
+ROUND_COST = 3e-5         # s per pilot round besides its runs (queue, models, notes)
 PILOT_CALL = 5e-6         # s per pilot run call (Python around the compiled loop)
 PERIODS_FROM = 5e-3       # s of pilot budget from which pilots resolve polhode periods
 SAFETY_LOCAL, SAFETY_PATH = 1.25, 2.0
@@ -107,7 +115,8 @@ def _free_choice(moments, max_step, m):
 
 def selecting(body: RigidBody, dissipation: Dissipation, attitude, angular_velocity, *,
               torque: bool, accuracy: float, duration: float, max_step: float,
-              torque_rate: float = 0.0, prior_only: bool = False):
+              torque_rate: float = 0.0, prior_only: bool = False,
+              dynamics: Dynamics = None):
     """Generator form of :func:`select`: yields often (every few ms of pilot work) so that a
     caller can interleave the selection with its own work; its return value is the Selection.
 
@@ -120,6 +129,8 @@ def selecting(body: RigidBody, dissipation: Dissipation, attitude, angular_veloc
         max_step: the event spacing (sample and control period), s: steps divide it.
         torque_rate: rate scale of the torque, 1/s (control bandwidth; √(τ_max/I_min)).
         prior_only: the a-priori choice only (no pilot, returns at once).
+        dynamics: the body's ``Dynamics`` with this dissipation if the caller has one (else
+            built here).
     """
     if not (accuracy > 0 and np.isfinite(accuracy)):
         raise ValueError(f'accuracy must be a positive attitude error in rad, got {accuracy}')
@@ -131,8 +142,8 @@ def selecting(body: RigidBody, dissipation: Dissipation, attitude, angular_veloc
         return _free_choice(moments, max_step, m)
     horizon = duration if duration > 0 else DEFAULT_HORIZON
     # the attitude matters to the pilot only (set below): the a-priori pass skips its cost
-    s = RunModel(Dynamics(moments, dissipation), None, m, accuracy, horizon, max_step,
-                 torque_rate)
+    s = RunModel(dynamics or Dynamics(moments, dissipation), None, m, accuracy, horizon,
+                 max_step, torque_rate)
     if s.omega == 0.0:
         return Selection('splitting2', max_step, 'body at rest, no torque: any step is exact',
                          0.0, s.run_cost(CANDIDATES[0], max_step))
@@ -140,8 +151,15 @@ def selecting(body: RigidBody, dissipation: Dissipation, attitude, angular_veloc
     if not torque:  # a method another one supersedes is not asked (Candidate.supersedes)
         superseded = {c.supersedes for c in usable}
         usable = [c for c in usable if c.name not in superseded]
-    best, why = None, []
-    for c in usable:
+    best, why, unasked = None, [], []
+    # cheapest first by the least each could cost (at its largest step); one that could not
+    # save more than asking it costs is not asked: on a short run the fixed part of the run
+    # dominates every candidate's cost, and the a-priori pass would be its largest share
+    least = sorted((s.least_cost(c), i, c) for i, c in enumerate(usable) if math.isfinite(c.k))
+    for floor, _, c in least:
+        if best is not None and not _better(c, floor + PRIOR_EACH, best, accuracy):
+            unasked.append(c.name)
+            continue
         h = s.prior_step(c)
         if h is None:
             continue
@@ -149,6 +167,8 @@ def selecting(body: RigidBody, dissipation: Dissipation, attitude, angular_veloc
         why.append(f'{c.name} h={h:.3g}')
         if best is None or _better(c, cost, best, accuracy):
             best = (c, h, cost, s.prior_error(c, h))
+    if unasked:
+        why.append(f'not asked, could not save {PRIOR_EACH * 1e6:.0f} µs: ' + ', '.join(unasked))
     if best is None:  # nothing meets it a priori: the most accurate, unless a pilot helps
         c, h, err = min(((c, *s.most_accurate(c)) for c in usable if math.isfinite(c.k)),
                         key=lambda che: che[2])
@@ -168,6 +188,15 @@ def selecting(body: RigidBody, dissipation: Dissipation, attitude, angular_veloc
     c, h, cost, err, steps, spent, notes = found
     return Selection(c.name, h, f'{head}; {prior}; pilot: ' + '; '.join(notes), err, cost,
                      steps, spent)
+
+
+def _budget(strict, fallback, saving, spend):
+    """The pilot's budget (s): ``strict`` (a share of the cheapest run in view), or
+    ``fallback`` (that share of the run without the pilot) where the candidate could save
+    at least PAYBACK times what the pilot would have spent (``spend``, the round included)."""
+    if spend > strict and saving >= PAYBACK * (PRIOR_COST + spend):
+        return fallback
+    return strict
 
 
 def _piloted(s, usable, best, principal_attitude):
@@ -194,14 +223,18 @@ def _piloted(s, usable, best, principal_attitude):
         estimate, i, c, h, rounds = queue.pop(0)
         if not _better(c, estimate, best, s.accuracy):
             break  # nothing left can beat the best verified choice
-        # the pilot: a share of what the run will cost (the best choice's, or this one's
-        # while nothing meets the budget); the whole selection, a-priori pass included, at
-        # most SELECTION_SHARE of the cheapest run still in view (the queue is sorted:
-        # nothing left is cheaper than this estimate), so of whatever run it picks
+        # the whole selection, a-priori pass included, at most SELECTION_SHARE of the
+        # cheapest run still in view: the best choice's, or this one's (the queue is sorted:
+        # nothing left is cheaper than this estimate), so of whatever run it picks. Except
+        # where this candidate could save PAYBACK times what the pilot would then have
+        # cost: up to SELECTION_SHARE of the run it would make without it (the stiff bench
+        # scene at 1e-9 rad: 0.48 s a priori, RK4 verified at 3 ms with a 2 ms pilot)
         run = best[2] if best[3] <= s.accuracy else max(best[2], estimate)
-        budget = min(PILOT_SHARE * run, SELECTION_SHARE * min(run, estimate) - PRIOR_COST)
+        budget = SELECTION_SHARE * min(run, estimate) - PRIOR_COST
+        fallback = SELECTION_SHARE * run - PRIOR_COST
         if levels is None:  # the first round sets up the pilot's states
             least = 3 * pilot.MIN_STEPS * s.step_cost(c, h) + 8 * PILOT_CALL + ROUND_COST
+            budget = _budget(budget, fallback, run - estimate, spent + LEVELS_COST + least)
             if spent + LEVELS_COST + least > budget:
                 notes.append(f'{c.name} h={h:.3g}: over the pilot budget '
                              f'({max(budget, 0.0):.2g} s)')
@@ -210,17 +243,21 @@ def _piloted(s, usable, best, principal_attitude):
             levels = pilot.levels(s.dyn, s.q, s.m, s.horizon, s.omega,
                                   periods=budget >= PERIODS_FROM)
             safety = SAFETY_PATH if len(levels) > 1 else SAFETY_LOCAL
-            spent += LEVELS_COST * len(levels)
+            spent += LEVELS_COST
         n = sum(3 * pilot.steps_for(lv, h) for lv in levels)
         cost = n * s.step_cost(c, h) + 8 * len(levels) * PILOT_CALL + ROUND_COST
+        budget = _budget(budget, fallback, run - estimate, spent + cost)
         if spent + cost > budget:
             notes.append(f'{c.name} h={h:.3g}: over the pilot budget ({max(budget, 0.0):.2g} s)')
             continue
+        if spent + cost > SELECTION_SHARE * min(run, estimate) - PRIOR_COST:
+            notes.append(f'{c.name} h={h:.3g} could save {PAYBACK:g}× its pilot: up to '
+                         f'{SELECTION_SHARE:.0%} of the run without it')
         p = s.order(c, h)
-        least = 2.0 if c.growth == 'drift' else 1.0
         err = 0.0
         for lv in levels:
-            e, _ = yield from pilot.error(s.integrator(c), p, lv, h, s.horizon, least)
+            e, _ = yield from pilot.error(s.integrator(c), p, lv, h, s.horizon,
+                                          c.growth == 'drift')
             err = max(err, safety * e)
         # an error falling faster than h³ from the same method's pilot at a larger step, read
         # within GUARD_FROM of the budget, is not believed: a lucky reading of an oscillating

@@ -155,6 +155,15 @@ class RunModel:
         call = c.call[0 if self.damping is None else 1] * 1e-6
         return RUN_COST + self.events * (EVENT_COST + call) + steps * self.step_cost(c, h)
 
+    def least_cost(self, c):
+        """A lower bound of c's run cost, at no call to the models: the fewest steps (at
+        its largest step) at its least cost per step (auto orders candidates by it)."""
+        h = min(H_OMEGA_PRIOR / self.omega, c.stability / max(self.omega, self.stiffness),
+                self.max_step)
+        call = c.call[0 if self.damping is None else 1] * 1e-6
+        return (RUN_COST + self.events * (EVENT_COST + call)
+                + self.horizon / h * min(c.cost) * 1e-6)
+
     def roundoff(self, c, h):
         """Attitude error (rad) from rounding over the run at step h."""
         return ROUNDOFF * c.stages * self.events * round(self.max_step / h) * self.turned
