@@ -103,7 +103,7 @@ class RunModel:
         self.accuracy, self.horizon, self.max_step = accuracy, horizon, max_step
         self.G = math.sqrt(sum(x * x for x in m.tolist()))  # floats: numpy's per-call cost
         self.stiffness = dyn.dissipation_stiffness(self.G)
-        spin = self.G / float(dyn.moments.min())
+        spin = self.G / min(dyn.moments.tolist())
         self.omega = spin + torque_rate + self.stiffness
         self.events = max(1, math.ceil(horizon / max_step - 1e-9))
         self.turned = spin * horizon  # rad, for the round-off
@@ -208,16 +208,22 @@ class RunModel:
         if not math.isfinite(c.k):
             return None
         h = self.cap(c)
+        # prior_error and snap written out: asked for every candidate of every run, where
+        # their calls were most of the a-priori pass
+        scale = c.k * self.omega * self.horizon * self.growth(c)
+        per_step = ROUNDOFF * c.stages * self.events * self.turned
+        accuracy, omega, spacing = self.accuracy, self.omega, self.max_step
         for _ in range(4):  # the order may change with h (damping inside or outside)
             p = self.order(c, h)
-            truncation, roundoff = self._truncation(c, h, p), self.roundoff(c, h)
-            if truncation + roundoff <= self.accuracy:
+            truncation, roundoff = scale * (h * omega) ** p, per_step * round(spacing / h)
+            if truncation + roundoff <= accuracy:
                 return h
-            room = self.accuracy - roundoff
+            room = accuracy - roundoff
             if room <= 0.0:
                 return None  # below its round-off floor
-            h = self.snap(h * (room / truncation) ** (1.0 / p))
-        return h if self.prior_error(c, h) <= self.accuracy else None
+            h = spacing / max(1, math.ceil(spacing / (h * (room / truncation) ** (1.0 / p))
+                                           - 1e-9))
+        return h if self.prior_error(c, h) <= accuracy else None
 
     def most_accurate(self, c):
         """(h, error): the step of c with the least a-priori error (best effort)."""
