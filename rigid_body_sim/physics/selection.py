@@ -27,7 +27,9 @@
   only if it fits in 10 % of the cheapest run still in view; where none fits (a short
   run, whose fixed cost dominates), the a-priori choice stands. The a-priori pass asks
   the candidates cheapest first by the least each could cost and skips one that could not
-  save what asking it costs (PRIOR_EACH).
+  save what asking it costs (PRIOR_EACH); once a further question would take the pass
+  past 10 % of the run, only a candidate that could save PAYBACK times its cost is asked
+  (the preference for geometric methods then yields: it buys quality, not time).
 * **Commanded torque:** the pilot cannot know future commands, so controlled runs take
   the a-priori choice with the control bandwidth as the torque's rate scale: typically
   a high-order splitting at the control period, whose per-event work dominates the cost.
@@ -55,7 +57,7 @@ PAYBACK = 10.0            # ... unless a candidate could save this many times wh
 # what choosing costs, in the units of the run's cost model (RUN_COST, CANDIDATES), set
 # from Explorer 1's median selection CPU against its median run CPU at 10–690 s (its
 # Python runs between runs, with cold caches: 1.3–1.7× its cost in a tight loop)
-PRIOR_COST = 6e-5         # s: the a-priori pass
+PRIOR_BASE = 2e-5         # s: the a-priori pass before it asks a candidate (time scales)
 PRIOR_EACH = 1e-5         # s: asking one candidate a priori (its step and cost)
 LEVELS_COST = 3e-5        # s: setting up the pilot's states
 ROUND_COST = 3e-5         # s per pilot round besides its runs (queue, models, notes)
@@ -72,7 +74,8 @@ DEFAULT_HORIZON = 600.0   # s: the budget horizon for open-ended (duration 0) ru
 @dataclass(frozen=True)
 class Selection:
     """The chosen method and step (s), why, the predicted attitude error (rad) and run CPU
-    (s), and what choosing cost: pilot steps and their predicted CPU (s)."""
+    (s), and what choosing cost: pilot steps and their predicted CPU (s), and the a-priori
+    pass's predicted CPU (s)."""
     name: str
     step: float
     reason: str
@@ -80,6 +83,12 @@ class Selection:
     predicted_cost: float = 0.0
     pilot_steps: int = 0
     pilot_cost: float = 0.0
+    prior_cost: float = 0.0
+
+    @property
+    def planned_cost(self) -> float:
+        """What choosing costs in the run's cost model (s): the a-priori pass and pilots."""
+        return self.prior_cost + self.pilot_cost
 
 
 def _better(c, cost, best, accuracy):
@@ -92,6 +101,20 @@ def _better(c, cost, best, accuracy):
     def weighed(cand, value):
         return value * (1.0 if cand.geometric else 1.0 + PREFER)
     return weighed(c, cost) < weighed(best[0], best[2])
+
+
+def _worth_asking(c, floor, best, accuracy, asked):
+    """Whether the a-priori pass asks c, whose run costs at least ``floor`` (s), having
+    asked ``asked`` candidates: while nothing meets the budget, always; while the pass stays
+    within SELECTION_SHARE of the best run, if c could beat it by what asking costs
+    (geometric methods preferred within PREFER); past that share, only if c could save
+    PAYBACK times what asking costs (Explorer 1 over 1 s: a 0.32 ms run, all but 6 µs of it
+    fixed, where asking three candidates took 15 % of it)."""
+    if best is None or best[3] > accuracy:
+        return True
+    if PRIOR_BASE + PRIOR_EACH * (asked + 1) <= SELECTION_SHARE * best[2]:
+        return _better(c, floor + PRIOR_EACH, best, accuracy)
+    return floor + PAYBACK * PRIOR_EACH < best[2]
 
 
 def select(body: RigidBody, dissipation: Dissipation, attitude, angular_velocity, **kw):
@@ -132,9 +155,9 @@ def selecting(body: RigidBody, dissipation: Dissipation, attitude, angular_veloc
         dynamics: the body's ``Dynamics`` with this dissipation if the caller has one (else
             built here).
     """
-    if not (accuracy > 0 and np.isfinite(accuracy)):
+    if not (accuracy > 0 and math.isfinite(accuracy)):
         raise ValueError(f'accuracy must be a positive attitude error in rad, got {accuracy}')
-    if not (max_step > 0 and np.isfinite(max_step)):
+    if not (max_step > 0 and math.isfinite(max_step)):
         raise ValueError(f'max_step must be positive, got {max_step}')
     moments = body.principal_moments
     m = moments * body.to_principal(angular_velocity)
@@ -151,15 +174,16 @@ def selecting(body: RigidBody, dissipation: Dissipation, attitude, angular_veloc
     if not torque:  # a method another one supersedes is not asked (Candidate.supersedes)
         superseded = {c.supersedes for c in usable}
         usable = [c for c in usable if c.name not in superseded]
-    best, why, unasked = None, [], []
+    best, why, unasked, asked = None, [], [], 0
     # cheapest first by the least each could cost (at its largest step); one that could not
     # save more than asking it costs is not asked: on a short run the fixed part of the run
     # dominates every candidate's cost, and the a-priori pass would be its largest share
     least = sorted((s.least_cost(c), i, c) for i, c in enumerate(usable) if math.isfinite(c.k))
     for floor, _, c in least:
-        if best is not None and not _better(c, floor + PRIOR_EACH, best, accuracy):
+        if not _worth_asking(c, floor, best, accuracy, asked):
             unasked.append(c.name)
             continue
+        asked += 1
         h = s.prior_step(c)
         if h is None:
             continue
@@ -168,7 +192,8 @@ def selecting(body: RigidBody, dissipation: Dissipation, attitude, angular_veloc
         if best is None or _better(c, cost, best, accuracy):
             best = (c, h, cost, s.prior_error(c, h))
     if unasked:
-        why.append(f'not asked, could not save {PRIOR_EACH * 1e6:.0f} µs: ' + ', '.join(unasked))
+        why.append('not asked (could not save what asking costs): ' + ', '.join(unasked))
+    prior_cost = PRIOR_BASE + PRIOR_EACH * asked
     if best is None:  # nothing meets it a priori: the most accurate, unless a pilot helps
         c, h, err = min(((c, *s.most_accurate(c)) for c in usable if math.isfinite(c.k)),
                         key=lambda che: che[2])
@@ -182,34 +207,36 @@ def selecting(body: RigidBody, dissipation: Dissipation, attitude, angular_veloc
     prior = 'a priori (k·(hΩ)^p·ΩT): ' + ', '.join(why)
     if torque or prior_only:
         c, h, cost, err = best
-        return Selection(c.name, h, f'{head}; {prior}', err, cost)
+        return Selection(c.name, h, f'{head}; {prior}', err, cost, prior_cost=prior_cost)
     found = yield from _piloted(
-        s, usable, best, lambda: body.attitude_to_principal(rotation.validated(attitude)))
+        s, usable, best, lambda: body.attitude_to_principal(rotation.validated(attitude)),
+        prior_cost)
     c, h, cost, err, steps, spent, notes = found
     return Selection(c.name, h, f'{head}; {prior}; pilot: ' + '; '.join(notes), err, cost,
-                     steps, spent)
+                     steps, spent, prior_cost)
 
 
-def _budget(strict, fallback, saving, spend):
+def _budget(strict, fallback, saving, spend, prior_cost):
     """The pilot's budget (s): ``strict`` (a share of the cheapest run in view), or
     ``fallback`` (that share of the run without the pilot) where the candidate could save
-    at least PAYBACK times what the pilot would have spent (``spend``, the round included)."""
-    if spend > strict and saving >= PAYBACK * (PRIOR_COST + spend):
+    at least PAYBACK times what the selection would have spent (``spend``, the round
+    included, besides ``prior_cost``)."""
+    if spend > strict and saving >= PAYBACK * (prior_cost + spend):
         return fallback
     return strict
 
 
-def _piloted(s, usable, best, principal_attitude):
+def _piloted(s, usable, best, principal_attitude, prior_cost):
     """Generator: refine ``best`` (candidate, h, cost, error), the a-priori choice, by pilots
     within the budget; returns (candidate, h, cost, error, pilot steps, pilot cost, notes).
     ``principal_attitude()``: the initial attitude in the principal frame (asked only if a
-    pilot runs).
+    pilot runs); ``prior_cost``: what the a-priori pass cost (s, the run's cost model).
 
     Best first: every candidate waits with the cost it could reach, first at its largest
     plausible step, then at the step its last pilot extrapolates to; the lowest is piloted
     next, until none could beat the best verified choice or the budget is spent."""
     spent, steps, notes = 0.0, 0, []
-    if best[3] <= s.accuracy and (SELECTION_SHARE * best[2] - PRIOR_COST
+    if best[3] <= s.accuracy and (SELECTION_SHARE * best[2] - prior_cost
                                   < LEVELS_COST + ROUND_COST + 8 * PILOT_CALL):
         c, h, cost, err = best  # no pilot round fits in the selection's share of this run
         return c, h, cost, err, 0, 0.0, [f'none (a round would cost over '
@@ -230,11 +257,12 @@ def _piloted(s, usable, best, principal_attitude):
         # cost: up to SELECTION_SHARE of the run it would make without it (the stiff bench
         # scene at 1e-9 rad: 0.48 s a priori, RK4 verified at 3 ms with a 2 ms pilot)
         run = best[2] if best[3] <= s.accuracy else max(best[2], estimate)
-        budget = SELECTION_SHARE * min(run, estimate) - PRIOR_COST
-        fallback = SELECTION_SHARE * run - PRIOR_COST
+        budget = SELECTION_SHARE * min(run, estimate) - prior_cost
+        fallback = SELECTION_SHARE * run - prior_cost
         if levels is None:  # the first round sets up the pilot's states
             least = 3 * pilot.MIN_STEPS * s.step_cost(c, h) + 8 * PILOT_CALL + ROUND_COST
-            budget = _budget(budget, fallback, run - estimate, spent + LEVELS_COST + least)
+            budget = _budget(budget, fallback, run - estimate, spent + LEVELS_COST + least,
+                             prior_cost)
             if spent + LEVELS_COST + least > budget:
                 notes.append(f'{c.name} h={h:.3g}: over the pilot budget '
                              f'({max(budget, 0.0):.2g} s)')
@@ -246,11 +274,11 @@ def _piloted(s, usable, best, principal_attitude):
             spent += LEVELS_COST
         n = sum(3 * pilot.steps_for(lv, h) for lv in levels)
         cost = n * s.step_cost(c, h) + 8 * len(levels) * PILOT_CALL + ROUND_COST
-        budget = _budget(budget, fallback, run - estimate, spent + cost)
+        budget = _budget(budget, fallback, run - estimate, spent + cost, prior_cost)
         if spent + cost > budget:
             notes.append(f'{c.name} h={h:.3g}: over the pilot budget ({max(budget, 0.0):.2g} s)')
             continue
-        if spent + cost > SELECTION_SHARE * min(run, estimate) - PRIOR_COST:
+        if spent + cost > SELECTION_SHARE * min(run, estimate) - prior_cost:
             notes.append(f'{c.name} h={h:.3g} could save {PAYBACK:g}× its pilot: up to '
                          f'{SELECTION_SHARE:.0%} of the run without it')
         p = s.order(c, h)
