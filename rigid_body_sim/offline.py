@@ -64,6 +64,8 @@ class RunResult:
                 'selection_cpu_seconds': round(self.selection_cpu_seconds, 6),
                 'evaluations': self.evaluations, 'pilot_steps': self.pilot_steps,
                 'predicted_error': self.selection.predicted_error if self.selection else None,
+                'selection_planned_cpu_seconds': (self.selection.planned_cost if self.selection
+                                                  else None),
                 'kernel_load_cpu_seconds': round(self.kernel_load_cpu_seconds, 6),
                 'initial': {k: self.initial[k] for k in keep},
                 'final': {k: self.final[k] for k in keep}, 'bag': self.bag, 'plots': self.plots}
