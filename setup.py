@@ -25,11 +25,11 @@ setup(
     entry_points={
         'console_scripts': [
             'rigid-body-sim = rigid_body_sim.cli:main',
-            'simulator = rigid_body_sim.nodes.simulator:main',
-            'controller = rigid_body_sim.nodes.controller:main',
-            'recorder = rigid_body_sim.nodes.recorder:main',
-            'replay = rigid_body_sim.nodes.replay:main',
-            'viewer = rigid_body_sim.nodes.viewer:main',
+            'simulator = rigid_body_sim.nodes.entry:simulator',
+            'controller = rigid_body_sim.nodes.entry:controller',
+            'recorder = rigid_body_sim.nodes.entry:recorder',
+            'replay = rigid_body_sim.nodes.entry:replay',
+            'viewer = rigid_body_sim.nodes.entry:viewer',
         ],
     },
 )

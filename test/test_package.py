@@ -150,4 +150,4 @@ def test_launch_file_ends_with_the_simulation_and_follows_the_plan():
     assert [ast.unparse(a) for a in calls['plan'].args] == [f"arg('{a}')" for a in declared]
     setup_text = open(os.path.join(REPO, 'setup.py')).read()
     for exe in ('simulator', 'controller', 'recorder'):
-        assert f"'{exe} = rigid_body_sim.nodes.{exe}:main'" in setup_text
+        assert f"'{exe} = rigid_body_sim.nodes.entry:{exe}'" in setup_text

@@ -29,6 +29,7 @@ from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
 from rcl_interfaces.msg import (FloatingPointRange, IntegerRange, ParameterDescriptor,
                                 ParameterType, SetParametersResult)
 from rclpy.executors import ExternalShutdownException
+from rclpy.experimental import EventsExecutor
 from rclpy.parameter import Parameter
 from rclpy.qos import (DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy,
                        qos_profile_sensor_data)
@@ -287,6 +288,45 @@ def prefer_asynchronous_publication():
     os.environ.setdefault('RMW_FASTRTPS_PUBLICATION_MODE', 'ASYNCHRONOUS')
 
 
+_KEPT_EXECUTORS = []  # events executors rclpy could not tear down (see events_executor)
+
+
+@contextlib.contextmanager
+def events_executor(node):
+    """rclpy's C++ events executor turning ``node``, torn down on leaving.
+
+    Why the care: if the teardown fails, the executor is kept until the process ends. A
+    Ctrl-C just after start-up shuts the context down while the executor registers the
+    node's callbacks; rclpy then fails to clear one ("Failed to clear the on new message
+    callback") and the executor, destroyed with a callback still registered, aborts the
+    process ("Destroying callback manager with callbacks remaining", exit -6: 2 in 25
+    stops aimed at that moment). So after a signal or an error the executor is kept, and
+    ``nodes.entry`` ends the process without the interpreter's teardown, which would
+    destroy it too (the node has been closed and destroyed by then)."""
+    executor = EventsExecutor(context=node.context)
+    clean = False
+    try:
+        executor.add_node(node)
+        yield executor
+        clean = True
+    finally:
+        # after a signal or an error its callback table may be inconsistent: rclpy updates
+        # it inside spin_once, and an update cut short by the context's shutdown registered
+        # callbacks it does not track (seen: an abort after a clean-looking teardown)
+        try:
+            executor.remove_node(node)
+            clean = executor.shutdown(timeout_sec=1.0) and clean and node.context.ok()
+        except Exception:  # noqa: BLE001 - rclpy could not clear a callback (docstring)
+            clean = False
+        if not clean:
+            _KEPT_EXECUTORS.append(executor)
+
+
+def executors_kept() -> bool:
+    """Whether an events executor could not be torn down (``events_executor``)."""
+    return bool(_KEPT_EXECUTORS)
+
+
 def run_node(node_name: str, build, run=None, args=None, fatal=(ValueError,),
              exit_codes=None, close=None) -> int:
     """Every node's entry point (``ros2 run``); returns the exit code.
@@ -294,12 +334,16 @@ def run_node(node_name: str, build, run=None, args=None, fatal=(ValueError,),
     ``rclpy.init`` failing on bad ``--ros-args`` → 2 with the reason; ``build()`` raising
     one of ``fatal`` (bad parameters) → 2 with the reason; an exception type in
     ``exit_codes`` ({type: code}) → that code with its message; then ``run(node)``
-    (default rclpy.spin). SIGINT/SIGTERM end the node with 0 and no traceback, also when
-    they land in the middle of an rclpy call (rclpy shut the context down, so the call
-    raised). Shutdown runs with the signals ignored: ``close(node)``, then destroy."""
+    (default rclpy.spin). SIGINT/SIGTERM end the node with 0 and no traceback, also in
+    ``rclpy.init`` and when they land in the middle of an rclpy call (rclpy shut the
+    context down, so the call raised); before the node's module is imported,
+    ``nodes.entry`` ends it. Shutdown runs with the signals ignored: ``close(node)``, then
+    destroy."""
     prefer_asynchronous_publication()
     try:
         rclpy.init(args=args)
+    except KeyboardInterrupt:  # Ctrl-C before rclpy's handler was up: a stop like any other
+        return 0
     except Exception as exc:  # noqa: BLE001 - bad --ros-args (e.g. a bad remap): no traceback
         print(f'[FATAL] [{node_name}]: cannot initialise ROS: {exc}', file=sys.stderr)
         return 2

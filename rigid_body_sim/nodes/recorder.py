@@ -259,7 +259,10 @@ def _hidden(topic: str) -> bool:
 
 def main(argv: list[str] | None = None) -> int:
     stop_between_callbacks()  # never inside a write: the bag stays consistent
-    rclpy.init(args=argv)
+    try:
+        rclpy.init(args=argv)
+    except KeyboardInterrupt:  # Ctrl-C before rclpy's handler was up: nothing written yet
+        return 0
     ros_started()
     quiet_interrupted_futures()
     node = None

@@ -25,7 +25,6 @@ import time
 # rclpy's C++ events executor: the node turns its loop at every sample (100 Hz), and the
 # Python SingleThreadedExecutor rebuilds its wait set over every service and subscription
 # each turn (~0.6 ms; the simulator has ~20), which cost more than the physics.
-from rclpy.experimental import EventsExecutor
 from rclpy.node import Node
 
 from diagnostic_msgs.msg import DiagnosticArray
@@ -38,8 +37,8 @@ from ..engine import NS, Engine, EngineConfig, specs
 from ..physics import IntegrationError
 from ..scene import SceneError
 from .commands import CommandFilter
-from .common import (changed_values, declare_parameters, diagnostic_status, qos_profile, run_node,
-                     validate_update)
+from .common import (changed_values, declare_parameters, diagnostic_status, events_executor,
+                     qos_profile, run_node, validate_update)
 from .sim_services import AVAILABLE as SIM_SERVICES, SimulationServices
 from .sensor_messages import SensorMessages, sensors_summary
 from .state_messages import StateMessages
@@ -234,17 +233,12 @@ class Simulator(Node):
 
     def run(self):
         """Spin until shutdown or ``duration`` is reached."""
-        executor = EventsExecutor(context=self.context)
-        executor.add_node(self)
-        self._base_stamp(self.get_clock().now().nanoseconds)
-        self._anchor()  # pace from the first turn of the loop, not from construction
-        try:
+        with events_executor(self) as executor:
+            self._base_stamp(self.get_clock().now().nanoseconds)
+            self._anchor()  # pace from the first turn of the loop, not from construction
             while self.context.ok() and not self._engine.finished and not (
                     self._quit_at is not None and time.monotonic() >= self._quit_at):
                 executor.spin_once(timeout_sec=self.run_once())
-        finally:
-            executor.remove_node(self)
-            executor.shutdown(timeout_sec=0)
 
     @property
     def finished(self) -> bool:

@@ -24,7 +24,6 @@ import sys
 import time
 
 import numpy as np
-from rclpy.experimental import EventsExecutor
 from rclpy.node import Node
 
 from diagnostic_msgs.msg import DiagnosticArray
@@ -34,7 +33,8 @@ from sensor_msgs.msg import Imu
 from ..physics.body import RigidBody
 from ..viewer import view as fox
 from ..viewer.specs import LOOPBACK, VIEWER
-from .common import declare_parameters, diagnostic_status, qos_profile, run_node
+from .common import (declare_parameters, diagnostic_status, events_executor, qos_profile,
+                     run_node)
 
 NODE_NAME = 'attitude_viewer'
 DIAGNOSTICS_PERIOD_S = 1.0   # wall clock
@@ -215,14 +215,9 @@ def _spin(node):
     set at every message (50 Hz), which cost more than the viewer's own work. Turned in
     short spin_once calls rather than spin(), which in rclpy 7.1 neither returns on SIGINT
     nor lets the parameter client's futures settle without busy-looping."""
-    executor = EventsExecutor(context=node.context)
-    executor.add_node(node)
-    try:
+    with events_executor(node) as executor:
         while node.context.ok():
             executor.spin_once(timeout_sec=0.1)
-    finally:
-        executor.remove_node(node)
-        executor.shutdown(timeout_sec=0)
 
 
 if __name__ == '__main__':
