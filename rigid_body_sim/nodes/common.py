@@ -334,12 +334,15 @@ def run_node(node_name: str, build, run=None, args=None, fatal=(ValueError,),
     ``rclpy.init`` failing on bad ``--ros-args`` → 2 with the reason; ``build()`` raising
     one of ``fatal`` (bad parameters) → 2 with the reason; an exception type in
     ``exit_codes`` ({type: code}) → that code with its message; then ``run(node)``
-    (default rclpy.spin). SIGINT/SIGTERM end the node with 0 and no traceback, also in
-    ``rclpy.init`` and when they land in the middle of an rclpy call (rclpy shut the
-    context down, so the call raised); before the node's module is imported,
-    ``nodes.entry`` ends it. Shutdown runs with the signals ignored: ``close(node)``, then
-    destroy."""
+    (default rclpy.spin). SIGINT/SIGTERM end the node with 0 and no traceback, between
+    callbacks once ROS is up (``stop_between_callbacks``: a Ctrl-C while numba loaded the
+    kernels raised KeyboardInterrupt inside llvmlite's ctypes callback, printed as an
+    ignored exception with its traceback), also in ``rclpy.init`` and when they land in
+    the middle of an rclpy call (rclpy shut the context down, so the call raised); before
+    the node's module is imported, ``nodes.entry`` ends it. Shutdown runs with the signals
+    ignored: ``close(node)``, then destroy."""
     prefer_asynchronous_publication()
+    stop_between_callbacks()
     try:
         rclpy.init(args=args)
     except KeyboardInterrupt:  # Ctrl-C before rclpy's handler was up: a stop like any other
@@ -347,6 +350,7 @@ def run_node(node_name: str, build, run=None, args=None, fatal=(ValueError,),
     except Exception as exc:  # noqa: BLE001 - bad --ros-args (e.g. a bad remap): no traceback
         print(f'[FATAL] [{node_name}]: cannot initialise ROS: {exc}', file=sys.stderr)
         return 2
+    ros_started()
     quiet_interrupted_futures()
     node = None
     try:
