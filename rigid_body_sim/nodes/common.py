@@ -295,12 +295,11 @@ _KEPT_EXECUTORS = []  # events executors rclpy could not tear down (see events_e
 def events_executor(node):
     """rclpy's C++ events executor turning ``node``, torn down on leaving.
 
-    Why the care: if the teardown fails, the executor is kept until the process ends. A
-    Ctrl-C just after start-up shuts the context down while the executor registers the
-    node's callbacks; rclpy then fails to clear one ("Failed to clear the on new message
-    callback") and the executor, destroyed with a callback still registered, aborts the
-    process ("Destroying callback manager with callbacks remaining", exit -6: 2 in 25
-    stops aimed at that moment). So after a signal or an error the executor is kept, and
+    Why the care: a Ctrl-C just after start-up shuts the context down while the executor
+    takes the node's callbacks on, and the executor, destroyed with a callback still
+    registered, aborted the process ("Destroying callback manager with callbacks
+    remaining", exit -6: 2 in 25 stops aimed at that moment), even after a teardown that
+    raised nothing. So after a signal or an error the executor is kept, and
     ``nodes.entry`` ends the process without the interpreter's teardown, which would
     destroy it too (the node has been closed and destroyed by then)."""
     executor = EventsExecutor(context=node.context)
@@ -310,13 +309,12 @@ def events_executor(node):
         yield executor
         clean = True
     finally:
-        # after a signal or an error its callback table may be inconsistent: rclpy updates
-        # it inside spin_once, and an update cut short by the context's shutdown registered
-        # callbacks it does not track (seen: an abort after a clean-looking teardown)
+        # after a signal or an error its callback table may be inconsistent (rclpy updates
+        # it inside spin_once, which the shutdown can cut short)
         try:
             executor.remove_node(node)
             clean = executor.shutdown(timeout_sec=1.0) and clean and node.context.ok()
-        except Exception:  # noqa: BLE001 - rclpy could not clear a callback (docstring)
+        except Exception:  # noqa: BLE001 - rclpy could not tear it down: keep it
             clean = False
         if not clean:
             _KEPT_EXECUTORS.append(executor)

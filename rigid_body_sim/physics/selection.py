@@ -103,6 +103,11 @@ def _better(c, cost, best, accuracy):
     return weighed(c, cost) < weighed(best[0], best[2])
 
 
+def _prior_cost(asked: int) -> float:
+    """What the a-priori pass costs having asked ``asked`` candidates (s, the run's model)."""
+    return PRIOR_BASE + PRIOR_EACH * asked
+
+
 def _worth_asking(c, floor, best, accuracy, asked):
     """Whether the a-priori pass asks c, whose run costs at least ``floor`` (s), having
     asked ``asked`` candidates: while nothing meets the budget, always; while the pass stays
@@ -112,7 +117,7 @@ def _worth_asking(c, floor, best, accuracy, asked):
     fixed, where asking three candidates took 15 % of it)."""
     if best is None or best[3] > accuracy:
         return True
-    if PRIOR_BASE + PRIOR_EACH * (asked + 1) <= SELECTION_SHARE * best[2]:
+    if _prior_cost(asked + 1) <= SELECTION_SHARE * best[2]:
         return _better(c, floor + PRIOR_EACH, best, accuracy)
     return floor + PAYBACK * PRIOR_EACH < best[2]
 
@@ -193,7 +198,7 @@ def selecting(body: RigidBody, dissipation: Dissipation, attitude, angular_veloc
             best = (c, h, cost, s.prior_error(c, h))
     if unasked:
         why.append('not asked (could not save what asking costs): ' + ', '.join(unasked))
-    prior_cost = PRIOR_BASE + PRIOR_EACH * asked
+    prior_cost = _prior_cost(asked)
     if best is None:  # nothing meets it a priori: the most accurate, unless a pilot helps
         c, h, err = min(((c, *s.most_accurate(c)) for c in usable if math.isfinite(c.k)),
                         key=lambda che: che[2])
