@@ -151,3 +151,15 @@ def test_launch_file_ends_with_the_simulation_and_follows_the_plan():
     setup_text = open(os.path.join(REPO, 'setup.py')).read()
     for exe in ('simulator', 'controller', 'recorder'):
         assert f"'{exe} = rigid_body_sim.nodes.entry:{exe}'" in setup_text
+
+
+@pytest.mark.parametrize('exe', NODES)
+def test_bad_ros_arguments_end_a_node_with_the_reason(exe, tmp_path):
+    """A malformed remap rule: rclpy.init refuses it; the node exits with 2 and a line
+    naming the node and rcl's reason (after rcl's own error line), no traceback."""
+    args = [str(tmp_path)] if exe == 'replay' else []
+    out = _run([venv_exe(exe), *args, '--ros-args', '-r', 'no_separator'])
+    assert out.returncode == 2, out.stdout + out.stderr
+    assert 'Traceback' not in out.stdout + out.stderr
+    [line] = [s for s in out.stderr.splitlines() if 'cannot initialise ROS' in s]
+    assert line.startswith('[FATAL] [') and 'no_separator' in line, line

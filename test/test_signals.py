@@ -77,19 +77,34 @@ STARTING = {'importing numpy': dict(loaded='_multiarray_umath'),
             'running': dict(printed='[INFO]')}
 
 
-@pytest.mark.parametrize('moment', list(STARTING))
-@pytest.mark.parametrize('exe', ['simulator', 'recorder'])
+def _starting_command(exe, namespace, tmp_path):
+    if exe == 'replay':  # a small bag, and a long --delay: the first log line comes before it
+        from rigid_body_sim.bag import BagWriter
+        bag = tmp_path / 'played'
+        w = BagWriter(str(bag))
+        w.add_topic(f'{namespace}/kinetic_energy', 'std_msgs/msg/Float64')
+        w.write(f'{namespace}/kinetic_energy', bytes(12), time.time_ns())
+        w.close()
+        return [venv_exe(exe), str(bag), '--delay', '120', '--ros-args', '-r',
+                f'__ns:={namespace}']
+    return [venv_exe(exe), '--ros-args', '-r', f'__ns:={namespace}', '-p',
+            f'output:={tmp_path / "bag"}' if exe == 'recorder' else 'publish_rate:=50.0']
+
+
+@pytest.mark.parametrize('exe, moment', [
+    (exe, moment) for exe in ('simulator', 'recorder', 'replay') for moment in STARTING
+    if (exe, moment) != ('replay', 'importing numpy')])  # replay never imports numpy
 def test_ctrl_c_while_a_node_is_still_starting_ends_it_quietly(ros_process, namespace,
                                                                tmp_path, exe, moment):
     """SIGINT while the node imports numpy (its imports take a second and more under load),
     while it imports rclpy, and just after its first log line, while rclpy's events
-    executor takes the node on: the process ends with 0 and no traceback. A launch group's
-    Ctrl-C once caught the recorder importing scipy and printed a KeyboardInterrupt
-    traceback; just after start-up the simulator aborted (exit -6, "Destroying callback
-    manager with callbacks remaining") in 2 of 25 such stops (common.events_executor)."""
-    proc = ros_process(venv_exe(exe), '--ros-args', '-r', f'__ns:={namespace}',
-                       '-p', f'output:={tmp_path / "bag"}' if exe == 'recorder' else
-                       'publish_rate:=50.0')
+    executor takes the node on (replay: while it waits out its --delay): the process ends
+    with 0 and no traceback, within the 30 s allowed. A launch group's Ctrl-C once caught
+    the recorder importing scipy and printed a KeyboardInterrupt traceback; just after
+    start-up the simulator aborted (exit -6, "Destroying callback manager with callbacks
+    remaining") in 2 of 25 such stops (process.events_executor); replay imported rclpy
+    after its console script had started, outside nodes.entry's cover."""
+    proc = ros_process(*_starting_command(exe, namespace, tmp_path))
     assert _when(proc, **STARTING[moment]), proc.output()[-3000:]
     proc.signal(signal.SIGINT)
     code = proc.wait(30)
@@ -154,7 +169,7 @@ def test_a_future_half_made_by_ctrl_c_prints_nothing_but_other_errors_still_do()
     that otherwise stopped cleanly): the nodes silence exactly that, nothing else."""
     code = (
         'from rclpy.task import Future\n'
-        'from rigid_body_sim.nodes.common import quiet_interrupted_futures\n'
+        'from rigid_body_sim.nodes.process import quiet_interrupted_futures\n'
         'quiet_interrupted_futures()\n'
         'f = Future.__new__(Future)\n'   # as if interrupted before __init__ set anything
         'del f\n'

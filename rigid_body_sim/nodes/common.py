@@ -1,4 +1,4 @@
-"""Shared helpers for the package's ROS 2 node shells (simulator, controller, ...).
+"""Shared helpers for the package's ROS 2 node shells: parameters, QoS, diagnostics.
 
 The parameter specs themselves are ROS-free (``rigid_body_sim.engine.specs``); here they
 become ROS parameter descriptors and validators. Also: QoS profiles, diagnostics
@@ -16,20 +16,13 @@ Numeric parameters are declared with ``dynamic_typing`` so that a params file ma
 ``1`` where ``1.0`` is meant (a classic ROS 2 trap); :meth:`ParamSpec.coerce` then accepts
 integers and doubles, rejects everything else, and checks the range with a readable reason.
 """
-import contextlib
-import os
-import signal
 import sys
 from typing import Any, Dict, Iterable, List, Mapping, Sequence, Tuple
 
-import rclpy
-import rclpy.logging
 from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
 from rcl_interfaces.msg import (FloatingPointRange, IntegerRange, ParameterDescriptor,
                                 ParameterType, SetParametersResult)
-from rclpy.executors import ExternalShutdownException
-from rclpy.experimental import EventsExecutor
 from rclpy.parameter import Parameter
 from rclpy.qos import (DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy,
                        qos_profile_sensor_data)
@@ -218,166 +211,6 @@ def changed_values(specs: Sequence[ParamSpec], current: Mapping[str, Any],
                    parameters: Iterable[Parameter]) -> Dict[str, Any]:
     """{name: new value} for the parameters whose coerced value differs from ``current``."""
     return {k: v for k, v in coerce_parameters(specs, parameters).items() if current.get(k) != v}
-
-
-# --- shutdown ----------------------------------------------------------------------------
-
-@contextlib.contextmanager
-def signals_ignored():
-    """SIGINT and SIGTERM ignored from here to the end of the process: a second Ctrl-C
-    (impatient users, `timeout -s INT`, launch escalating) must not interrupt a recorder
-    finishing its bag, nor kill a node that has already shut down cleanly (its exit code
-    stays 0). Used around each node's shutdown, the last thing its process does."""
-    for sig in (signal.SIGINT, signal.SIGTERM):
-        signal.signal(sig, signal.SIG_IGN)
-    yield
-
-
-_ROS_STARTED = []  # set once rclpy.init has run (see stop_between_callbacks)
-
-
-def stop_between_callbacks() -> None:
-    """Call just before ``rclpy.init``: from then on SIGINT/SIGTERM stop the node between
-    callbacks, never inside one.
-
-    By default Python raises KeyboardInterrupt wherever the interpreter is; a recorder hit
-    inside the MCAP writer finished a file whose chunk index pointed past a chunk (a strict
-    reader, rosbags, refused it). This handler does nothing once ROS is up: rclpy's own
-    handler, which ``init`` installs on top of it and which calls it, shuts the context
-    down, and the executor stops at its next turn (ExternalShutdownException). Before
-    ``init`` it raises KeyboardInterrupt, as Ctrl-C always did."""
-    def handler(signum, frame):
-        if not _ROS_STARTED:
-            raise KeyboardInterrupt
-    for sig in (signal.SIGINT, signal.SIGTERM):
-        signal.signal(sig, handler)
-    _ROS_STARTED.clear()
-
-
-def ros_started() -> None:
-    """Mark rclpy as initialised for stop_between_callbacks' handler."""
-    _ROS_STARTED.append(True)
-
-
-def quiet_interrupted_futures() -> None:
-    """Ctrl-C can land inside rclpy's ``Future.__init__`` (the executor makes one per
-    callback) before it has set ``_exception``; when the half-made object is collected its
-    ``__del__`` raises AttributeError, which Python prints as "Exception ignored ... Traceback"
-    on a clean stop. Only that case is silenced; every other unraisable error is reported
-    as before."""
-    from rclpy.task import Future
-    previous = sys.unraisablehook
-
-    def hook(unraisable):
-        if unraisable.exc_type is AttributeError and \
-                getattr(unraisable.object, '__qualname__', '') == Future.__del__.__qualname__:
-            return
-        previous(unraisable)
-    sys.unraisablehook = hook
-
-
-def prefer_asynchronous_publication():
-    """Call before ``rclpy.init``: Fast DDS (Jazzy's default RMW) sends from its own thread
-    unless the user chose otherwise (``RMW_FASTRTPS_PUBLICATION_MODE``; other RMWs ignore
-    it). Why: a synchronous write delivers to every matched reader inside ``publish``;
-    measured here, one raw publish to a subscriber in another process cost 7.1 µs
-    synchronous and 3.2 µs asynchronous, and the simulator with every state topic
-    subscribed went from 4.7 % to 3.0 % of a core at real time and from 64× to 145× as
-    fast as possible (``python -m rigid_body_sim.bench.live_simulator --subscribe``).
-    Delivery guarantees are the QoS's either way (reliable history, acknowledgements)."""
-    os.environ.setdefault('RMW_FASTRTPS_PUBLICATION_MODE', 'ASYNCHRONOUS')
-
-
-_KEPT_EXECUTORS = []  # events executors rclpy could not tear down (see events_executor)
-
-
-@contextlib.contextmanager
-def events_executor(node):
-    """rclpy's C++ events executor turning ``node``, torn down on leaving.
-
-    Why the care: a Ctrl-C just after start-up shuts the context down while the executor
-    takes the node's callbacks on, and the executor, destroyed with a callback still
-    registered, aborted the process ("Destroying callback manager with callbacks
-    remaining", exit -6: 2 in 25 stops aimed at that moment), even after a teardown that
-    raised nothing. So after a signal or an error the executor is kept, and
-    ``nodes.entry`` ends the process without the interpreter's teardown, which would
-    destroy it too (the node has been closed and destroyed by then)."""
-    executor = EventsExecutor(context=node.context)
-    clean = False
-    try:
-        executor.add_node(node)
-        yield executor
-        clean = True
-    finally:
-        # after a signal or an error its callback table may be inconsistent (rclpy updates
-        # it inside spin_once, which the shutdown can cut short)
-        try:
-            executor.remove_node(node)
-            clean = executor.shutdown(timeout_sec=1.0) and clean and node.context.ok()
-        except Exception:  # noqa: BLE001 - rclpy could not tear it down: keep it
-            clean = False
-        if not clean:
-            _KEPT_EXECUTORS.append(executor)
-
-
-def executors_kept() -> bool:
-    """Whether an events executor could not be torn down (``events_executor``)."""
-    return bool(_KEPT_EXECUTORS)
-
-
-def run_node(node_name: str, build, run=None, args=None, fatal=(ValueError,),
-             exit_codes=None, close=None) -> int:
-    """Every node's entry point (``ros2 run``); returns the exit code.
-
-    ``rclpy.init`` failing on bad ``--ros-args`` → 2 with the reason; ``build()`` raising
-    one of ``fatal`` (bad parameters) → 2 with the reason; an exception type in
-    ``exit_codes`` ({type: code}) → that code with its message; then ``run(node)``
-    (default rclpy.spin). SIGINT/SIGTERM end the node with 0 and no traceback, between
-    callbacks once ROS is up (``stop_between_callbacks``: a Ctrl-C while numba loaded the
-    kernels raised KeyboardInterrupt inside llvmlite's ctypes callback, printed as an
-    ignored exception with its traceback), also in ``rclpy.init`` and when they land in
-    the middle of an rclpy call (rclpy shut the context down, so the call raised); before
-    the node's module is imported, ``nodes.entry`` ends it. Shutdown runs with the signals
-    ignored: ``close(node)``, then destroy."""
-    prefer_asynchronous_publication()
-    stop_between_callbacks()
-    try:
-        rclpy.init(args=args)
-    except KeyboardInterrupt:  # Ctrl-C before rclpy's handler was up: a stop like any other
-        return 0
-    except Exception as exc:  # noqa: BLE001 - bad --ros-args (e.g. a bad remap): no traceback
-        print(f'[FATAL] [{node_name}]: cannot initialise ROS: {exc}', file=sys.stderr)
-        return 2
-    ros_started()
-    quiet_interrupted_futures()
-    node = None
-    try:
-        try:
-            node = build()
-        except fatal as exc:
-            rclpy.logging.get_logger(node_name).fatal(f'invalid parameters: {exc}')
-            return 2
-        except tuple(exit_codes or ()) as exc:
-            rclpy.logging.get_logger(node_name).fatal(str(exc))
-            return next(c for t, c in exit_codes.items() if isinstance(exc, t))
-        (run or rclpy.spin)(node)
-        return 0
-    except (KeyboardInterrupt, ExternalShutdownException):
-        return 0
-    except Exception:
-        if not rclpy.ok():  # SIGINT/SIGTERM shut the context down in the middle of a call
-            return 0
-        raise
-    finally:
-        with signals_ignored():  # a second Ctrl-C while shutting down: no traceback
-            if node is not None:
-                try:
-                    if close is not None:
-                        close(node)
-                    node.destroy_node()
-                except Exception:  # noqa: BLE001 - context already gone; nothing to release
-                    pass
-            rclpy.try_shutdown()
 
 
 # --- time ------------------------------------------------------------------------------

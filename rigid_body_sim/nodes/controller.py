@@ -43,8 +43,8 @@ from .. import control
 from ..engine import ControlLaw, ControlSettings, specs
 from ..sensors.estimator import AttitudeEstimator
 from .common import (changed_values, coerce_parameters, declare_parameters, diagnostic_status,
-                     frame_id_problem, qos_profile, run_node, stamp_to_seconds,
-                     validate_update)
+                     frame_id_problem, qos_profile, stamp_to_seconds, validate_update)
+from .process import run_node
 
 NODE_NAME = 'attitude_controller'
 DIAGNOSTICS_PERIOD_S = 1.0  # wall clock

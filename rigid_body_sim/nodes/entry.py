@@ -6,7 +6,7 @@ packages) take about a second, several under load. Ctrl-C in that second raised
 KeyboardInterrupt inside some import and printed its traceback: a launch group's Ctrl-C
 caught the recorder importing scipy on a loaded machine (1 run in 45 of the launch-style
 signals test). Here SIGINT and SIGTERM end the process at once, quietly, with 0 until the
-node module is imported, as they do once it runs (``common.run_node``); then Python's default
+node module is imported, as they do once it runs (``process.run_node``); then Python's default
 handlers are back before ``main`` starts.
 
 This module imports nothing heavy, so its own import is over before a user could press
@@ -33,9 +33,9 @@ def _run(module: str) -> int:
         for sig, handler in previous.items():
             signal.signal(sig, handler)
     code = main()
-    common = sys.modules.get('rigid_body_sim.nodes.common')
-    if common is not None and common.executors_kept():
-        # an events executor rclpy could not tear down (common.events_executor): the
+    process = sys.modules.get('rigid_body_sim.nodes.process')
+    if process is not None and process.executors_kept():
+        # an events executor rclpy could not tear down (process.events_executor): the
         # interpreter's teardown would destroy it and abort the process
         sys.stdout.flush()
         sys.stderr.flush()

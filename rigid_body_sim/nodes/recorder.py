@@ -26,8 +26,7 @@ from rigid_body_sim.bag.recover import unfinished_files
 from rigid_body_sim.bag.reader import recover_hint
 from rigid_body_sim.bag.schema import TypeNotFound, message_class, qos_to_dict, qos_yaml
 from rigid_body_sim.bag.writer import BagWriter
-from rigid_body_sim.nodes.common import (quiet_interrupted_futures, ros_started,
-                                         signals_ignored, stop_between_callbacks)
+from rigid_body_sim.nodes.process import signals_ignored, start_ros
 
 # What the simulator and controller publish (relative names resolve in our namespace).
 # /clock is left out: replay --clock regenerates it from the log time. /tf appears only
@@ -258,13 +257,9 @@ def _hidden(topic: str) -> bool:
 
 
 def main(argv: list[str] | None = None) -> int:
-    stop_between_callbacks()  # never inside a write: the bag stays consistent
-    try:
-        rclpy.init(args=argv)
-    except KeyboardInterrupt:  # Ctrl-C before rclpy's handler was up: nothing written yet
-        return 0
-    ros_started()
-    quiet_interrupted_futures()
+    code = start_ros('mcap_recorder', argv)  # stops between callbacks: never inside a write
+    if code is not None:
+        return code
     node = None
     code = 0
     try:

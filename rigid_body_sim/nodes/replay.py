@@ -11,8 +11,17 @@ import sys
 import time
 from typing import Any
 
+# imported here, not in main: a Ctrl-C while they load lands in nodes.entry's quiet exit
+import rclpy
+import rclpy.logging
+from rclpy.executors import ExternalShutdownException
+
 from rigid_body_sim.bag.errors import BagError
 
+from ..cli import number
+from .process import signals_ignored, start_ros
+
+NODE_NAME = 'mcap_replay'
 USAGE_EPILOG = 'Example: ros2 run rigid_body_sim replay my_bag --rate 2 --clock'
 
 
@@ -20,7 +29,6 @@ def parse_args(argv: list[str]) -> argparse.Namespace:
     parser = argparse.ArgumentParser(prog='replay', description='Publish a recorded bag again.',
                                      epilog=USAGE_EPILOG)
     parser.add_argument('path', help='bag directory or .mcap file')
-    from ..cli import number
     parser.add_argument('--rate', type=number(0.0, 1e6, low_open=True), default=1.0,
                         help='playback speed factor')
     parser.add_argument('--loop', action='store_true', help='play again when the bag ends')
@@ -100,6 +108,12 @@ class Player:
             self._clock_msg = Clock()
         self.published = 0
 
+    def sleep(self, seconds: float) -> None:
+        """Sleep, in slices: a Ctrl-C shuts the context down and ends the wait."""
+        deadline = time.monotonic() + seconds
+        while self.node.context.ok() and time.monotonic() < deadline:
+            time.sleep(min(0.05, max(0.0, deadline - time.monotonic())))
+
     def wait_for_subscribers(self, timeout: float) -> None:
         deadline = time.monotonic() + timeout
         waiting = dict(self.publishers)
@@ -154,20 +168,19 @@ class Player:
 
 
 def main(argv: list[str] | None = None) -> int:
-    import rclpy
-    import rclpy.logging
     ours, ros_args = split_ros_args(sys.argv if argv is None else argv)
     args = parse_args(ours)
-    from .common import prefer_asynchronous_publication
-    prefer_asynchronous_publication()
-    rclpy.init(args=ros_args)
-    node = rclpy.create_node('mcap_replay')
+    code = start_ros(NODE_NAME, ros_args)  # Ctrl-C from here on: a quiet stop
+    if code is not None:
+        return code
+    node = None
     code = 0
     try:
+        node = rclpy.create_node(NODE_NAME)
         player = Player(node, args)
         node.get_logger().info(f'playing {args.path}: {len(player.publishers)} topics, '
                                f'{player.info.message_count} messages, rate {args.rate}')
-        time.sleep(max(0.0, args.delay))
+        player.sleep(args.delay)
         player.wait_for_subscribers(args.wait_for_subscribers)
         while node.context.ok():
             player.play_once()
@@ -176,19 +189,19 @@ def main(argv: list[str] | None = None) -> int:
         player.wait_for_acks(2.0)
         rclpy.logging.get_logger('rigid_body_sim.replay').info(
             f'published {player.published} messages')
-    except KeyboardInterrupt:
+    except (KeyboardInterrupt, ExternalShutdownException):
         pass
     except BagError as exc:
         print(f'error: {exc}', file=sys.stderr)
         code = 1
     except Exception as exc:  # shutdown mid-publish and the like: no traceback
-        if node.context.ok():
+        if rclpy.ok():
             print(f'error: {type(exc).__name__}: {exc}', file=sys.stderr)
             code = 1
     finally:
-        from .common import signals_ignored
         with signals_ignored():
-            node.destroy_node()
+            if node is not None:
+                node.destroy_node()
             rclpy.try_shutdown()
     return code
 

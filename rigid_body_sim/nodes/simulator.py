@@ -37,8 +37,9 @@ from ..engine import NS, Engine, EngineConfig, specs
 from ..physics import IntegrationError
 from ..scene import SceneError
 from .commands import CommandFilter
-from .common import (changed_values, declare_parameters, diagnostic_status, events_executor,
-                     qos_profile, run_node, validate_update)
+from .common import (changed_values, declare_parameters, diagnostic_status, qos_profile,
+                     validate_update)
+from .process import events_executor, run_node
 from .sim_services import AVAILABLE as SIM_SERVICES, SimulationServices
 from .sensor_messages import SensorMessages, sensors_summary
 from .state_messages import StateMessages

@@ -33,8 +33,8 @@ from sensor_msgs.msg import Imu
 from ..physics.body import RigidBody
 from ..viewer import view as fox
 from ..viewer.specs import LOOPBACK, VIEWER
-from .common import (declare_parameters, diagnostic_status, events_executor, qos_profile,
-                     run_node)
+from .common import declare_parameters, diagnostic_status, qos_profile
+from .process import events_executor, run_node
 
 NODE_NAME = 'attitude_viewer'
 DIAGNOSTICS_PERIOD_S = 1.0   # wall clock
