@@ -445,8 +445,12 @@ def test_clock_follows_real_time_factor(ros_process, namespace, rclpy_node, rtf)
     if rtf:
         assert sum(c in stamps for c in in_window) >= 0.99 * len(in_window)
         assert len(in_window) >= 0.8 * len(stamps)  # /clock at every publish instant
-    else:  # thousands of samples/s: this probe drops some on either topic; compare the common
-        assert len(stamps & set(in_window)) >= 0.5 * min(len(in_window), len(stamps))
+    else:
+        # ~20,000 samples/s: this probe takes a sparse subset of each topic, and the two
+        # subsets share only some instants (281-1,600 of 2,300-3,600 with the suite running
+        # beside it; a fraction of 0.5 failed there). Stamps on another time base than
+        # /clock would share none; an offset of whole samples is the rtf > 0 case's to catch.
+        assert len(stamps & set(in_window)) >= 20
     if rtf:
         # pacing from the least delayed arrivals at each end of the window: receive times
         # lag the due times by scheduling delays (one-sided), never lead them
