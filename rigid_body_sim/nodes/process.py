@@ -15,7 +15,6 @@ import rclpy.logging
 from rclpy.executors import ExternalShutdownException
 from rclpy.experimental import EventsExecutor
 
-# --- shutdown ----------------------------------------------------------------------------
 
 @contextlib.contextmanager
 def signals_ignored():
