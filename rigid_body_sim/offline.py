@@ -197,7 +197,7 @@ class BagSink:
     def __init__(self, scene: SceneFile, directory: str, extra: dict):
         from .bag.writer import BagWriter
         from .engine.actuators import ActuatorConfig
-        from .engine.params import coerce_all
+        from .param_spec import coerce_all
         from .engine.specs import SIMULATOR
         from .nodes.state_messages import StateMessages
         p = scene.simulator

@@ -103,7 +103,7 @@ def load(scene: str, overrides=(), namespace: str = '/') -> SceneFile:
     (``engine.specs``) without importing ROS; an unknown key, a section that names neither
     node, or a bad value fails with the file, the section, the key and the reason."""
     from .engine import EngineConfig, specs
-    from .engine.params import coerce_all
+    from .param_spec import coerce_all
     from . import params_file
     path = resolve(scene)
     sim_node = params_file.fully_qualified('attitude_simulator', namespace)

@@ -181,7 +181,7 @@ def apply(scene: SceneFile, values: Dict[str, object]) -> SceneFile:
     validated as scene.load validates (the nodes' specs, then the engine's config).
     ValueError naming the parameter and the reason."""
     from ..engine import EngineConfig, specs
-    from ..engine.params import coerce_all
+    from ..param_spec import coerce_all
     sim, ctl = dict(scene.simulator), dict(scene.controller)
     for key, value in values.items():
         for node in (sim, ctl):

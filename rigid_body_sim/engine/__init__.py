@@ -1,6 +1,7 @@
 """The simulation engine: one closed loop for every front end, free of ROS.
 
-* :mod:`.params` / :mod:`.specs` — parameter specs (name, type, unit, range) of the nodes.
+* :mod:`.specs` — the nodes' parameter specs (name, type, unit, range; the ParamSpec type
+  is ``rigid_body_sim.param_spec``, shared with the sensors and the viewer).
 * :mod:`.config` — typed, validated configuration built from parameter values.
 * :mod:`.sources` — torque sources held between their events (commands, control law).
 * :mod:`.samples` — blocks of samples in the user's frames, stamped with sim time (ns).

@@ -9,7 +9,7 @@ value (shared) or one per actuator. Frames: axes in the body frame (child_frame_
 """
 import math
 
-from .params import ParamSpec
+from ..param_spec import ParamSpec
 
 COMMAND_MODES = ('torque', 'forward')
 CLUSTERS = ('none', 'pyramid', 'custom')

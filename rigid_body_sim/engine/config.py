@@ -15,7 +15,7 @@ from ..physics import Dissipation, RigidBody, rotation
 from ..sensors.specs import SensorSettings, check_feedback
 from . import specs
 from .actuators import ActuatorConfig
-from .params import coerce_all
+from ..param_spec import coerce_all
 
 NS = 1_000_000_000
 

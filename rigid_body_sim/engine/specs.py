@@ -9,7 +9,7 @@ from .. import control
 from ..physics import DISSIPATION_MODELS, INTEGRATORS
 from .actuator_specs import ACTUATORS
 from ..sensors import specs as sensor_specs
-from .params import ParamSpec
+from ..param_spec import ParamSpec
 
 AUTO = 'auto'
 QOS_CHOICES = ('reliable', 'sensor_data')

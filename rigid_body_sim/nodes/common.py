@@ -29,7 +29,7 @@ from rclpy.qos import (DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityP
 
 from .. import params_file
 from ..engine import specs as engine_specs
-from ..engine.params import ParamSpec
+from ..param_spec import ParamSpec
 from ..engine.specs import QOS_CHOICES, frame_id_problem  # noqa: F401 (re-exported)
 
 # declared by rclpy on every node, or scene metadata the nodes read from '/**'

@@ -7,7 +7,7 @@ from dataclasses import dataclass
 import math
 from typing import Mapping, Optional, Tuple
 
-from ..engine.params import ParamSpec
+from ..param_spec import ParamSpec
 
 NS = 1_000_000_000
 FEEDBACK = ('truth', 'sensors')

@@ -1,5 +1,5 @@
 """The viewer node's parameters (``attitude_viewer``): one spec list, free of ROS."""
-from ..engine.params import ParamSpec
+from ..param_spec import ParamSpec
 
 LOOPBACK = ('127.0.0.1', 'localhost', '::1')
 
