@@ -134,7 +134,10 @@ def test_the_recorder_records_the_joint_states_by_default(ros_process, namespace
         spin_until(rclpy_node, lambda: False, 0.2)
     spin_until(rclpy_node, lambda: pub.get_subscription_count() >= 2, 30.0)  # sim + recorder
     pub.publish(Float64MultiArray(data=[0.1, 0.1, 0.1, 0.1]))
-    assert spin_until(rclpy_node, lambda: states and states[-1][1].position[0] > 0.1, 30.0)
+    # the gimbals turn at 0.1 rad/s: this probe sees 0.2 rad about 1 s after 0.1, so the
+    # recorder, another process, has had that second to take the 0.1 samples before its
+    # stop (stopping at this probe's first 0.1 once left the bag at 0.095)
+    assert spin_until(rclpy_node, lambda: states and states[-1][1].position[0] > 0.2, 30.0)
     assert rec.stop() == 0, rec.output()
     got = {}
     with AnyReader([Path(bag)], default_typestore=get_typestore(Stores.ROS2_JAZZY)) as r:
