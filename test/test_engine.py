@@ -93,7 +93,7 @@ def test_offline_run_and_benchmark_give_the_same_trajectory():
     from rigid_body_sim.bench.scenes import SCENE_BY_NAME
     from rigid_body_sim.offline import simulate
     from rigid_body_sim.scene import SceneFile
-    from rigid_body_sim.engine.params import coerce_all
+    from rigid_body_sim.param_spec import coerce_all
     from rigid_body_sim.engine import specs
     bench = SCENE_BY_NAME['dissipation']
     params = coerce_all(specs.SIMULATOR, {
