@@ -22,9 +22,6 @@ runs in small slices. With ``real_time_factor: 0`` the engine runs in chunks of 
 import sys
 import time
 
-# rclpy's C++ events executor: the node turns its loop at every sample (100 Hz), and the
-# Python SingleThreadedExecutor rebuilds its wait set over every service and subscription
-# each turn (~0.6 ms; the simulator has ~20), which cost more than the physics.
 from rclpy.node import Node
 
 from diagnostic_msgs.msg import DiagnosticArray
@@ -233,7 +230,12 @@ class Simulator(Node):
         self._active = [(p, name) for p, name in self._pubs if p.get_subscription_count() > 0]
 
     def run(self):
-        """Spin until shutdown or ``duration`` is reached."""
+        """Spin until shutdown or ``duration`` is reached.
+
+        On rclpy's C++ events executor: the loop turns at every sample (100 Hz), and the
+        Python SingleThreadedExecutor rebuilds its wait set over every service and
+        subscription each turn (~0.6 ms; the simulator has ~20), which cost more than the
+        physics."""
         with events_executor(self) as executor:
             self._base_stamp(self.get_clock().now().nanoseconds)
             self._anchor()  # pace from the first turn of the loop, not from construction
