@@ -164,7 +164,8 @@ def test_worker_killed_mid_campaign_retried_elsewhere(tmp_path, dask_processes):
     table = store.read(str(out))
     ids = table.column('run_id').to_pylist()
     assert len(ids) == len(set(ids)) == n  # complete, and no run twice
-    assert set(table.column('status').to_pylist()) == {'ok'}
+    assert set(table.column('status').to_pylist()) == {'ok'}, (
+        set(table.column('error').to_pylist()), stderr[-3000:])
 
 
 @pytest.mark.parametrize('how', ['SIGINT to the group', 'SIGTERM to the process'])
