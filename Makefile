@@ -1,6 +1,6 @@
 # Two commands for users:  make demo   (set up, then run the live demo)
 #                          make test   (set up, then run the whole test suite)
-# For developers:          make check  (physics, engine and lint only: under a minute)
+# For developers:          make check  (physics, engine and lint only: within 30 s)
 #                          make tour   (the README's tour thumbnails, into docs/tour)
 # Setup is a .venv in the repo that is also an ament prefix for this package,
 # so `ros2 run`-style lookups (lib/rigid_body_sim/<exe>, ament index) work in it.
@@ -11,6 +11,9 @@ STAMP       := $(VENV)/.rigid_body_sim-installed
 DEMO_DURATION ?= 40
 DEMO_OUT    ?= out/demo
 PYTEST_ARGS ?=
+# Parallel test workers (pytest-xdist). Most ROS tests wait on real-time runs and node
+# start-ups, so three workers keep two cores busy; each worker has its own ROS domain.
+TEST_WORKERS ?= 3
 SETUP_LOG   ?= out/setup.log
 NODES       := simulator controller recorder replay viewer
 # tf2_msgs and simulation_interfaces, built into the venv by .ci/build_interfaces.sh
@@ -22,12 +25,12 @@ INTERFACES  := $(wildcard interfaces/* interfaces/*/* interfaces/*/*/*)
 demo: venv
 	$(VENV)/bin/rigid-body-sim demo --duration $(DEMO_DURATION) --out $(DEMO_OUT)
 
-# -v names each test as it starts, so a long one (the benchmark) shows where the run is.
+# -v names each test as it ends, with its worker; worksteal rebalances the long ones.
 test: venv
-	$(PY) -m pytest -v $(PYTEST_ARGS)
+	$(PY) -m pytest -v -n $(TEST_WORKERS) --dist worksteal $(PYTEST_ARGS)
 
 check: venv
-	$(PY) -m pytest -q -m fast $(PYTEST_ARGS)
+	$(PY) -m pytest -q -n 2 -m 'fast and not slow' $(PYTEST_ARGS)
 
 # The README's tour: one thumbnail per phenomenon of free rotation, into docs/tour.
 tour: venv

@@ -1,8 +1,13 @@
 """Test isolation for everything that touches ROS 2.
 
 Every test session picks its own ROS_DOMAIN_ID (or takes RBS_TEST_DOMAIN_ID) and keeps
-discovery on localhost, so parallel runs and other graphs on the machine never cross.
+discovery on localhost, so parallel runs and other graphs on the machine never cross. Under
+pytest-xdist each worker (gw0, gw1, ...) takes the session's domain plus its index: the
+workers' nodes share global topics (/clock, /diagnostics, /tf), which must not cross either.
 Node processes are started through :func:`ros_process` which always stops them.
+
+`make check` runs the tests marked ``fast`` (``pytestmark = pytest.mark.fast`` in the file):
+physics, engine and lint, no ROS graph.
 """
 import os
 import random
@@ -10,25 +15,15 @@ import sys
 
 import pytest
 
-os.environ.setdefault('RBS_TEST_DOMAIN_ID', str(random.Random().randint(1, 100)))
-os.environ['ROS_DOMAIN_ID'] = os.environ['RBS_TEST_DOMAIN_ID']
+# Domains 0-101 keep every participant's ports valid; xdist runs at most a few workers.
+os.environ.setdefault('RBS_TEST_DOMAIN_ID', str(random.Random().randint(1, 80)))
+_WORKER = os.environ.get('PYTEST_XDIST_WORKER', '')
+_OFFSET = int(_WORKER[2:]) if _WORKER.startswith('gw') and _WORKER[2:].isdigit() else 0
+os.environ['ROS_DOMAIN_ID'] = str(int(os.environ['RBS_TEST_DOMAIN_ID']) + _OFFSET)
 os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
 
 sys.path.insert(0, os.path.dirname(__file__))
 from ros_helpers import NodeProcess, unique_namespace  # noqa: E402
-
-
-# `make check`: the physics and the engine, no ROS graph, under a minute.
-FAST_FILES = {'test_body.py', 'test_exact.py', 'test_integrators.py', 'test_control.py',
-              'test_engine.py', 'test_lint.py', 'test_kernels.py', 'test_batch.py',
-              'test_dop853.py', 'test_viewer_geometry.py', 'test_actuators.py',
-              'test_sensor_noise.py', 'test_sensors.py'}
-
-
-def pytest_collection_modifyitems(config, items):
-    for item in items:
-        if item.path.name in FAST_FILES:
-            item.add_marker(pytest.mark.fast)
 
 
 @pytest.fixture

@@ -15,6 +15,8 @@ from rigid_body_sim.scene import load
 
 from jit_modes import run_both
 
+pytestmark = pytest.mark.fast  # make check
+
 CONFIG = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), 'config')
 FOUR_WHEELS = [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0] + [3 ** -0.5] * 3
 
@@ -330,6 +332,7 @@ print(json.dumps([e._q.tolist(), e._m.tolist(), a.hw.tolist(), a.delta.tolist(),
 """
 
 
+@pytest.mark.slow
 def test_compiled_and_plain_python_kernels_agree():
     """The gyrostat kernel compiled and as plain Python (NUMBA_DISABLE_JIT=1), with wheels,
     friction, CMG allocation and rate and angle limits acting: the same state to 1e-13."""

@@ -16,6 +16,8 @@ import pytest
 from rigid_body_sim.physics import (Dissipation, Dynamics, IntegrationError, batch_kernels,
                                     create, kernels)
 
+pytestmark = pytest.mark.fast  # make check
+
 MOMENTS = (1.0, 2.0, 3.0)
 TOL = 1e-13
 CASES = [(name, model, torque) for name in ('splitting2', 'splitting4', 'splitting6')
@@ -157,6 +159,7 @@ print(json.dumps(out))
 ''' % os.path.dirname(os.path.abspath(__file__))
 
 
+@pytest.mark.slow
 def test_plain_python_agrees_with_the_compiled_batch_loop():
     """The same source uncompiled (NUMBA_DISABLE_JIT=1) on a small batch: same states to
     1e-13, the same IntegrationError."""

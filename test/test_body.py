@@ -5,6 +5,8 @@ from scipy.spatial.transform import Rotation
 
 from rigid_body_sim.physics import Dissipation, Propagator, RigidBody, poinsot, rotation
 
+pytestmark = pytest.mark.fast  # make check
+
 
 @pytest.mark.parametrize('inertia,message', [
     ([1.0, 2.0], 'needs 3 principal moments or 9'),

@@ -13,6 +13,8 @@ from rigid_body_sim.engine import NS, ControlSettings, Engine, EngineConfig
 from rigid_body_sim.physics import Dissipation, RigidBody, rotation
 from rigid_body_sim.physics.dynamics import Dynamics
 
+pytestmark = pytest.mark.fast  # make check
+
 INERTIA = [1.0, 2.0, 3.0]
 WN = 1.0
 DT = 0.02  # 50 Hz, the node's default control_rate

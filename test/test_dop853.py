@@ -17,6 +17,8 @@ from rigid_body_sim.physics import (Dissipation, Dynamics, IntegrationError, cre
                                     dop853_kernel, kernels, rotation)
 from rigid_body_sim.physics.exact import TorqueFreeSolution
 
+pytestmark = pytest.mark.fast  # make check
+
 I_STD = np.array([2.0, 1.0, 2.0 / 3.0])
 M_STD = np.array([np.cos(1.1), 0.0, np.sin(1.1)])
 Q_ID = np.array([0.0, 0.0, 0.0, 1.0])
@@ -138,6 +140,7 @@ print(json.dumps(out))
 ''' % (Q0.tolist(), M0.tolist(), TAU.tolist())
 
 
+@pytest.mark.slow
 def test_compiled_and_plain_python_agree():
     compiled, plain = run_both(_SCRIPT)
     assert compiled.pop('compiled') is True and plain.pop('compiled') is False

@@ -14,11 +14,14 @@ from rigid_body_sim.engine import Engine, EngineConfig, SampleBlock
 from rigid_body_sim.physics import rotation
 from rigid_body_sim.physics.exact import TorqueFreeSolution
 
+pytestmark = pytest.mark.fast  # make check
+
 CLI = os.path.join(os.path.dirname(sys.executable), 'rigid-body-sim')
 ROS_MODULES = ('rclpy', 'builtin_interfaces', 'geometry_msgs', 'std_msgs', 'nav_msgs',
                'diagnostic_msgs', 'rosgraph_msgs', 'std_srvs', 'rcl_interfaces')
 
 
+@pytest.mark.slow
 def test_scene_engine_and_offline_run_need_no_ros():
     """With rclpy and every message package made unimportable, every scene loads and runs
     offline (no bag, no plots)."""
@@ -120,6 +123,7 @@ def _peak_rss_kb(duration):
     return n, kb
 
 
+@pytest.mark.slow
 def test_offline_memory_does_not_grow_with_the_run():
     """Peak RSS of an offline run is the same (within 8 MB) for 1e4 and 1e6 samples: the
     samples stream through, only a bounded plot series is kept."""
@@ -129,6 +133,7 @@ def test_offline_memory_does_not_grow_with_the_run():
     assert large - small < 8 * 1024, (small, large)
 
 
+@pytest.mark.slow
 def test_run_json_reports_selection_cpu_and_sample_count(tmp_path):
     import json
     # 100 s: long enough that a pilot round fits in the selection's 10 % of the run

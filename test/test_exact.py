@@ -7,6 +7,8 @@ from scipy.optimize import brentq
 from rigid_body_sim.physics import exact_kernel, rotation
 from rigid_body_sim.physics.exact import TorqueFreeSolution
 
+pytestmark = pytest.mark.fast  # make check
+
 Q0 = np.array([0.1, 0.2, 0.3, 0.9]) / np.linalg.norm([0.1, 0.2, 0.3, 0.9])
 SCENE = ((2.0, 1.0, 2.0 / 3.0), (np.cos(1.1), 0.0, np.sin(1.1)))   # HLW standard scene (case B)
 

@@ -16,6 +16,7 @@ def _mp(pair):
     return mpmath.mpf(pair[0]) + mpmath.mpf(pair[1])
 
 
+@pytest.mark.slow
 def test_cel_in_double_double():
     """K = cel(k', 1) and Π(−N|k²) = cel(k', 1 + N) to 1e-30 relative (measured ≤ 2e-31)
     for k'² from 1e-200 to 1 and N from 0 to 1e6 (mpmath at 330 digits: 1 − m = 1e-200

@@ -121,6 +121,7 @@ def _flat(x):
 SCENES = ['intermediate_axis', 'config/tennis_racket', 'symmetric_top']
 
 
+@pytest.mark.slow
 def test_compiled_and_plain_python_agree():
     """The same source compiled and as plain Python: the elliptic functions, double-double
     operations and exact evaluations (one and many times, every kind) agree to 4 eps (the

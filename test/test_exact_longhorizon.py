@@ -47,6 +47,7 @@ def test_vectorised_path_too(name):
             assert vector_error(mi, m_ref) <= required * g
 
 
+@pytest.mark.slow
 def test_cel_complete_integrals_to_long_double_precision():
     """extended.cel gives K(m) = cel(k', 1) and Π(−N|m) = cel(k', 1 + N) to a few long-double
     eps (measured ≤ 2.6e-19 on x86-64) from k'² = 1e-200 (the separatrix's neighbourhood) to 1,

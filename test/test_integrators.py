@@ -11,6 +11,8 @@ from rigid_body_sim.physics import (Dissipation, Dynamics, IntegrationError, cre
                                     rotation)
 from rigid_body_sim.physics.integrators import INTEGRATORS
 
+pytestmark = pytest.mark.fast  # make check
+
 I_STD = np.array([2.0, 1.0, 2.0 / 3.0])
 M_STD = np.array([np.cos(1.1), 0.0, np.sin(1.1)])
 Q_ID = np.array([0.0, 0.0, 0.0, 1.0])
@@ -164,6 +166,7 @@ def test_lstable_splitting_kills_the_stiff_mode_where_implicit_midpoint_rings():
         per_step
 
 
+@pytest.mark.slow
 def test_implicit_midpoint_keeps_energy_and_momentum_norm():
     dyn = Dynamics(I_STD)
     t0 = dyn.kinetic_energy(M_STD)
@@ -173,6 +176,7 @@ def test_implicit_midpoint_keeps_energy_and_momentum_norm():
     assert abs(np.linalg.norm(q) - 1.0) < 1e-12
 
 
+@pytest.mark.slow
 def test_rk4_energy_error_grows_linearly_in_time():
     """HLW scene at h = 0.1: ΔT/T ≈ −1.44e-6 at t = 1000 and twice that at 2000 (ratio 2 ± 0.1)."""
     dyn = Dynamics(I_STD)

@@ -15,6 +15,8 @@ from jit_modes import run_both
 
 from rigid_body_sim.physics import Dissipation, Dynamics, IntegrationError, create, kernels
 
+pytestmark = pytest.mark.fast  # make check
+
 CASES = [(name, model) for name in ('splitting2', 'splitting4', 'splitting6', 'rk4', 'euler',
                                     'implicit_midpoint', 'splitting2_lstable')
          for model in ('none', 'double_bracket', 'viscous')]
@@ -44,6 +46,7 @@ print(json.dumps(out))
 ''' % (MOMENTS, Q0, M0, TAU)
 
 
+@pytest.mark.slow
 def test_compiled_and_plain_python_agree():
     compiled, plain = run_both(_SCRIPT, json.dumps(CASES))
     assert compiled.pop('compiled') is True and plain.pop('compiled') is False
@@ -153,6 +156,7 @@ print(json.dumps(out))
 '''
 
 
+@pytest.mark.slow
 def test_control_law_compiled_and_plain_python_agree():
     """The control law kernel: same torques, flags and error angles in both modes."""
     runs = [np.array(r, dtype=float) for r in run_both(_CONTROL)]

@@ -3,6 +3,10 @@ import os
 import subprocess
 import sys
 
+import pytest
+
+pytestmark = pytest.mark.fast  # make check
+
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
 

@@ -14,6 +14,7 @@ pytestmark = pytest.mark.fast
 
 
 @pytest.mark.parametrize('name', ['intermediate_axis', 'tumble', 'symmetric_top'])
+@pytest.mark.slow
 def test_closed_form_matches_mpmath_ode(name):
     """Agreement to 1e-30 at t = 10 s (measured ≤ 1e-35 with the ODE at 34 digits, ≤ 1e-41
     at 40): the constants, signs and phase conventions of the closed form are right.

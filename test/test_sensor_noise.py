@@ -14,6 +14,8 @@ from rigid_body_sim.physics import rotation
 from rigid_body_sim.sensors import noise as N
 from rigid_body_sim.sensors.estimator import AttitudeEstimator
 
+pytestmark = pytest.mark.fast  # make check
+
 H = 0.01          # s: 100 Hz gyro
 COUNT = 1 << 20   # readings (~2.9 h of data)
 

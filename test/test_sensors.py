@@ -14,6 +14,8 @@ from rigid_body_sim.physics import rotation
 from rigid_body_sim.sensors import noise as N
 from rigid_body_sim.sensors.prediction import pointing_variance
 
+pytestmark = pytest.mark.fast  # make check
+
 CONFIG = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), 'config')
 POINTING = os.path.join(CONFIG, 'gyro_pointing.yaml')
 
@@ -43,6 +45,7 @@ def body_error(q_ref, q):
     return 2.0 * d[..., :3]
 
 
+@pytest.mark.slow
 def test_readings_are_the_truth_plus_the_seeded_noise_at_their_own_instants():
     """Gyro (50 Hz) readings are the true body rate at multiples of 20 ms plus exactly the
     errors GyroNoise(seed) draws; star-tracker fixes come every 0.2 s except in the
@@ -79,6 +82,7 @@ def test_same_seed_same_run_bit_for_bit_other_seed_differs():
     assert not np.array_equal(a[1], c[1])
 
 
+@pytest.mark.slow
 def test_gyro_pointing_error_follows_the_linearised_prediction():
     """gyro_pointing, 300 s, seed 1, against ``sensors.prediction`` (the linearised closed
     loop's covariance, propagated exactly; no simulation in it): after 100 s (transients of

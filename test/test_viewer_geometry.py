@@ -8,6 +8,8 @@ from rigid_body_sim.physics import rotation
 from rigid_body_sim.physics.exact import TorqueFreeSolution
 from rigid_body_sim.viewer import geometry
 
+pytestmark = pytest.mark.fast  # make check
+
 
 def test_box_edges_of_a_known_box():
     # a 1 × 2 × 3 m box of 12 kg: I = m(b² + c²)/12 ... = (13, 10, 5) kg·m²
