@@ -17,7 +17,7 @@ import numpy as np
 
 from .engine import Engine, EngineConfig, SampleBlock
 from .physics import IntegrationError
-from .scene import SceneError, SceneFile, load
+from .scene import SceneError, SceneFile, content_sha256, load
 from .sensors.specs import SensorSettings
 
 PLOT_POINTS = 20_000  # samples kept for the plots (a long run is decimated evenly)
@@ -115,16 +115,27 @@ class Decimated:
         return SampleBlock.concatenate(self.blocks)
 
 
-def engine_for(scene: SceneFile, duration=None, integrator=None, step=None, accuracy=None,
-               integrator_options=None, check_stability=False) -> Engine:
-    """The engine for ``scene`` with CLI overrides; SceneError naming the problem.
-    ``check_stability``: refuse or warn about an explicit method's step before the run
-    (the CLI does; the benchmarks run unstable steps on purpose)."""
+def effective_parameters(scene: SceneFile, duration=None, integrator=None, step=None,
+                         accuracy=None) -> dict:
+    """The simulator's parameters of a run: the scene's (``--set`` included) with the CLI
+    overrides that were given."""
     p = dict(scene.simulator)
     for key, value in (('duration', duration), ('integrator', integrator), ('step', step),
                        ('accuracy', accuracy)):
         if value is not None:
             p[key] = value
+    return p
+
+
+def engine_for(scene: SceneFile, duration=None, integrator=None, step=None, accuracy=None,
+               integrator_options=None, check_stability=False) -> Engine:
+    """The engine for ``scene`` with CLI overrides; SceneError naming the problem.
+    ``check_stability``: refuse or warn about a fixed method's step before the run: its
+    stability, and its error predicted against the accuracy (``Engine.check_method``; the
+    CLI does; the benchmarks run unstable steps on purpose). It also refuses a fixed
+    method's step longer than the sample (or control) period, which the engine would
+    otherwise shorten to that period without a word."""
+    p = effective_parameters(scene, duration, integrator, step, accuracy)
     if not p['duration'] > 0:
         raise SceneError(f'{scene.path}: an offline run needs duration > 0 (scene has '
                          f'{p["duration"]:g}); use --duration')
@@ -134,37 +145,50 @@ def engine_for(scene: SceneFile, duration=None, integrator=None, step=None, accu
         raise SceneError(f'{scene.path}: {exc}') from None
     if integrator_options:
         config = config.replace(integrator_options=dict(integrator_options))
-    engine = Engine(config)
     if check_stability:
-        _check_stability(engine)
+        _check_step_fits(config, 'step' if step is None else '--step')
+    engine = Engine(config, check_method=check_stability)
+    for verdict, message in engine.method_warnings:
+        if verdict == 'refuse':
+            raise SceneError(message)
+        print(f'warning: {message}', file=sys.stderr)
     return engine
 
 
-def _check_stability(engine) -> None:
-    """Refuse (SceneError) or warn (stderr) before the run when an explicit method's step
-    is outside its stability limits (physics.stability)."""
-    from .physics.stability import check_step
-    verdict, message = check_step(engine.method, engine.dynamics, engine.principal_state[1],
-                                  engine.step_max, engine.config.duration)
-    if verdict == 'refuse':
-        raise SceneError(message)
-    if verdict == 'warn':
-        print(f'warning: {message}', file=sys.stderr)
+def _check_step_fits(config, where) -> None:
+    """SceneError when a fixed method's step exceeds the event spacing: the engine stops at
+    every sample (and control instant), so a step of 0.5 s at 100 samples/s ran at 0.01 s."""
+    from .engine.specs import AUTO
+    spacing = config.event_spacing()
+    if config.integrator == AUTO or config.actuators is not None or \
+            config.step <= spacing * (1 + 1e-9):
+        return
+    what = 'sample period' if spacing == config.sample_period else 'control period'
+    raise SceneError(
+        f'{where} {config.step:g} s is longer than the {what} {spacing:g} s: the engine stops '
+        f'at every sample and control instant, so {config.integrator} would run at '
+        f'{spacing:g} s. Use a step <= {spacing:g} s, or fewer samples (--set publish_rate='
+        f'{1.0 / config.step:g} for one sample per step)')
 
 
 def simulate(scene: SceneFile, duration=None, integrator=None, step=None, accuracy=None,
              progress=False, integrator_options=None, sinks=(), keep='all',
-             check_stability=False) -> RunResult:
+             check_stability=False, engine=None) -> RunResult:
     """Run ``scene`` to its end; CLI overrides replace the scene's values when given.
 
     Every block of samples goes to each callable in ``sinks`` as it is produced.
     ``keep``: 'all' keeps every sample in the result, 'plot' a decimated series, 'none'
     nothing but the first and last sample (memory then does not grow with the run).
     ``integrator_options`` go to a fixed integrator (e.g. dop853 rtol/atol for a reference).
+    ``engine``: one already built by :func:`engine_for` (its build, auto's selection
+    included, then counts before the clock: the CLI checks the method before it replaces
+    a previous run); the overrides are then ignored.
     """
     cpu0 = time.process_time()
-    engine = engine_for(scene, duration, integrator, step, accuracy, integrator_options,
-                        check_stability)
+    chosen = engine.selection_cpu if engine is not None else 0.0  # before this clock
+    if engine is None:
+        engine = engine_for(scene, duration, integrator, step, accuracy, integrator_options,
+                            check_stability)
     kept = [] if keep == 'all' else Decimated() if keep == 'plot' else None
     bar = _Progress(engine.config.duration, progress)
     first = last = None
@@ -185,7 +209,8 @@ def simulate(scene: SceneFile, duration=None, integrator=None, step=None, accura
         kept.block() if kept is not None else SampleBlock.concatenate([])
     return RunResult(scene.name, engine.method, engine.reason, engine.config.duration,
                      engine.step_max, engine.steps + engine.evaluations,
-                     cpu - engine.selection_cpu, engine.selection_cpu, samples, first, last,
+                     cpu - (engine.selection_cpu - chosen), engine.selection_cpu, samples,
+                     first, last,
                      count, engine.body,
                      selection=engine.selected,
                      actuators=engine.config.actuators, evaluations=engine.total_evaluations)
@@ -194,7 +219,7 @@ def simulate(scene: SceneFile, duration=None, integrator=None, step=None, accura
 class BagSink:
     """Samples → the recorder's bag format: same topics, types, frames and stamps as live."""
 
-    def __init__(self, scene: SceneFile, directory: str, extra: dict):
+    def __init__(self, scene: SceneFile, directory: str, extra: dict, parameters=None):
         from .bag.writer import BagWriter
         from .engine.actuators import ActuatorConfig
         from .param_spec import coerce_all
@@ -215,10 +240,13 @@ class BagSink:
             self.sensors = SensorMessages(settings, p['frame_id'], p['child_frame_id'])
             for topic, type_name in self.sensors.topic_types():
                 self.writer.add_topic(f'/{topic}', type_name)
-        self.writer.add_run_configuration({
-            'scene': scene.name, 'scene_file': os.path.abspath(scene.path), 'mode': 'offline',
-            'simulator_parameters': scene.simulator, 'controller_parameters': scene.controller,
-            **extra})
+        self.record = run_record(scene, parameters or scene.simulator, extra)
+        self.writer.add_run_configuration(self.record)
+
+    def finish(self, result: 'RunResult'):
+        """Complete the run record with what ran (readers use the last record)."""
+        self.record.update(ran(result))
+        self.writer.add_run_configuration(self.record)
 
     def __call__(self, block: SampleBlock):
         write = self.writer.write
@@ -236,6 +264,65 @@ class BagSink:
 
     def close(self):
         self.writer.close()
+
+
+OUTPUTS = ('omega.png', 'invariants.png', 'poinsot.png', 'flips.png', 'precession.png',
+           'nutation.png', 'control.png', 'actuators.png', 'pointing.png')
+
+
+def _replace_previous(out: str) -> None:
+    """A run writes into ``out`` what the previous one there wrote (bag/ and the figures):
+    say so and remove them, so that no figure of the previous run stays beside this one's
+    (a poinsot.png this run does not draw). Other files in ``out`` are left alone."""
+    import shutil
+    bag = os.path.join(out, 'bag')
+    figures = [f for f in OUTPUTS if os.path.isfile(os.path.join(out, f))]
+    if not (os.path.isdir(bag) or figures):
+        return
+    print(f'note: replacing the previous run in {out} (its bag and figures); --out DIR '
+          'keeps runs apart', file=sys.stderr)
+    if os.path.isdir(bag):
+        shutil.rmtree(bag)
+    for f in figures:
+        os.remove(os.path.join(out, f))
+
+
+def run_record(scene: SceneFile, parameters: dict, extra: dict) -> dict:
+    """The run configuration stored in the bag: the scene (name, file, content hash) and
+    the effective parameters, enough to run it again (:func:`scene_from_record`)."""
+    try:
+        digest = content_sha256([scene.path])
+    except OSError:
+        digest = None  # an inline scene (tests, campaigns): no file
+    return {'scene': scene.name, 'scene_file': os.path.abspath(scene.path),
+            'scene_sha256': digest, 'mode': 'offline',
+            'simulator_parameters': parameters, 'controller_parameters': scene.controller,
+            **extra}
+
+
+def ran(result: 'RunResult') -> dict:
+    """What actually ran: the method, its step and auto's reason (or the scene's)."""
+    return {'integrator': result.integrator, 'step': result.step, 'reason': result.reason,
+            'steps': result.steps, 'duration': result.duration, 'samples': result.sample_count}
+
+
+def scene_from_record(config: dict) -> SceneFile:
+    """The scene a bag's run record describes, to run it again (its parameters as they
+    ran, CLI overrides included); SceneError if the record lacks them."""
+    from .engine import specs
+    from .param_spec import coerce_all
+    sim = config.get('simulator_parameters')
+    if not isinstance(sim, dict):
+        raise SceneError('the run record has no simulator_parameters (not an offline run\'s '
+                         'bag?)')
+    ctl = config.get('controller_parameters') or {}
+    try:
+        sim = coerce_all(specs.SIMULATOR, sim)
+        ctl = coerce_all(specs.CONTROLLER, ctl) if ctl else {}
+    except ValueError as exc:
+        raise SceneError(f'run record: {exc}') from None
+    return SceneFile(str(config.get('scene') or 'recorded'), '',
+                     config.get('scene_file') or 'recorded', sim, ctl)
 
 
 def add_arguments(parser):
@@ -292,13 +379,6 @@ def run(args) -> int:
     try:
         scene = load(args.scene, args.set, args.namespace)
         out = args.out or os.path.join('out', scene.name)
-        if not args.no_bag:
-            bag_dir = os.path.join(out, 'bag')
-            if os.path.isdir(bag_dir):
-                import shutil
-                shutil.rmtree(bag_dir)  # a rerun replaces its own previous output
-            bag = BagSink(scene, bag_dir, {'integrator_requested': args.integrator or
-                                           scene.simulator['integrator']})
         # The kernels come from numba's disk cache before the clock starts: loaded lazily
         # they landed in the first method's run or in auto's pilot (0.22 s of a 0.23 s
         # "selection" on explorer1, whose pilot proper takes 1 ms).
@@ -306,10 +386,24 @@ def run(args) -> int:
         load0 = time.process_time()
         compiled.warm()
         kernel_load = time.process_time() - load0
+        # the checks (step, stability, predicted error) before anything is replaced: a
+        # refused run leaves the previous one in place
+        engine = engine_for(scene, args.duration, args.integrator, args.step, args.accuracy,
+                            check_stability=True)
+        _replace_previous(out)
+        if not args.no_bag:
+            bag = BagSink(scene, os.path.join(out, 'bag'), {
+                'integrator_requested': args.integrator or scene.simulator['integrator'],
+                'command_line': {k: v for k, v in (
+                    ('duration', args.duration), ('integrator', args.integrator),
+                    ('step', args.step), ('accuracy', args.accuracy), ('set', args.set))
+                    if v}}, effective_parameters(scene, args.duration, args.integrator,
+                                                 args.step, args.accuracy))
         try:
-            result = simulate(scene, args.duration, args.integrator, args.step, args.accuracy,
-                              progress=not args.json, sinks=[bag] if bag else [],
-                              keep='none' if args.no_plots else 'plot', check_stability=True)
+            result = simulate(scene, progress=not args.json, sinks=[bag] if bag else [],
+                              keep='none' if args.no_plots else 'plot', engine=engine)
+            if bag is not None:
+                bag.finish(result)
         finally:
             if bag is not None:
                 bag.close()

@@ -37,6 +37,17 @@ class SceneFile:
         return bool(self.controller)
 
 
+def content_sha256(paths) -> str:
+    """SHA-256 (hex) of the files' bytes in order: the scene's content in a run record
+    (one file: that file's hash, whether an offline run or a node read it)."""
+    import hashlib
+    digest = hashlib.sha256()
+    for path in paths:
+        with open(path, 'rb') as f:
+            digest.update(f.read())
+    return digest.hexdigest()
+
+
 def config_dir() -> str:
     """The installed share/rigid_body_sim/config, or the source tree's config/."""
     try:

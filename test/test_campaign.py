@@ -265,6 +265,14 @@ def test_report_of_saturated_runs_with_equal_peaks(tmp_path):
     assert [os.path.basename(p) for p in paths] == ['histograms.png',
                                                     'scatter_natural_frequency_0.png']
     assert all(os.path.getsize(p) > 5000 for p in paths)
+    # the equal peaks get no one-bar panel but a mention; the settling times of the 8 - k
+    # runs that settled get ⌈√(8 - k)⌉ ≤ 3 bins, not 30 mostly empty ones
+    ok = {n: np.array([r[n] for r in rows], float) for n in ('peak_torque', 'settling_time')}
+    panels, constant = report.histogram_panels(ok)
+    assert constant == {'peak_torque': pytest.approx(1.5)}
+    assert [(name, bins) for name, _, bins in panels] == [
+        ('settling_time', math.ceil(math.sqrt(8 - len(never))))]
+    assert report.bins_for(8) == 3 and report.bins_for(10_000) == 30
 
 
 def test_interrupted_dask_sync_cancel_is_not_logged_other_callback_errors_are():

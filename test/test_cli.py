@@ -54,7 +54,8 @@ def test_unstable_steps_are_refused_or_warned_before_the_run():
     naming the largest stable step; Euler (unstable at any step for free rotation) gets a
     warning with the growth over the run; a stable RK4 step passes silently."""
     out = _run(venv_exe('rigid-body-sim'), 'run', 'rigid_earth', '--integrator', 'rk4',
-               '--step', '86400', '--no-bag', '--no-plots')
+               '--step', '86400', '--set', 'publish_rate=1.1574074074e-05',  # one a day
+               '--no-bag', '--no-plots')
     assert out.returncode == 2 and 'largest stable step here is 7.7' in out.stderr, out.stderr
     assert 'steps' not in out.stdout  # refused before the run
     out = _run(venv_exe('rigid-body-sim'), 'run', 'tennis_racket', '--integrator', 'euler',

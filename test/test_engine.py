@@ -69,10 +69,41 @@ def test_stepped_exact_stays_exact_over_a_million_samples():
     assert engine.steps == 0  # evaluated, never stepped
 
 
+@pytest.mark.parametrize('integrator', ['exact', 'rk4'])
+def test_a_run_ends_at_its_duration_whatever_the_sample_period(integrator):
+    """1.37 s at 1 sample/s: samples at 0 and 1 s, then the final state at 1.37 s (it
+    stopped at 1.0 s), equal to the closed form there."""
+    sim = {'inertia': [1.0, 2.0, 3.0], 'initial_angular_velocity': [0.3, 1.1, 0.2],
+           'initial_attitude': [0.1, -0.2, 0.3, 0.9], 'integrator': integrator,
+           'step': 0.001, 'publish_rate': 1.0, 'duration': 1.37}
+    config = EngineConfig.from_parameters(sim)
+    block = SampleBlock.concatenate(list(Engine(config).run()))
+    assert block.t_ns.tolist() == [0, 1_000_000_000, 1_370_000_000]
+    body = config.body
+    q, m = TorqueFreeSolution(body.principal_moments, body.attitude_to_principal(
+        config.attitude), body.principal_moments * body.to_principal(config.angular_velocity)
+    ).at(1.37)
+    tol = 1e-12 if integrator == 'exact' else 1e-9
+    assert rotation.angle_between(body.attitude_to_body(q), block.attitude[-1]) <= tol
+    np.testing.assert_allclose(block.angular_velocity[-1],
+                               body.to_body(m / body.principal_moments), rtol=0, atol=tol)
+
+
+def test_a_controlled_run_ends_at_its_duration():
+    """The compiled closed loop too: 2.55 s at 2 samples/s under a 3 Hz law ends with a
+    sample at 2.55 s, after the one at 2.5 s."""
+    sim = {'inertia': [1.0, 2.0, 3.0], 'initial_angular_velocity': [0.3, 0.1, 0.2],
+           'integrator': 'rk4', 'step': 0.01, 'publish_rate': 2.0, 'duration': 2.55}
+    ctl = {'mode': 'detumble', 'control_rate': 3.0, 'inertia': [1.0, 2.0, 3.0]}
+    t = np.concatenate([b.t_ns for b in Engine(EngineConfig.from_parameters(sim, ctl)).run()])
+    assert t[-1] == 2_550_000_000 and t[-2] == 2_500_000_000
+
+
 def test_sim_time_is_integer_nanoseconds_and_events_split_steps():
     """A 30 Hz sample rate (period 33,333,333 ns) with a 20 Hz control law: samples land on
-    multiples of the period, control updates on multiples of 50 ms, steps never straddle
-    either, and the torque column changes only at control instants."""
+    multiples of the period (and the last at the end, 3 s), control updates on multiples of
+    50 ms, steps never straddle either, and the torque column changes only at control
+    instants."""
     sim = {'inertia': [1.0, 2.0, 3.0], 'initial_angular_velocity': [0.3, 0.1, 0.2],
            'integrator': 'rk4', 'step': 0.01, 'publish_rate': 30.0, 'duration': 3.0}
     ctl = {'mode': 'detumble', 'control_rate': 20.0, 'inertia': [1.0, 2.0, 3.0]}
@@ -80,7 +111,8 @@ def test_sim_time_is_integer_nanoseconds_and_events_split_steps():
     blocks = list(engine.run())
     t = np.concatenate([b.t_ns for b in blocks])
     tau = np.concatenate([b.torque for b in blocks])
-    assert np.all(t % 33_333_333 == 0) and t[-1] == 90 * 33_333_333
+    assert np.all(t[:-1] % 33_333_333 == 0) and t[-2] == 90 * 33_333_333
+    assert t[-1] == 3_000_000_000
     changes = t[1:][np.any(np.diff(tau, axis=0) != 0.0, axis=1)]
     # a sample shows the torque held since the latest control instant at or before it
     held_since = (t // 50_000_000) * 50_000_000
@@ -159,7 +191,7 @@ def test_evaluations_count_what_each_method_did():
     scene = load('explorer1')
     rk4 = simulate(scene, duration=5.0, integrator='rk4', step=0.01)
     assert rk4.steps == 500 and rk4.evaluations == 4 * 500
-    dop = simulate(scene, duration=5.0, integrator='dop853')
+    dop = simulate(scene, duration=5.0, integrator='dop853', step=0.05)  # 100 outputs
     assert dop.evaluations > 10 * dop.steps
 
 
@@ -188,7 +220,7 @@ def test_compiled_closed_loop_is_the_event_by_event_loop(method):
            'natural_frequency': 0.6, 'target_attitude': [0.0, 0.6, 0.0, 0.8],
            'mission.free_time': 2.0, 'mission.detumble_exit_rate': 0.05, 'max_torque': 0.5}
     (py, a), (compiled, b) = _closed_loop_pair(sim, ctl)
-    assert len(a) == len(b) == 210  # 30 s at 1/7 s: samples 0 … 209
+    assert len(a) == len(b) == 211  # 30 s at 1/7 s: samples 0 … 209, then the end, 30 s
     np.testing.assert_array_equal(a.t_ns, b.t_ns)
     for field in ('attitude', 'angular_velocity', 'angular_momentum', 'torque'):
         np.testing.assert_allclose(getattr(b, field), getattr(a, field), rtol=0, atol=1e-12)

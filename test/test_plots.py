@@ -20,8 +20,9 @@ EXPECTED = {
     'rigid_earth': {'omega.png', 'invariants.png', 'poinsot.png', 'precession.png'},
     'explorer1': {'omega.png', 'invariants.png', 'poinsot.png', 'nutation.png'},
     'default': {'omega.png', 'invariants.png', 'poinsot.png', 'flips.png', 'control.png'},
-    'slew': {'omega.png', 'invariants.png', 'poinsot.png', 'control.png'},
-    'detumble': {'omega.png', 'invariants.png', 'poinsot.png', 'control.png'},
+    # controlled from t = 0: no free phase, so no Poinsot figure (it drew round-off noise)
+    'slew': {'omega.png', 'invariants.png', 'control.png'},
+    'detumble': {'omega.png', 'invariants.png', 'control.png'},
 }
 
 

@@ -3,7 +3,8 @@
 Statistics are over the runs with status ``ok``; NaN values (a metric that does not apply
 to the scene, or a run that never settled) are left out and counted. Plots: one PNG of
 histograms (one per metric with data), and per dispersed value one PNG of scatter plots
-of each metric against it.
+of each metric against it. A metric equal in every run gets no panel; the histograms'
+title names it with its value.
 """
 import math
 import os
@@ -98,8 +99,32 @@ def format_summary(s: Dict) -> str:
     return '\n'.join(lines)
 
 
+MAX_BINS = 30
+
+
+def bins_for(n: int) -> int:
+    """Histogram bins for n values: √n (8 runs: 3 bins, not 30 mostly empty ones), at most
+    MAX_BINS."""
+    return int(min(MAX_BINS, max(1, math.ceil(math.sqrt(n)))))
+
+
+def histogram_panels(data: Dict[str, np.ndarray]):
+    """(panels, constant): (metric, finite values, bins) per metric that varies across the
+    runs, and {metric: value} for those equal in every run (drawn as a one-bar histogram
+    they said nothing; they are named in the figure's title instead)."""
+    panels, constant = [], {}
+    for name, v in data.items():
+        finite = v[np.isfinite(v)]
+        if _constant(finite):
+            constant[name] = float(finite[0])
+        else:
+            panels.append((name, finite, bins_for(finite.size)))
+    return panels, constant
+
+
 def write_plots(table, columns, out_dir) -> List[str]:
-    """histograms.png and scatter_<value>.png per dispersed column; returns the paths."""
+    """histograms.png and scatter_<value>.png per dispersed column; returns the paths.
+    Metrics equal in every run get no panel: the histograms' title names them."""
     import matplotlib
     matplotlib.use('Agg')  # files only; no display needed
     import matplotlib.pyplot as plt
@@ -107,21 +132,26 @@ def write_plots(table, columns, out_dir) -> List[str]:
     ok = np.asarray(table.column('status').to_pylist()) == 'ok'
     data = {n: _column(table, n)[ok] for n in NUMERIC}
     data = {n: v for n, v in data.items() if np.any(np.isfinite(v))}
+    panels, constant = histogram_panels(data)
     paths = []
-    if not data:
+    if not panels:
         return paths
-    cols = 3
-    rows = math.ceil(len(data) / cols)
+    cols = min(3, len(panels))
+    rows = math.ceil(len(panels) / cols)
     fig, axes = plt.subplots(rows, cols, figsize=(4 * cols, 3 * rows), squeeze=False)
-    for ax, (name, v) in zip(axes.flat, data.items()):
-        finite = v[np.isfinite(v)]
-        # equal values (to rounding) get one bin: numpy cannot split a zero-width range
-        ax.hist(finite, bins=1 if _constant(finite) else 30)
+    for ax, (name, finite, bins) in zip(axes.flat, panels):
+        ax.hist(finite, bins=bins)
         ax.set_title(_label(name), fontsize=9)
+        ax.set_ylabel('runs')
         ax.grid(alpha=0.3)
-    for ax in list(axes.flat)[len(data):]:
+    for ax in list(axes.flat)[len(panels):]:
         ax.set_visible(False)
-    fig.suptitle(f'{int(ok.sum())} ok runs')
+    title = f'{int(ok.sum())} ok runs'
+    if constant:
+        title += '\nthe same in every run: ' + ', '.join(
+            f'{n} = {v:.4g}' + (f' {UNITS[n]}' if n in UNITS else '')
+            for n, v in constant.items())
+    fig.suptitle(title, fontsize=10)
     fig.tight_layout()
     paths.append(os.path.join(out_dir, 'histograms.png'))
     fig.savefig(paths[-1], dpi=90)
@@ -129,12 +159,12 @@ def write_plots(table, columns, out_dir) -> List[str]:
     for col in columns:
         x = _column(table, col)[ok]
         fig, axes = plt.subplots(rows, cols, figsize=(4 * cols, 3 * rows), squeeze=False)
-        for ax, (name, v) in zip(axes.flat, data.items()):
-            ax.scatter(x, v, s=4)
+        for ax, (name, _, _) in zip(axes.flat, panels):
+            ax.scatter(x, data[name], s=4)
             ax.set(xlabel=_param_label(col), title=_label(name))
             ax.title.set_fontsize(9)
             ax.grid(alpha=0.3)
-        for ax in list(axes.flat)[len(data):]:
+        for ax in list(axes.flat)[len(panels):]:
             ax.set_visible(False)
         fig.tight_layout()
         safe = col.replace('[', '_').replace(']', '').replace('.', '_')

@@ -5,11 +5,12 @@ sources, the schedule of events and faults, and produces blocks of samples.
 
 Time is an integer count of nanoseconds, never a float summed step by step. The engine
 advances from event to event — sample instants (multiples of the sample period), source
-events (control updates, command expiry), the end of the run — splitting each interval
-into equal steps no longer than the method's step. Its state is always at an event
-instant, so where a front end stops it (a wall-clock deadline, a command arriving) never
-changes the trajectory. Without torque or dissipation, ``exact`` is not stepped at all:
-the closed form is evaluated at each event from an anchor, at the exact elapsed time.
+events (control updates, command expiry), the end of the run (always sampled, on the grid
+or not) — splitting each interval into equal steps no longer than the method's step. Its
+state is always at an event instant, so where a front end stops it (a wall-clock deadline,
+a command arriving) never changes the trajectory. Without torque or dissipation,
+``exact`` is not stepped at all: the closed form is evaluated at each event from an
+anchor, at the exact elapsed time.
 
 Front ends differ only in how they pace :meth:`Engine.advance` and where the samples go.
 """
@@ -44,11 +45,18 @@ class Engine:
     ``compiled_loop``: with an in-process control law and a method with a compiled loop,
     run the stretches between samples in one compiled kernel (``closed_loop``) instead
     of event by event from Python; the trajectory is the same.
+    ``check_method``: whenever a fixed method is configured, predict its error against
+    the scene's accuracy and check its step's stability (:meth:`_check_method`) into
+    ``method_warnings`` for the front end to show or refuse (the CLI and the live node
+    do; the benchmarks run bad steps on purpose and skip the pilot's cost).
     """
 
     def __init__(self, config: EngineConfig, blocking_selection: bool = True,
-                 block_size: int = 1024, compiled_loop: bool = True):
+                 block_size: int = 1024, compiled_loop: bool = True,
+                 check_method: bool = False):
         self.config = config
+        self.check_method = check_method
+        self.method_warnings = []  # [(verdict 'warn' | 'refuse', message)], fixed methods
         self.blocking_selection = blocking_selection
         self.compiled_loop = compiled_loop
         self.command = CommandHold(config.max_torque, config.command_timeout_ns)
@@ -196,6 +204,7 @@ class Engine:
             self._use(c.integrator, c.event_spacing(),
                       f'set by the scene or parameter ({c.integrator})',
                       **dict(c.integrator_options))
+            self.method_warnings = self._check_method() if self.check_method else []
             return
         torque = self._torque_seen
         # the budget covers the rest of the run (what went before was exact or is done)
@@ -219,6 +228,30 @@ class Engine:
             self._use(sel.name, sel.step, f'auto: provisional a-priori choice while the '
                       f'selection pilot runs: {sel.reason}')
             self._selection = work
+
+    def _check_method(self):
+        """[(verdict, message)] for the fixed method at its step from the current state:
+        outside its stability region ('refuse' far outside, else 'warn'), or a predicted
+        error (auto's error model, physics.step_advice) far from the accuracy budget,
+        too damped or too amplified alike ('warn', with the step that would meet it)."""
+        from ..physics.stability import check_step
+        from ..physics.step_advice import advise, run_step
+        c = self.config
+        spacing = c.sample_period if c.control is None else \
+            min(c.sample_period, c.control.period_ns / NS)
+        left = (self.end_ns - self.t_ns) / NS if c.duration_ns > 0 else 0.0
+        torque = c.control is not None or self._torque_seen
+        verdict, message = check_step(self.method, self.dynamics, self._m,
+                                      run_step(c.step, spacing), left)
+        if verdict == 'refuse':
+            return [(verdict, message)]
+        out = [(verdict, message)] if verdict == 'warn' else []
+        advice = advise(self.method, self.dynamics, self._q, self._m, c.step,
+                        accuracy=c.accuracy, duration=left, spacing=spacing, torque=torque,
+                        torque_rate=c.torque_rate() if torque else 0.0)
+        if advice is not None and advice.far:
+            out.append(('warn', advice.message()))
+        return out
 
     @property
     def selection_pending(self) -> bool:
@@ -379,13 +412,16 @@ class Engine:
                     if s.next_event() == t_event:
                         s.on_event(t_event, att, w)
                 self._update_torque()
-            if t_event == self._next_sample:
+            # the end of the run is a sample instant too, on the grid or not: a run of 1.37 s
+            # at 1 sample/s ends with its state at 1.37 s, not at 1.0 s
+            if t_event == self._next_sample or t_event == end:
                 if not (np.all(np.isfinite(self._q)) and np.all(np.isfinite(self._m))):
                     self.fault = f'state became non-finite at t = {self.t:.9g} s'
                     raise IntegrationError(self.method, self.step_max, self.t, self.fault)
                 b.add(t_event, self._q, self._m, self._tau_body, None if self.actuators is None
                       else self.actuators.row(self._m, self.dynamics.moments))
-                self._next_sample += p
+                if t_event == self._next_sample:
+                    self._next_sample += p
             if t_event >= end:
                 self.finished = True
             if deadline is not None and time.monotonic() > deadline:

@@ -55,6 +55,9 @@ DIAGNOSTICS_PERIOD_S = 1.0   # wall clock
 MAX_LAG_S = 1.0              # behind the wall-clock target by more: drop the backlog
 PILOT_SLICE_S = 0.002        # least time for auto's pilot per loop turn (as fast as possible)
 QUIT_GRACE_S = 0.5           # a quit request's reply goes out before the node goes away
+# parameters after whose change the engine configures its method again
+NUMERICS = {'integrator', 'step', 'accuracy', 'publish_rate', 'duration', 'dissipation.model',
+            'dissipation.coefficient'}
 STATE_DEPTH = 100            # history of state topics: reliable delivery survives short stalls
 
 
@@ -74,7 +77,8 @@ class Simulator(Node):
         super().__init__(NODE_NAME, allow_undeclared_parameters=True, **kwargs)
         try:
             self._p = declare_parameters(self, SPECS)
-            self._engine = Engine(check_parameters(self._p), blocking_selection=False)
+            self._engine = Engine(check_parameters(self._p), blocking_selection=False,
+                                  check_method=True)
         except ValueError as exc:
             raise SceneError(str(exc)) from None
         self._log = self.get_logger()
@@ -129,6 +133,13 @@ class Simulator(Node):
             lambda params: validate_update(SPECS, self._p, params, check_parameters))
         self.add_post_set_parameters_callback(self._apply_parameters)
         self._log.info(self._summary())
+        self._warn_method()
+
+    def _warn_method(self):
+        """A fixed method's step outside its stability or far from the accuracy budget
+        (the engine checks it whenever it configures one): said, not refused, live."""
+        for _, message in self._engine.method_warnings:
+            self._log.warning(message)
 
     # ------------------------------------------------------------------ time
     def _base_stamp(self, epoch_ns: int):
@@ -360,6 +371,8 @@ class Simulator(Node):
         self._next_diag_wall = time.monotonic()
         self._log.info('parameters changed: ' + ', '.join(f'{k}={v}' for k, v in changed.items())
                        + f' -> {self._summary()}')
+        if changed.keys() & NUMERICS:  # the engine checked the method again
+            self._warn_method()
 
     # ------------------------------------------------------------------ status
     def _set_fault(self, reason: str):

@@ -102,3 +102,22 @@ def check_step(method: str, dynamics, momentum, h: float,
             f'{duration:g} s '
             f'({where}); use splitting2 (no step limit for free rotation) or a smaller --step')
     return ('refuse' if np.max(growth) >= REFUSE_PER_STEP else 'warn'), text
+
+
+def distortion(method: str, dynamics, m0, h: float):
+    """(damping, z, growth) of ``method`` at step h along the motion through m0: damping is
+    the least |R(hλ)| / e^{h Re λ} over the modes and states (< 1: a mode damped faster
+    than the true motion damps it; Explorer 1 with RK4 at 0.05 s: 0.5 per step on the
+    nutation mode, which the truth keeps), z = hλ of that mode, growth the largest
+    spurious_growth. (1, 0, 1) for a method without a stability function here."""
+    if method not in STABILITY_FUNCTIONS or not np.any(m0):
+        return 1.0, 0j, 1.0
+    R = STABILITY_FUNCTIONS[method]
+    damping, where = 1.0, 0j
+    for m in _states(dynamics, np.asarray(m0, float)):
+        z = h * _eigenvalues(dynamics, m)
+        ratio = np.abs(R(z)) / np.exp(np.clip(z.real, -700.0, 700.0))
+        k = int(np.argmin(ratio))
+        if ratio[k] < damping:
+            damping, where = float(ratio[k]), complex(z[k])
+    return damping, where, float(np.max(spurious_growth(method, dynamics, m0, h)))

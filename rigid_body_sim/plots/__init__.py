@@ -1,6 +1,7 @@
 """PNG figures of a run, chosen by what the scene is for (from the samples' sim-time stamps).
 
-Every run: omega.png, invariants.png, poinsot.png (plots.free). Then the scene's own story
+Every run: omega.png, invariants.png, and poinsot.png if it has a free phase (plots.free).
+Then the scene's own story
 (plots.story), with the analytic expectation beside the simulation:
 * a free asymmetric tumble that flips: flips.png (2K/λ);
 * a free axisymmetric body: precession.png (body and space cones; the Earth's wobble);
@@ -29,8 +30,9 @@ def write_figures(samples, body, out_dir, title, free_end=np.inf, scene=None):
     samples: t (N,) sim time s, attitude (N, 4) body→inertial, angular_velocity (N, 3) body
     frame, angular_momentum (N, 3) inertial, kinetic_energy (N,); optionally
     angular_momentum_body (N, 3) and torque (N, 3), body frame. Poinsot's picture holds
-    only without torque: it shows the samples before ``free_end`` (s). ``scene`` (a
-    scene.SceneFile) says what the run is for: its dissipation and its controller.
+    only without torque: it shows the samples before ``free_end`` (s), and is not drawn
+    when there are none. ``scene`` (a scene.SceneFile) says what the run is for: its
+    dissipation and its controller.
     """
     s = {k: np.asarray(samples[k]) for k in ('t', 'attitude', 'angular_velocity',
                                               'angular_momentum', 'kinetic_energy')}
@@ -39,8 +41,9 @@ def write_figures(samples, body, out_dir, title, free_end=np.inf, scene=None):
     s['torque'] = _field(samples, 'torque', np.zeros_like(w))
     unit, scale = time_unit(s['t'])
     figures = [free.omega(s, out_dir, title, unit, scale),
-               free.invariants(s, out_dir, title, unit, scale),
-               free.poinsot(s, body, out_dir, title, unit, scale, free_end)]
+               free.invariants(s, out_dir, title, unit, scale)]
+    figure = free.poinsot(s, body, out_dir, title, unit, scale, free_end)
+    figures += [figure] if figure is not None else []  # None: no free phase
     sim = scene.simulator if scene is not None else {}
     dissipative = sim.get('dissipation.model', 'none') != 'none'
     symmetric = analytic.symmetry_axis(body.principal_moments) is not None

@@ -70,13 +70,15 @@ def invariants(s, out_dir, title, unit, scale):
 
 
 def poinsot(s, body, out_dir, title, unit, scale, free_end):
-    plt = pyplot()
+    """Poinsot's figure of the free phase (t < ``free_end``), or None when the run has
+    none: under torque from the start the construction does not hold, and its ellipsoid
+    of the energy at t = 0 (0 for a body at rest) drew round-off noise."""
     t = np.asarray(s['t'])
     free = t < free_end
+    if np.count_nonzero(free) < 2:
+        return None
+    plt = pyplot()
     note = '' if np.all(free) else f' — free phase, t < {free_end / scale:.4g} {unit}'
-    if np.count_nonzero(free) < 2:  # torque from the start: show the whole run, labelled
-        free[:] = True
-        note = ' — torque applied throughout: not a free (Poinsot) motion'
     t = t[free]
     w_b = np.asarray(s['angular_velocity'])[free]
     q = np.asarray(s['attitude'])[free]
