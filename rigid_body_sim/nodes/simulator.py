@@ -293,12 +293,14 @@ class Simulator(Node):
                        f'of {len(pubs)} state topics before t = 0 (wait_for_subscribers)')
         now = time.monotonic()
         deadline, settled = now + timeout, now + SUBSCRIBER_SETTLE_S
+        paused, self.paused = self.paused, True  # commands arriving meanwhile advance nothing
         while self.context.ok() and time.monotonic() < deadline and self._quit_at is None:
             if missing():
                 settled = time.monotonic() + SUBSCRIBER_SETTLE_S
             elif time.monotonic() >= settled:
                 break
             executor.spin_once(timeout_sec=0.02)
+        self.paused = paused
         left = missing()
         if left:
             self._log.warning(f'starting at t = 0 without {n} subscription(s) on '
