@@ -4,7 +4,6 @@ from rclpy.serialization import deserialize_message
 
 from rigid_body_sim.bag.reader import iter_messages
 from rigid_body_sim.bag.schema import message_class
-from rigid_body_sim.demo import stamp_origin
 
 # the simulator's per-sample topics (the sensors' have their own rates)
 STATE_TOPICS = ('attitude', 'pose', 'transform', 'odometry', 'angular_velocity',
@@ -21,8 +20,11 @@ def recorded_stamps(bag):
             for status in msg.status:
                 values = {kv.key: kv.value for kv in status.values}
                 if origin is None and status.name.startswith('attitude_simulator'):
+                    # its header stamp is that of sim time sim_time; stamps advance by
+                    # sim time / rtf (1 as fast as possible)
                     rtf = float(values['real_time_factor_target']) or 1.0
-                    origin = stamp_origin(msg.header.stamp, values['sim_time'], rtf)
+                    origin = msg.header.stamp.sec * 10 ** 9 + msg.header.stamp.nanosec - \
+                        round(float(values['sim_time']) * 1e9 / rtf)
             continue
         header = msg.transforms[0].header if m.topic.endswith('/tf') else \
             getattr(msg, 'header', None)
