@@ -3,8 +3,8 @@
 Starts the recorder, then the simulator and controller, as separate processes (the
 installed node executables, as ``ros2 run`` would), loaded with the scene's params file.
 An in-process rclpy node watches the state and prints sim time, real-time factor,
-attitude error, |ω|, T and |L|. After ``--duration`` simulated seconds from the first
-sample (or Ctrl-C, or the simulator reaching its ``duration``) the nodes are stopped cleanly
+attitude error, |ω|, T and |L|. After ``--duration`` simulated seconds from the simulator's
+t = 0 (or Ctrl-C, or the simulator reaching its ``duration``) the nodes are stopped cleanly
 and a summary is printed: the phase it ended in, final pointing error, T and |L| drift during
 the free phase, messages recorded, and where the bag and plots are.
 """
@@ -62,11 +62,11 @@ class _Watcher:
         self.target = target
         self.q = self.w = self.L = None
         self.T = None
-        self.t = 0.0
-        self.t0 = None  # first stamp: the status shows time since the simulation started
-        self.time_scale = time_scale  # sim seconds per stamp second (rtf without /clock)
+        self.stamp = None  # of the last sample (s)
+        self.t0 = None  # first stamp seen: the time origin until the simulator's is known
+        self.origin = 0.0 if time_scale is None else None  # stamp of the simulator's t = 0
+        self.time_scale = time_scale or 1.0  # sim seconds per stamp second (rtf w/o /clock)
         self.phase = None  # the controller's mission phase (free, detumble, slew), if any
-        self.slew_start = None  # sim time at which the controller reported the slew
         self.rtf = math.nan
         self._rtf_reports = 0
         self.torque_seen = False
@@ -82,9 +82,17 @@ class _Watcher:
     def _on_attitude(self, msg):
         o = msg.quaternion
         self.q = np.array((o.x, o.y, o.z, o.w))
-        stamp = msg.header.stamp.sec + 1e-9 * msg.header.stamp.nanosec
-        self.t0 = stamp if self.t0 is None else self.t0
-        self.t = (stamp - self.t0) * self.time_scale
+        self.stamp = msg.header.stamp.sec + 1e-9 * msg.header.stamp.nanosec
+        self.t0 = self.stamp if self.t0 is None else self.t0
+
+    @property
+    def t(self):
+        """Sim time of the last sample, from the simulator's t = 0 (its diagnostics say
+        which stamp that is), not from the first sample this node happened to get."""
+        if self.stamp is None:
+            return 0.0
+        origin = self.t0 if self.origin is None else self.origin
+        return (self.stamp - origin) * self.time_scale
 
     def _on_w(self, msg):
         v = msg.vector
@@ -111,10 +119,12 @@ class _Watcher:
             if status.name.startswith('attitude_controller'):
                 for kv in status.values:
                     if kv.key == 'mission_phase' and kv.value != 'waiting':
-                        if kv.value == 'slew' and self.phase != 'slew':
-                            self.slew_start = self.t
                         self.phase = kv.value
             if status.name.startswith('attitude_simulator'):
+                values = {kv.key: kv.value for kv in status.values}
+                if self.origin is None and 'sim_time' in values:
+                    self.origin = stamp_origin(msg.header.stamp, values['sim_time'],
+                                               self.time_scale) * 1e-9
                 for kv in status.values:
                     # the simulator's first report spans its start-up, not its pacing
                     if kv.key == 'real_time_factor_achieved':
@@ -151,7 +161,14 @@ class _Watcher:
         return '  '.join(parts)
 
 
-def _phase_hint(watcher, scene):
+def stamp_origin(stamp, sim_time, time_scale) -> int:
+    """The stamp (ns) of the simulator's t = 0, from one of its diagnostics: the header
+    stamp is that of sim time ``sim_time`` (s, as text), stamps advance by sim time /
+    ``time_scale``."""
+    return stamp.sec * 1_000_000_000 + stamp.nanosec - round(float(sim_time) * 1e9 / time_scale)
+
+
+def _phase_hint(watcher, scene, slew_start):
     """Why the pointing error is still large, when the run ended before the slew."""
     if not scene.controlled or watcher.ended_in() == 'off':
         return ''
@@ -159,9 +176,9 @@ def _phase_hint(watcher, scene):
         from .control import critical_settling_time
         wn = np.mean(scene.controller.get('natural_frequency', 0.5))
         settle = critical_settling_time(wn)
-        if watcher.slew_start is None or watcher.t - watcher.slew_start >= settle:
+        if not np.isfinite(slew_start) or watcher.t - slew_start >= settle:
             return ''
-        return (f' — the slew began at t ≈ {watcher.slew_start:.1f} s and settles to 2 % in '
+        return (f' — the slew began at t = {slew_start:.2f} s and settles to 2 % in '
                 f'5.83/ω_n = {settle:.1f} s (try a longer --duration)')
     free = scene.controller.get('mission.free_time', 0.0)
     return (f' — the slew had not begun: the free phase lasts {free:g} s, then the detumble; '
@@ -175,24 +192,31 @@ def _drift(values):
     return float(np.max(np.abs(v - v[0])) / abs(v[0]))
 
 
-def _plots_from_bag(bag, scene, out_dir):
-    """The recorded state → the offline plots (same figures as `rigid-body-sim run`).
+def bag_samples(bag, scene):
+    """The recorded state as plot samples, and the end of the free phase (s), or None.
 
     Topics are joined by their header stamps (every topic of one sample carries the same
-    stamp), and time is sim time: stamps advance by sim time / real_time_factor."""
+    stamp). Time is sim time from the simulator's t = 0: its diagnostics in the bag say
+    which stamp that is (``stamp_origin``; with ``publish_clock`` stamps are sim time), so
+    a bag that missed the first samples still has the right times."""
     from rclpy.serialization import deserialize_message
     from .bag.reader import iter_messages
     from .bag.schema import message_class
-    from .engine import EngineConfig
-    from .plots import write_plots
-    body = EngineConfig.from_parameters(scene.simulator).body
     p = scene.simulator
     rtf = 1.0 if p['publish_clock'] else (p['real_time_factor'] or 1.0)
     series = {'/attitude': {}, '/angular_velocity': {}, '/angular_momentum': {}}
     first_torque = None  # stamp of the first nonzero command: the end of the free phase
     commands = []  # (stamp, torque): held from its stamp on
-    for m in iter_messages(bag, topics=list(series) + ['/torque_command']):
+    origin = 0 if p['publish_clock'] else None
+    for m in iter_messages(bag, topics=list(series) + ['/torque_command', '/diagnostics']):
         msg = deserialize_message(m.data, message_class(m.type))
+        if m.topic == '/diagnostics':
+            for status in msg.status:
+                values = {kv.key: kv.value for kv in status.values}
+                if origin is None and status.name.startswith('attitude_simulator') and \
+                        'sim_time' in values:
+                    origin = stamp_origin(msg.header.stamp, values['sim_time'], rtf)
+            continue
         stamp = msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
         if m.topic == '/torque_command':
             v = msg.vector
@@ -207,8 +231,8 @@ def _plots_from_bag(bag, scene, out_dir):
             series[m.topic][stamp] = (v.x, v.y, v.z)
     stamps = sorted(set.intersection(*(set(v) for v in series.values())))
     if len(stamps) < 2:
-        return []
-    t0 = stamps[0]
+        return None, None
+    t0 = stamps[0] if origin is None else origin
     w = np.array([series['/angular_velocity'][s] for s in stamps])
     torque = np.zeros_like(w)
     if commands:
@@ -216,6 +240,7 @@ def _plots_from_bag(bag, scene, out_dir):
         k = np.searchsorted([c[0] for c in commands], stamps, side='right') - 1
         held = np.array([c[1] for c in commands])
         torque[k >= 0] = held[k[k >= 0]]
+    body = _body(scene)
     samples = {'t': (np.array(stamps) - t0) * 1e-9 * rtf,
                'attitude': np.array([series['/attitude'][s] for s in stamps]),
                'angular_velocity': w,
@@ -223,7 +248,50 @@ def _plots_from_bag(bag, scene, out_dir):
                'kinetic_energy': 0.5 * np.einsum('ni,ij,nj->n', w, body.inertia, w),
                'torque': torque}
     free_end = np.inf if first_torque is None else (first_torque - t0) * 1e-9 * rtf
-    return write_plots(samples, body, out_dir, f'{scene.name} (live)', free_end, scene)
+    return samples, free_end
+
+
+def _body(scene):
+    from .engine import EngineConfig
+    return EngineConfig.from_parameters(scene.simulator).body
+
+
+def slew_start(samples, free_end, controller):
+    """When the slew began (s; inf if not): the rule control.png draws
+    (plots.story.control): at the end of the free phase in slew mode, else at the first
+    sample after it with |ω| below mission.detumble_exit_rate."""
+    t = samples['t']
+    w = np.linalg.norm(samples['angular_velocity'], axis=1)
+    active = t >= (free_end if np.isfinite(free_end) else t[0])
+    exit_rate = controller.get('mission.detumble_exit_rate', 0.0)
+    if controller['mode'] == 'slew' and np.any(active):
+        return float(t[np.argmax(active)])
+    if exit_rate > 0 and np.any(active & (w < exit_rate)):
+        return float(t[np.argmax(active & (w < exit_rate))])
+    return np.inf
+
+
+def _wait_for_nodes(node, executor, names, procs):
+    """Until ``names`` are in the graph with their subscriptions (or one of ``procs`` has
+    exited, or STARTUP_TIMEOUT): they then exist well before the simulator starts."""
+    deadline = time.monotonic() + STARTUP_TIMEOUT
+    while time.monotonic() < deadline and all(p.proc.poll() is None for p in procs):
+        present = {n for n, _ in node.get_node_names_and_namespaces()}
+        if set(names) <= present and all(node.get_subscriber_names_and_types_by_node(n, ns)
+                                         for n, ns in node.get_node_names_and_namespaces()
+                                         if n in names):
+            return
+        executor.spin_once(timeout_sec=0.1)
+
+
+def _last_line(path):
+    """The last non-empty line of a log (what a node said before it exited)."""
+    try:
+        with open(path, errors='replace') as f:
+            lines = [line.strip() for line in f if line.strip()]
+    except OSError:
+        return ''
+    return lines[-1] if lines else ''
 
 
 def _interrupt(signum, frame):
@@ -231,13 +299,70 @@ def _interrupt(signum, frame):
     raise KeyboardInterrupt
 
 
-def _overrides_file(scene, out) -> str:
-    """The scene's values after --set, as a params file read after the scene's own."""
+def _typed_like(value, like, key):
+    """``value`` (typed as rcl types a params-file value) in the rcl type of ``like`` (the
+    value the scene file gives ``key``): a second file's value of another type is dropped
+    by rcl without a word, so 2 over 1.0 becomes 2.0 and 2.0 over [1.0] becomes [2.0].
+    SceneError when no such conversion keeps the value."""
+    from . import params_file
+    want = params_file.rcl_type(like)
+    numbers = (int, float)
+    if want == 'double' and isinstance(value, list) and len(value) == 1:
+        value = value[0]
+    if want == 'double_array' and isinstance(value, numbers) and not isinstance(value, bool):
+        value = [value]
+    if want == 'double' and isinstance(value, int) and not isinstance(value, bool):
+        value = float(value)
+    if want == 'double_array' and isinstance(value, list) and all(
+            isinstance(v, numbers) and not isinstance(v, bool) for v in value):
+        value = [float(v) for v in value]
+    if params_file.rcl_type(value) != want:
+        raise SceneError(f'--set {key}: the scene gives {key} as {want.replace("_", " ")} '
+                         f'({like!r}); rcl would keep that over a {params_file.rcl_type(value)}')
+    return value
+
+
+def _spec_typed(value, spec):
+    """A value for a key the scene file does not set: numbers as the spec's doubles."""
+    if spec.kind in ('float', 'float_array'):
+        if isinstance(value, list):
+            return [float(v) for v in value]
+        return float(value)
+    return value
+
+
+def overrides(scene, sets):
+    """{section: {key: value}}: only the ``--set`` keys, for each node of the scene that
+    declares them, in the section of the scene file that gives the node its value (so rcl
+    merges it into that very entry) and typed like that value (see :func:`_typed_like`)."""
+    from . import params_file
+    from .engine import specs
+    nodes = [('/attitude_simulator', '/**/attitude_simulator', specs.SIMULATOR)]
+    if scene.controlled:
+        nodes.append(('/attitude_controller', '/**/attitude_controller', specs.CONTROLLER))
+    out = {}
+    for text in sets:
+        key, value = params_file.parse_override(text)
+        for fqn, section, node_specs in nodes:
+            spec = next((s for s in node_specs if s.name == key), None)
+            if spec is None:
+                continue
+            if value is False and spec.false_is is not None:  # YAML's off for mode: off
+                value = spec.false_is
+            raw = params_file.node_parameters(scene.path, fqn).get(key)
+            if raw is None:
+                out.setdefault(section, {})[key] = _spec_typed(value, spec)
+            else:
+                out.setdefault(raw.section, {})[key] = _typed_like(value, raw.value, key)
+    return out
+
+
+def _overrides_file(scene, sets, out) -> str:
+    """The ``--set`` values as a params file read after the scene's own."""
     import yaml
     path = os.path.join(out, 'overrides.yaml')
-    data = {'/**/attitude_simulator': {'ros__parameters': scene.simulator}}
-    if scene.controlled:
-        data['/**/attitude_controller'] = {'ros__parameters': scene.controller}
+    data = {section: {'ros__parameters': values}
+            for section, values in overrides(scene, sets).items()}
     with open(path, 'w') as f:
         yaml.safe_dump(data, f)
     return path
@@ -249,8 +374,8 @@ def add_arguments(parser):
     from .cli import number
     parser.add_argument('--duration', type=number(0.0, 1e9, low_open=True),
                         default=os.environ.get('DEMO_DURATION', '40'),
-                        help='simulated seconds to run, counted from the first sample (start-up '
-                             'is not included; default: $DEMO_DURATION or 40)')
+                        help='simulated seconds to run, counted from the simulator\'s t = 0 '
+                             '(start-up is not included; default: $DEMO_DURATION or 40)')
     parser.add_argument('--out', default=os.path.join('out', 'demo'),
                         help='output directory (default out/demo)')
     from .offline import add_set_argument
@@ -282,12 +407,16 @@ def run(args) -> int:
     shutil.rmtree(bag, ignore_errors=True)  # each demo replaces the previous one's bag
     os.makedirs(out, exist_ok=True)
     params = ['--ros-args', '--params-file', os.path.abspath(scene.path)]
-    if args.set:  # a second params file: its node sections win over the scene's (rcl order)
-        params += ['--params-file', _overrides_file(scene, out)]
+    if args.set:  # a second params file: each value lands in the scene's entry (see overrides)
+        try:
+            params += ['--params-file', _overrides_file(scene, args.set, out)]
+        except SceneError as exc:
+            print(f'error: {exc}', file=sys.stderr)
+            return 2
     target = np.asarray(scene.controller.get('target_attitude', (0.0, 0.0, 0.0, 1.0)), float)
     print(f'demo: scene {scene.name} — {scene.description}')
     print(f'demo: logs and output in {out}; stopping after {args.duration:g} simulated s '
-          'from the first sample (Ctrl-C stops earlier)')
+          'from t = 0 (Ctrl-C stops earlier)')
 
     # Ctrl-C and SIGTERM raise KeyboardInterrupt here (rclpy's own handler would shut the
     # context down under the loop instead); the nodes run in their own sessions and are
@@ -301,17 +430,19 @@ def run(args) -> int:
         rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
         node = Node('demo_status')
         p = scene.simulator
-        watcher = _Watcher(node, target, 1.0 if p['publish_clock'] else
+        watcher = _Watcher(node, target, None if p['publish_clock'] else
                            (p['real_time_factor'] or 1.0))
         executor = SingleThreadedExecutor()
         executor.add_node(node)
-        # Give the recorder a moment to be discovered so it sees the first messages.
-        deadline = time.monotonic() + 2.0
-        while time.monotonic() < deadline:
-            executor.spin_once(timeout_sec=0.1)
-        procs.append(_Process('simulator', params, out))
+        # The recorder and the controller run before the simulator, which holds its t = 0
+        # until they are matched on its topics: the bag and the controller's mission clock
+        # start with the first sample.
         if scene.controlled:
             procs.append(_Process('controller', params, out))
+        _wait_for_nodes(node, executor, ['mcap_recorder'] + (
+            ['attitude_controller'] if scene.controlled else []), procs)
+        procs.append(_Process('simulator', params + ['-p', 'wait_for_subscribers:=1'], out))
+        sim = procs[-1]
         if getattr(args, 'viewer', False):  # its own process: a viewer problem stops nothing
             procs.append(_Process('viewer', ['--ros-args', '-p', f'port:={args.viewer_port}'],
                                   out))
@@ -323,12 +454,12 @@ def run(args) -> int:
         start, last_print = time.monotonic(), 0.0
         while watcher.t0 is None or watcher.t < args.duration:
             executor.spin_once(timeout_sec=0.05)
-            if procs[1].proc.poll() is not None:
+            if sim.proc.poll() is not None:
                 break  # the simulator reached its duration (or failed: see its log)
             now = time.monotonic()
             if watcher.t0 is None and now - start > STARTUP_TIMEOUT:
                 print(f'demo: no sample from the simulator after {STARTUP_TIMEOUT:g} s; see '
-                      f'{procs[1].log_path}', flush=True)
+                      f'{sim.log_path}', flush=True)
                 break
             line = watcher.status()
             if line and now - last_print >= (0.25 if tty else 2.0):
@@ -361,26 +492,44 @@ def run(args) -> int:
     if codes.get('viewer') not in (0, None, -signal.SIGINT):  # reported, not a demo failure
         print(f'  viewer: exited with {codes.pop("viewer")} (log: {out}/viewer.log)')
     failed = {n: c for n, c in codes.items() if c not in (0, None, -signal.SIGINT)}
+    logs = {p.name: p.log_path for p in procs}
+    samples, free_end, bag_error = None, None, None
+    try:
+        info = read_info(bag)
+        samples, free_end = bag_samples(bag, scene)
+    except BagError as exc:
+        bag_error = exc
+    slew = slew_start(samples, free_end, scene.controller) \
+        if samples is not None and scene.controlled else np.inf
     print('demo: summary' + (' (interrupted)' if interrupted else ''))
-    if watcher is not None:
+    for name, code in failed.items():  # what the node said last: usually why
+        print(f'  {name}: exited with {code}: {_last_line(logs[name])} (log: {logs[name]})')
+    if watcher is not None and watcher.t0 is not None:
+        # the phase hint would guess at a cause; a failed node has its own
         print(f'  ended at t = {watcher.t:.2f} s (sim time) in the {watcher.ended_in()} phase'
-              + _phase_hint(watcher, scene))
+              + ('' if failed else _phase_hint(watcher, scene, slew)))
         print(f'  final pointing error: {watcher.error_deg():.4f}° '
               f'(target {np.round(target, 6).tolist()})')
         print(f'  free phase: {len(watcher.free["T"])} samples, '
               f'relative drift T {_drift(watcher.free["T"]):.2e}, '
               f'|L| {_drift(watcher.free["L"]):.2e}')
-    try:
-        info = read_info(bag)
-        print(f'  messages recorded: {info.message_count} on {len(info.topics)} topics, '
-              f'{info.duration_s:.2f} s — bag: {bag}')
-        plots = _plots_from_bag(bag, scene, out)
-        for path in plots:
-            print(f'  plot: {path}')
-    except BagError as exc:
-        print(f'  bag: not readable ({exc}); recorder log: {procs[0].log_path}')
+    elif watcher is not None:
+        print('  no sample from the simulator')
+    if samples is not None and scene.controlled:
+        phases = [f'free until {free_end:.2f} s' if np.isfinite(free_end) else 'free']
+        phases += [f'slew from {slew:.2f} s'] if np.isfinite(slew) else []
+        print('  phases (sim time from the simulator\'s t = 0, as in control.png): '
+              + ', '.join(phases))
+    if bag_error is not None:
+        print(f'  bag: not readable ({bag_error}); recorder log: {logs["recorder"]}')
         return 1
+    print(f'  messages recorded: {info.message_count} on {len(info.topics)} topics, '
+          f'{info.duration_s:.2f} s — bag: {bag}')
+    if samples is not None:
+        from .plots import write_plots
+        for path in write_plots(samples, _body(scene), out, f'{scene.name} (live)', free_end,
+                                scene):
+            print(f'  plot: {path}')
     if failed:
-        print(f'  node exit codes: {failed} (logs in {out})')
         return 1
     return 130 if interrupted else 0

@@ -54,7 +54,11 @@ def plan(scene: str = 'default', record: str = 'true', output: str = '',
     loaded = load(path)
     use_controller = _flag(controller, 'controller', CONTROLLER_CHOICES)
     with_controller = loaded.controlled if use_controller == 'auto' else use_controller == 'true'
-    nodes = [PlannedNode('simulator', 'attitude_simulator', (path,))]
+    record = _flag(record, 'record') == 'true'
+    # recording: the simulator holds its t = 0 until the recorder (which subscribes at its
+    # start) is matched on every state topic, so the bag begins with the first sample
+    nodes = [PlannedNode('simulator', 'attitude_simulator', (path,),
+                         {'wait_for_subscribers': 1} if record else {})]
     if with_controller:
         nodes.append(PlannedNode('controller', 'attitude_controller', (path,)))
     if _flag(viewer, 'viewer') == 'true':
@@ -66,7 +70,7 @@ def plan(scene: str = 'default', record: str = 'true', output: str = '',
             raise ValueError(f'launch argument viewer_port:={viewer_port}: a TCP port, '
                              '0 to 65535')
         nodes.append(PlannedNode('viewer', 'attitude_viewer', (), {'port': port}))
-    if _flag(record, 'record') == 'true':
+    if record:
         nodes.append(PlannedNode('recorder', 'mcap_recorder', (), {
             'output': output or f'rigid_body_sim_{loaded.name}', 'scene': loaded.name}))
     duration = loaded.simulator['duration']

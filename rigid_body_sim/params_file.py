@@ -231,3 +231,64 @@ def unknown_keys(path: str, node_fqn: str, own: set, shared: set) -> List[str]:
                 problems.append(f'{path}: {section}: {key}: unknown parameter of '
                                 f'{node_fqn}{closest(key, allowed)}')
     return problems
+
+
+# --- what a node gets from several params files and -p, as rcl and rclpy decide ----------
+# rcl parses every --params-file and -p, in command-line order, into one table of node
+# keys (first appearance order; -p goes to '/**'). A key set again in the same node key
+# overwrites the value of the same type, but one of another type is kept beside it (a
+# variant holds one slot per type), and rclpy then takes the first slot in this order:
+RCL_TYPE_ORDER = ('bool', 'integer', 'double', 'string', 'bool_array', 'integer_array',
+                  'double_array', 'string_array', 'empty_array')
+# rclpy applies the node keys that match the node in table order, later ones winning.
+
+
+def rcl_type(value) -> str:
+    """The rcl variant slot a typed value (from :func:`scalar`) lands in."""
+    if isinstance(value, list):
+        return rcl_type(value[0]) + '_array' if value else 'empty_array'
+    if isinstance(value, bool):
+        return 'bool'
+    return {int: 'integer', float: 'double'}.get(type(value), 'string')
+
+
+def parse_param_rule(text: str) -> Tuple[str, str, Any]:
+    """``-p [node:]name:=value`` → (node key, name, value typed as rcl types it)."""
+    name, sep, value = text.partition(':=')
+    node, colon, param = name.partition(':')
+    node, name = (node, param) if colon else ('/**', name)
+    if not sep or not name:
+        raise ParamsFileError(f'-p {text}: expected NAME:=VALUE')
+    if not value.strip():
+        raise ParamsFileError(f'-p {text}: no value (rcl refuses it)')
+    flat = _flatten(_tree(f'-p {text}', f'x: {value}'), f'-p {text}', '-p')
+    return node if node.startswith('/') else '/' + node, name, flat['x']
+
+
+def given_values(sources, node_fqn: str) -> Tuple[Dict[str, List[Value]], Dict[str, Value]]:
+    """What the command line gives the node ``node_fqn``, and what it ends up with.
+
+    ``sources``: ``('file', path)`` and ``('param', 'name:=value')`` in command-line order.
+    Returns ({name: [every Value given, in command-line order]}, {name: the Value rcl and
+    rclpy keep}); a Value's ``section`` says where it came from (``FILE: SECTION`` or
+    ``-p TEXT``). ParamsFileError for a file or rule rcl would refuse."""
+    table: Dict[str, Dict[str, Dict[str, Value]]] = {}
+    given: Dict[str, List[Value]] = {}
+    for kind, arg in sources:
+        if kind == 'file':
+            items = [(section, name, value, f'{arg}: {section}')
+                     for section, params in sections(arg) for name, value in params.items()]
+        else:
+            node, name, value = parse_param_rule(arg)
+            items = [(node, name, value, f'-p {arg}')]
+        for node, name, value, origin in items:
+            entry = table.setdefault(node, {}).setdefault(name, {})
+            entry[rcl_type(value)] = Value(value, origin)
+            if matches(node, node_fqn):
+                given.setdefault(name, []).append(Value(value, origin))
+    kept: Dict[str, Value] = {}
+    for node, params in table.items():
+        if matches(node, node_fqn):
+            for name, slots in params.items():
+                kept[name] = slots[min(slots, key=RCL_TYPE_ORDER.index)]
+    return given, kept

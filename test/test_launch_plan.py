@@ -9,6 +9,7 @@ import os
 import pytest
 
 from ros_helpers import spin_until, venv_exe
+from stamp_checks import gaps_from_t0
 
 from rigid_body_sim.launch_plan import plan
 from rigid_body_sim.scene import SceneError, list_scenes, load
@@ -22,6 +23,8 @@ def test_every_scene_plans_its_nodes(name):
     assert ('controller' in names) == load(name).controlled
     assert all(os.path.isabs(f) and os.path.isfile(f) for n in nodes for f in n.params_files)
     assert 'when the simulator exits' in summary
+    # recording: the simulator holds t = 0 until the recorder is matched (a full bag)
+    assert nodes[0].parameters == {'wait_for_subscribers': 1}
     forced = [n.executable for n in plan(name, controller='true', record='false')[0]]
     assert forced == ['simulator', 'controller']
     viewed = plan(name, record='false', controller='false', viewer='true', viewer_port='9001')[0]
@@ -45,7 +48,8 @@ def test_free_tumble_scene_gets_no_torque_and_ends(ros_process, namespace, rclpy
                                                    tmp_path):
     """tennis_racket as launched: no controller, zero torque commands while the simulator
     runs, and the simulator exits by itself at the scene's duration (the launch's
-    shutdown trigger); the recorder then stops on SIGINT with a readable bag."""
+    shutdown trigger); the recorder then stops on SIGINT with a bag that holds every
+    sample from the simulator's t = 0."""
     from geometry_msgs.msg import QuaternionStamped, Vector3Stamped
     from rigid_body_sim.bag.reader import read_info
     nodes, _ = plan('tennis_racket', output=str(tmp_path / 'bag'))
@@ -58,8 +62,12 @@ def test_free_tumble_scene_gets_no_torque_and_ends(ros_process, namespace, rclpy
     procs = {}
     for n in reversed(nodes):  # recorder first, as the demo does, so it sees the start
         cmd = [venv_exe(n.executable), *n.ros_arguments(namespace)]
-        if n.executable == 'simulator':  # the scene's 10 s, 5x faster for the test
-            cmd += ['-p', 'real_time_factor:=5.0']
+        if n.executable == 'simulator':  # the scene's 10 s, 5x faster for the test (a
+            # second file: -p would go to '/**', which the scene's own section overrides)
+            faster = tmp_path / 'faster.yaml'
+            faster.write_text('/**/attitude_simulator:\n  ros__parameters:\n'
+                              '    real_time_factor: 5.0\n')
+            cmd += ['--params-file', str(faster)]
         procs[n.executable] = ros_process(*cmd)
     sim = procs['simulator']
     assert spin_until(rclpy_node, lambda: len(states) > 50, 60.0), sim.output()[-2000:]
@@ -71,3 +79,5 @@ def test_free_tumble_scene_gets_no_torque_and_ends(ros_process, namespace, rclpy
     assert rec.wait(30) == 0, rec.output()[-2000:]
     info = read_info(str(tmp_path / 'bag'))
     assert info.message_count > 0
+    # every sample from t = 0: the scene's 10 s at 100 Hz, stamps 10 ms / 5 apart
+    assert gaps_from_t0(tmp_path / 'bag', 2_000_000, count=1001) == []

@@ -10,7 +10,6 @@ import os
 import subprocess
 import sys
 
-import numpy as np
 import pytest
 
 from ros_helpers import spin_until, venv_exe
@@ -226,11 +225,26 @@ def test_set_overrides_apply_after_the_file(tmp_path):
     assert s.simulator['accuracy'] == 1e-9 and s.simulator['publish_clock'] is True
     assert s.simulator['inertia'] == s.controller['inertia'] == [1.0, 2.0, 2.25]
     assert s.controller['mode'] == 'detumble'
-    again = scene.load(_overrides_file(s, str(tmp_path)))
-    for a, b in ((again.simulator, s.simulator), (again.controller, s.controller)):
-        assert a.keys() == b.keys()
-        for key in a:  # a one-value gain may come back as a list of one: the same gain
-            assert a[key] == b[key] or list(np.ravel(a[key])) == list(np.ravel(b[key])), key
+    sets = ['accuracy=1e-9', 'inertia=[1, 2, 3]', 'mode=off', 'publish_clock=on',
+            'natural_frequency=[2]', 'max_rate=1']
+    path = _overrides_file(scene.load('slew', sets), sets, str(tmp_path))
+    import yaml
+    written = yaml.safe_load(open(path))  # only the keys set, in the scene's sections
+    assert {k: set(v['ros__parameters']) for k, v in written.items()} == {
+        '/**': {'inertia'}, '/**/attitude_simulator': {'accuracy', 'publish_clock'},
+        '/**/attitude_controller': {'mode', 'natural_frequency', 'max_rate'}}
+    # the live nodes get each value, typed as the scene types it (rclpy is the oracle):
+    # [2] over the scene's scalar 1.0 would have been dropped by rcl without a word
+    both = ['--params-file', scene.resolve('slew'), '--params-file', path]
+    sim = _rcl_overrides(both)
+    ctl = _rcl_overrides(both, 'attitude_controller')
+    assert sim['accuracy'] == 1e-9 and sim['publish_clock'] is True
+    assert sim['inertia'] == ctl['inertia'] == [1.0, 2.0, 3.0]  # ints written as doubles
+    assert ctl['natural_frequency'] == 2.0 and type(ctl['natural_frequency']) is float
+    assert ctl['mode'] == 'off' and ctl['max_rate'] == 1.0
+    with pytest.raises(scene.SceneError, match='the scene gives natural_frequency as double'):
+        _overrides_file(scene.load('slew', ['natural_frequency=[1,2,3]']),
+                        ['natural_frequency=[1,2,3]'], str(tmp_path))
     with pytest.raises(scene.SceneError, match='did you mean accuracy'):
         scene.load('slew', ['acuracy=1e-9'])
     with pytest.raises(scene.SceneError, match='mode: not a parameter'):
@@ -239,3 +253,89 @@ def test_set_overrides_apply_after_the_file(tmp_path):
         scene.load('slew', ['accuracy=-1'])
     with pytest.raises(scene.SceneError, match='expected KEY=VALUE'):
         scene.load('slew', ['accuracy'])
+
+
+def _rcl_overrides(args, node_name='attitude_simulator'):
+    """{name: value} rclpy hands the node from these --ros-args (the oracle)."""
+    import rclpy
+    from rclpy.context import Context
+    from rclpy.node import Node
+    context = Context()
+    rclpy.init(args=['--ros-args', *args], context=context)
+    try:
+        node = Node(node_name, context=context)
+        try:
+            return {name: p.value for name, p in node._parameter_overrides.items()}
+        finally:
+            node.destroy_node()
+    finally:
+        rclpy.shutdown(context=context)
+
+
+def test_several_files_and_p_merge_as_rcl_merges_them(tmp_path):
+    """Which value a node gets when several files and -p give a key: rcl's table of node
+    keys in first-appearance order, one slot per type in an entry, rclpy's type order.
+    Each case against rclpy itself."""
+    scene_file = _write(tmp_path, 'scene.yaml', '/**:\n  ros__parameters:\n    a: 1.0\n'
+                        '/**/attitude_simulator:\n  ros__parameters:\n    duration: 10.0\n'
+                        '    gain: 0.8\n    rate: [1.0]\n')
+    second = _write(tmp_path, 'second.yaml', '/**/attitude_simulator:\n  ros__parameters:\n'
+                    '    gain: [2.0]\n    rate: 3.0\n    duration: 7\n')
+    cases = [['--params-file', scene_file, '-p', 'duration:=6.0'],  # the section wins
+             ['-p', 'duration:=6.0', '--params-file', scene_file],
+             ['--params-file', scene_file, '--params-file', second],  # types differ
+             ['--params-file', scene_file, '-p', 'a:=2', '-p', 'a:=3.5']]
+    for args in cases:
+        sources = [('file' if flag == '--params-file' else 'param', arg)
+                   for flag, arg in zip(args[::2], args[1::2])]
+        _, kept = params_file.given_values(sources, '/attitude_simulator')
+        rcl = _rcl_overrides(args)
+        assert {k: v.value for k, v in kept.items()} == rcl, args
+        assert all(type(kept[k].value) is type(v) for k, v in rcl.items()), args
+    # the cases the issue names: the file's 10.0 over -p 6.0; [2.0] lost beside 0.8; the
+    # int 7 kept over 10.0 (rclpy prefers the integer slot)
+    assert _rcl_overrides(cases[0])['duration'] == 10.0
+    assert _rcl_overrides(cases[2]) == {'a': 1.0, 'duration': 7, 'gain': 0.8, 'rate': 3.0}
+
+
+def test_the_node_warns_when_the_last_value_given_is_not_in_effect(tmp_path):
+    """overridden_warnings (what the nodes log at start): the key, the value in effect and
+    where it came from, for -p under a scene's node section and for a second file's value
+    of another type; nothing when the last value given wins."""
+    import rclpy
+    from rclpy.context import Context
+    from rclpy.node import Node
+
+    from rigid_body_sim.nodes.common import overridden_warnings
+    scene_file = _write(tmp_path, 'scene.yaml', '/**:\n  ros__parameters:\n'
+                        '    use_sim_time: false\n/**/attitude_simulator:\n  ros__parameters:\n'
+                        '    duration: 10.0\n    accuracy: 1.0e-6\n')
+    second = _write(tmp_path, 'second.yaml', '/**/attitude_simulator:\n  ros__parameters:\n'
+                    '    accuracy: [1.0e-3]\n    duration: 12.0\n')
+
+    def lines(args):
+        context = Context()
+        argv = ['node', '--ros-args', *args]
+        rclpy.init(args=argv, context=context)
+        try:
+            node = Node('attitude_simulator', context=context)
+            try:
+                return overridden_warnings(node, argv)
+            finally:
+                node.destroy_node()
+        finally:
+            rclpy.shutdown(context=context)
+
+    (line,) = lines(['--params-file', scene_file, '-p', 'duration:=6.0'])
+    assert line.startswith('parameter duration: 6.0 from -p duration:=6.0 is overridden: '
+                           f'10.0 from {scene_file}: /**/attitude_simulator is in effect'), line
+    (line,) = lines(['--params-file', scene_file, '--params-file', second])
+    assert line.startswith(f'parameter accuracy: [0.001] from {second}: /**/attitude_simulator'
+                           f' is overridden: 1e-06 from {scene_file}: /**/attitude_simulator'
+                           ' is in effect (its type (double_array) differs'), line
+    # the last value given wins: no warning (a second file of the same types; -p where the
+    # file has no '/**' section before its node section, so '/**' comes last)
+    assert lines(['--params-file', scene_file, '--params-file', _write(
+        tmp_path, 'same.yaml', '/**/attitude_simulator:\n  ros__parameters:\n'
+        '    duration: 12.0\n')]) == []
+    assert lines(['--params-file', second, '-p', 'duration:=6.0']) == []

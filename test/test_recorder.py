@@ -181,6 +181,15 @@ def test_sigkill_then_recover(ros_process, namespace, rclpy_node, tmp_path):
                                                                       len(energy))
     assert all(abs(len(v) - len(energy)) <= 3 for v in values.values())
 
+    # Once recovered, a recorder starting beside it no longer warns (the file is untouched)
+    assert rec2.stop() == 0, rec2.output()
+    assert not is_finished(str(bag / 'killed_0.mcap'))
+    rec3 = start_recorder(ros_process, namespace, tmp_path / 'third', 'topics:=["nothing"]')
+    wait_output(rec3, 'recording to')
+    assert 'unfinished bag file' not in rec3.output().replace(
+        f'unfinished bag file {bag / "killed_0.mcap"} was recovered into', ''), rec3.output()
+    assert f'was recovered into {tmp_path / "fixed"}' in rec3.output(), rec3.output()
+
 
 def test_split_and_metadata(ros_process, namespace, tmp_path):
     bag = tmp_path / 'split'
@@ -251,9 +260,12 @@ def test_records_simulator_if_available(ros_process, namespace, tmp_path):
         pytest.skip('rigid_body_sim.nodes.simulator not written yet')
     bag = tmp_path / 'sim'
     rec = start_recorder(ros_process, namespace, bag)
-    sim = ros_process(venv_exe('simulator'), '--ros-args', '-r', f'__ns:={namespace}')
-    wait_output(rec, f'subscribed to {namespace}/attitude', timeout=30)
-    time.sleep(2.0)
+    wait_output(rec, f'subscribed to {namespace}/attitude', timeout=30)  # at its start
+    sim = ros_process(venv_exe('simulator'), '--ros-args', '-r', f'__ns:={namespace}',
+                      '-p', 'wait_for_subscribers:=1', env={'PYTHONUNBUFFERED': '1'})
+    # matched before t = 0, so whatever it publishes from then on reaches the recorder
+    wait_output(sim, 'starting at t = 0', timeout=60)
+    time.sleep(1.0)
     sim.stop()
     assert rec.stop() == 0, rec.output()
     info = read_info(str(bag))

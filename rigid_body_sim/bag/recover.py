@@ -3,10 +3,12 @@
 Like ``mcap recover``: stream the records that are complete (whole chunks pass their CRC),
 stop at the first damaged or missing one, and write them again with fresh indexes,
 statistics and footer. A bag directory is recovered file by file, with a new
-``metadata.yaml``.
+``metadata.yaml``. The unfinished file stays as it was; beside it, ``<file>.recovered``
+names its recovered copy, so that a recorder starting next to it does not warn again.
 """
 from __future__ import annotations
 
+import json
 import os
 from dataclasses import dataclass, field
 
@@ -96,7 +98,34 @@ def recover_file(source: str, output: str) -> Recovered:
             os.unlink(output)
             raise BagError(f'{source}: no intact MCAP header; nothing to recover')
         writer.finish()
+    _mark_recovered(source, output)
     return result
+
+
+RECOVERED_SUFFIX = '.recovered'
+
+
+def _mark_recovered(source: str, output: str) -> None:
+    """Note beside ``source`` where its recovered copy is, and the size it was recovered at."""
+    try:
+        with open(source + RECOVERED_SUFFIX, 'w', encoding='utf-8') as f:
+            json.dump({'output': os.path.abspath(output), 'size': os.path.getsize(source)}, f)
+    except OSError:  # a read-only source: the copy is made; the recorder keeps its warning
+        pass
+
+
+def recovered_copy(source: str) -> str | None:
+    """The finished copy ``bag recover`` made of the unfinished ``source``, if it still
+    exists and ``source`` has not grown since; else None."""
+    try:
+        with open(source + RECOVERED_SUFFIX, encoding='utf-8') as f:
+            mark = json.load(f)
+        output, size = str(mark['output']), int(mark['size'])
+    except (OSError, ValueError, KeyError, TypeError):
+        return None
+    if size != os.path.getsize(source) or not is_finished(output):
+        return None
+    return output
 
 
 def recover(source: str, output: str) -> list[Recovered]:

@@ -65,6 +65,14 @@ SIMULATOR = (
               low=0.0, high=1e6),
     ParamSpec('qos', 'reliable', 'QoS of state topics and command subscriptions',
               kind='string', choices=QOS_CHOICES, read_only=True),
+    ParamSpec('wait_for_subscribers', 0, 'before t = 0, wait until every state topic has at '
+              'least this many matched subscriptions (1 for a recorder), and every one '
+              'discovered is matched, so that they get every sample from the first; 0 = '
+              'start at once (live node only)', kind='int',
+              low=0, high=1000, read_only=True),
+    ParamSpec('wait_for_subscribers_timeout', 10.0, 'longest wait for those subscribers (wall '
+              'time); then the run starts anyway, with a warning naming the topics without '
+              'them', kind='float', unit='s', low=0.0, high=1e6, read_only=True),
 ) + ACTUATORS + sensor_specs.SIMULATOR  # wheels and CMGs (actuator_specs); seed, sensors.*
 
 D = control.PARAMETER_DEFAULTS

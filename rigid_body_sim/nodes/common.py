@@ -108,6 +108,61 @@ def ros_arguments(argv=None) -> Tuple[List[str], Dict[str, str]]:
     return files, overrides
 
 
+def ros_sources(argv=None) -> List[Tuple[str, str]]:
+    """('file', path) and ('param', 'name:=value') of the process's --ros-args, in order."""
+    argv = sys.argv if argv is None else argv
+    out, ros = [], False
+    args = iter(argv)
+    for a in args:
+        if a == '--ros-args':
+            ros = True
+        elif a == '--':
+            ros = False
+        elif ros and a == '--params-file':
+            out.append(('file', next(args, '')))
+        elif ros and a in ('-p', '--param'):
+            out.append(('param', next(args, '')))
+    return out
+
+
+def _same(a, b) -> bool:
+    """Equal in value and in rcl type (10 is not 10.0 for rcl)."""
+    return params_file.rcl_type(a) == params_file.rcl_type(b) and a == b
+
+
+def overridden_warnings(node, argv=None) -> List[str]:
+    """One line per parameter whose last value on the command line is not the one the node
+    got (rcl's precedence, or a type that differs from an earlier value's): the key, the
+    value that won and where each came from. Files that cannot be read are left to
+    :func:`check_overrides`."""
+    fqn = node.get_fully_qualified_name()
+    try:
+        given, kept = params_file.given_values(ros_sources(argv), fqn)
+    except params_file.ParamsFileError:
+        return []
+    actual = getattr(node, '_parameter_overrides', {})
+    lines = []
+    for name, values in given.items():
+        last, won = values[-1], kept.get(name)
+        if name in actual:  # rclpy's own answer is the truth; ours names the origin
+            value = _value(actual[name])
+            if won is None or not _same(won.value, value):
+                won = params_file.Value(value, 'an unknown source')
+        if won is None or (won.section == last.section and _same(won.value, last.value)):
+            continue
+        if params_file.rcl_type(won.value) != params_file.rcl_type(last.value):
+            why = (f'its type ({params_file.rcl_type(last.value)}) differs from '
+                   f'{params_file.rcl_type(won.value)}: rcl keeps both and rclpy takes the '
+                   f'{params_file.rcl_type(won.value)}; write it as the other values are written')
+        else:
+            why = ('rcl applies the node sections in the order they first appear, later ones '
+                   "winning, and -p values go to '/**'; give it in a section that comes later, "
+                   'or set it at run time (ros2 param set)')
+        lines.append(f'parameter {name}: {last.value!r} from {last.section} is overridden: '
+                     f'{won.value!r} from {won.section} is in effect ({why})')
+    return lines
+
+
 def _origin(node, name: str, files) -> str:
     """Where an override of ``name`` came from: 'FILE: SECTION: ' or '-p ' or ''."""
     fqn = node.get_fully_qualified_name()
@@ -158,6 +213,8 @@ def declare_parameters(node, specs: Sequence[ParamSpec], argv=None) -> Dict[str,
     from). Call before registering on-set callbacks, or they see the declarations too.
     """
     check_overrides(node, specs, argv)
+    for line in overridden_warnings(node, argv):
+        node.get_logger().warning(line)
     files = ros_arguments(argv)[0]
     values = {}
     for spec in specs:

@@ -2,8 +2,15 @@
 
 Subscriptions are raw (the CDR bytes go to disk untouched) and the node runs in a
 SingleThreadedExecutor ``spin()`` with minimal callbacks: that is what lets Python keep
-up with several kHz. Each topic is subscribed once a publisher is seen, with a QoS
-compatible with all its publishers, and their offered QoS is stored like rosbag2 does.
+up with several kHz.
+
+Subscriptions. The package's own topics (``KNOWN_TYPES``) are subscribed at start, reliable,
+before any publisher exists: a simulator started with ``wait_for_subscribers`` then sees
+this recorder matched before its t = 0, and the bag holds every sample from the first.
+Any other topic is subscribed once a publisher is seen, with a QoS compatible with all its
+publishers (like rosbag2); a topic subscribed early whose publishers turn out to offer
+best effort, or another type, is subscribed again to match them. A topic is added to
+the bag at its first message, with the QoS its publishers offer (stored like rosbag2).
 """
 from __future__ import annotations
 
@@ -22,9 +29,10 @@ from rclpy.parameter import parameter_value_to_python
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
 from rigid_body_sim.bag.errors import BagError
-from rigid_body_sim.bag.recover import unfinished_files
+from rigid_body_sim.bag.recover import recovered_copy, unfinished_files
 from rigid_body_sim.bag.reader import recover_hint
-from rigid_body_sim.bag.schema import TypeNotFound, message_class, qos_to_dict, qos_yaml
+from rigid_body_sim.bag.schema import (DEFAULT_QOS_YAML, TypeNotFound, message_class,
+                                       qos_to_dict, qos_yaml)
 from rigid_body_sim.bag.writer import BagWriter
 from rigid_body_sim.nodes.process import signals_ignored, start_ros
 
@@ -37,6 +45,22 @@ DEFAULT_TOPICS = [
     'attitude_target', '/diagnostics', '/tf', 'gyro', 'star_tracker',
     'wheel_states', 'gimbal_states', 'actuator_command',  # scenes with wheels / CMGs
 ]
+# Their types (the nodes' own): these are subscribed at start, before their publishers exist.
+KNOWN_TYPES = {
+    'attitude': 'geometry_msgs/msg/QuaternionStamped', 'pose': 'geometry_msgs/msg/PoseStamped',
+    'transform': 'geometry_msgs/msg/TransformStamped', 'odometry': 'nav_msgs/msg/Odometry',
+    'angular_velocity': 'geometry_msgs/msg/Vector3Stamped',
+    'angular_momentum': 'geometry_msgs/msg/Vector3Stamped',
+    'angular_momentum_body': 'geometry_msgs/msg/Vector3Stamped',
+    'kinetic_energy': 'std_msgs/msg/Float64', 'imu': 'sensor_msgs/msg/Imu',
+    'torque_command': 'geometry_msgs/msg/Vector3Stamped',
+    'wrench_command': 'geometry_msgs/msg/WrenchStamped',
+    'attitude_target': 'geometry_msgs/msg/QuaternionStamped',
+    '/diagnostics': 'diagnostic_msgs/msg/DiagnosticArray', '/tf': 'tf2_msgs/msg/TFMessage',
+    'gyro': 'sensor_msgs/msg/Imu', 'star_tracker': 'geometry_msgs/msg/QuaternionStamped',
+    'wheel_states': 'sensor_msgs/msg/JointState', 'gimbal_states': 'sensor_msgs/msg/JointState',
+    'actuator_command': 'std_msgs/msg/Float64MultiArray',
+}
 # Messages taken per callback beyond the one the executor delivered (see _callback).
 DRAIN_LIMIT = 200
 
@@ -91,6 +115,7 @@ class Recorder(Node):
         self._subs: dict[str, Any] = {}
         self._record: dict[str, Callable[[bytes, dict], None]] = {}
         self._skipped: set[str] = set()
+        self._early: set[str] = set()  # subscribed before any publisher was seen
         # Same keys as the offline run's bag (rigid_body_sim.offline) where they overlap.
         self._config: dict[str, Any] = {'mode': 'live', 'scene': get('scene').value or None,
                                         'recorder': self._own_parameters()}
@@ -100,6 +125,7 @@ class Recorder(Node):
         steady = Clock(clock_type=ClockType.STEADY_TIME)
         flush_period = float(get('flush_period').value)
         self.create_timer(max(0.01, flush_period / 4), self.writer.flush_if_due, clock=steady)
+        self._subscribe_known()
         self._discovery = self.create_timer(float(get('discovery_period').value),
                                             self._discover, clock=steady)
         self._discover()
@@ -108,41 +134,88 @@ class Recorder(Node):
 
     # --- topics --------------------------------------------------------------------
 
+    def _subscribe_known(self) -> None:
+        """Subscribe now to the wanted topics whose type we know (the nodes' own), so that
+        a publisher waiting for subscribers finds this recorder matched before it starts."""
+        for name, type_name in KNOWN_TYPES.items():
+            topic = self.resolve_topic_name(name)
+            if topic not in self._wanted or topic in self._exclude:
+                continue
+            try:
+                message_class(type_name)
+            except TypeNotFound:  # e.g. /tf without tf2_msgs: left to discovery
+                continue
+            self._subscribe(topic, type_name, [])
+            self._early.add(topic)
+
     def _discover(self) -> None:
         for topic, types in self.get_topic_names_and_types():
-            if topic in self._subs or topic in self._skipped or topic in self._exclude:
+            if topic in self._skipped or topic in self._exclude:
+                continue
+            if topic in self._subs and topic not in self._early:
                 continue
             if not (topic in self._wanted or (self._all and not _hidden(topic))):
                 continue
             publishers = self.get_publishers_info_by_topic(topic)
-            if publishers:  # QoS and type come from the publishers
-                self._subscribe(topic, publishers[0].topic_type, publishers)
-        if not self._all and self._wanted <= set(self._subs) | self._skipped:
+            if not publishers:  # QoS and type come from the publishers
+                continue
+            if topic in self._early:
+                self._early.discard(topic)
+                try:
+                    same = self._subs[topic].msg_type is message_class(publishers[0].topic_type)
+                except TypeNotFound:
+                    same = False
+                if same and all(p.qos_profile.reliability == ReliabilityPolicy.RELIABLE
+                            for p in publishers):
+                    continue  # the early subscription matches them
+                self.get_logger().info(f'{topic}: its publishers offer another type or best '
+                                       'effort; subscribing again to match them')
+                self.destroy_subscription(self._subs.pop(topic))
+            self._subscribe(topic, publishers[0].topic_type, publishers)
+        if not self._all and self._wanted <= (set(self._subs) - self._early) | self._skipped:
             self._discovery.cancel()
 
     def _subscribe(self, topic: str, type_name: str, publishers: list[Any]) -> None:
+        """Subscribe ``topic``; with ``publishers`` (discovered) the QoS is chosen to match
+        them, without (subscribed early) it is reliable, volatile, ``qos_depth`` deep."""
         try:
             msg_type = message_class(type_name)
-            self.writer.add_topic(topic, type_name,
-                                  qos_yaml(qos_to_dict(p.qos_profile) for p in publishers))
-        except (TypeNotFound, BagError) as exc:
+        except TypeNotFound as exc:
             self.get_logger().warning(f'not recording {topic}: {exc}')
             self._skipped.add(topic)
             return
         offered = [p.qos_profile for p in publishers]
         # Like rosbag2: request the strongest policy every publisher offers.
         reliable = all(q.reliability == ReliabilityPolicy.RELIABLE for q in offered)
-        latched = all(q.durability == DurabilityPolicy.TRANSIENT_LOCAL for q in offered)
+        latched = bool(offered) and all(q.durability == DurabilityPolicy.TRANSIENT_LOCAL
+                                        for q in offered)
+        # Subscribed early (the nodes' own, reliable topics): keep all, so that a burst (a
+        # run as fast as possible) waits in the publisher until this node has taken it,
+        # instead of overwriting what it has not taken yet.
         qos = QoSProfile(
-            history=HistoryPolicy.KEEP_LAST,
+            history=HistoryPolicy.KEEP_LAST if offered else HistoryPolicy.KEEP_ALL,
             depth=max([self._depth] + [q.depth for q in offered]),
             reliability=ReliabilityPolicy.RELIABLE if reliable else ReliabilityPolicy.BEST_EFFORT,
             durability=DurabilityPolicy.TRANSIENT_LOCAL if latched else DurabilityPolicy.VOLATILE)
         subscription = self.create_subscription(msg_type, topic, lambda *_: None, qos, raw=True)
-        self._record[topic] = self._recorder(topic)
+        self._record[topic] = self._recorder(topic, type_name)
         subscription.callback = self._callback(topic, subscription)
         self._subs[topic] = subscription
         self.get_logger().info(f'subscribed to {topic} [{type_name}]')
+
+    def _add_to_bag(self, topic: str, type_name: str) -> bool:
+        """Add ``topic`` to the bag (at its first message), with the QoS its publishers
+        offer; False, with a warning, if it cannot be recorded."""
+        publishers = self.get_publishers_info_by_topic(topic)
+        try:
+            self.writer.add_topic(topic, type_name, qos_yaml(
+                qos_to_dict(p.qos_profile) for p in publishers) if publishers
+                else DEFAULT_QOS_YAML)
+        except (TypeNotFound, BagError) as exc:
+            self.get_logger().warning(f'not recording {topic}: {exc}')
+            self._skipped.add(topic)
+            return False
+        return True
 
     def _callback(self, topic: str, subscription: Any) -> Callable[[bytes, dict], None]:
         """The per-message path: stamp and append the raw bytes, nothing else.
@@ -163,12 +236,19 @@ class Recorder(Node):
                     record(*taken)
         return on_message
 
-    def _recorder(self, topic: str) -> Callable[[bytes, dict], None]:
+    def _recorder(self, topic: str, type_name: str) -> Callable[[bytes, dict], None]:
         write = self.writer.write
         clock = self.get_clock()
         sim_time = self._sim_time
+        state = {'added': None}  # None until the first message: then True, or False (refused)
 
         def record(data: bytes, info: dict) -> None:
+            if not state['added']:
+                if state['added'] is False:
+                    return
+                state['added'] = self._add_to_bag(topic, type_name)
+                if not state['added']:
+                    return
             stamp = clock.now().nanoseconds if sim_time else \
                 info.get('received_timestamp') or time.time_ns()
             write(topic, data, stamp, info.get('source_timestamp'))
@@ -228,6 +308,10 @@ class Recorder(Node):
         parent = os.path.dirname(output)
         found = sorted(set(unfinished_files(output)) | set(unfinished_files(parent)))
         for path in found:
+            copy = recovered_copy(path)
+            if copy:  # bag recover made it: no need to say it again at every start
+                self.get_logger().info(f'unfinished bag file {path} was recovered into {copy}')
+                continue
             # A file inside a bag directory: recover the whole bag (gets a metadata.yaml).
             target = path if os.path.dirname(path) == parent else os.path.dirname(path)
             self.get_logger().warning(f'unfinished bag file {path} (recorder killed?); '

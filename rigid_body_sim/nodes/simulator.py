@@ -22,6 +22,7 @@ runs in small slices. With ``real_time_factor: 0`` the engine runs in chunks of 
 import sys
 import time
 
+from rclpy.duration import Duration
 from rclpy.node import Node
 
 from diagnostic_msgs.msg import DiagnosticArray
@@ -51,6 +52,9 @@ SPECS = specs.SIMULATOR
 CHUNK_WALL_S = 0.02          # longest stretch of engine work between executor turns
 LIVE_BLOCK = 16              # samples per engine call (each is published before the next)
 SUBSCRIBER_REFRESH_S = 0.25  # how often matched-subscriber counts are re-read
+# wait_for_subscribers: the counts must hold this long, as the replies of the peers already
+# running to a new participant's announcement arrive within a few milliseconds of each other
+SUBSCRIBER_SETTLE_S = 0.2
 DIAGNOSTICS_PERIOD_S = 1.0   # wall clock
 MAX_LAG_S = 1.0              # behind the wall-clock target by more: drop the backlog
 PILOT_SLICE_S = 0.002        # least time for auto's pilot per loop turn (as fast as possible)
@@ -59,6 +63,8 @@ QUIT_GRACE_S = 0.5           # a quit request's reply goes out before the node g
 NUMERICS = {'integrator', 'step', 'accuracy', 'publish_rate', 'duration', 'dissipation.model',
             'dissipation.coefficient'}
 STATE_DEPTH = 100            # history of state topics: reliable delivery survives short stalls
+ACK_EVERY = STATE_DEPTH // 2  # as fast as possible: wait for acknowledgements this often
+ACK_TIMEOUT = Duration(seconds=1.0)  # then go on (a subscriber that hangs stalls no run)
 
 
 def check_parameters(p):
@@ -123,6 +129,7 @@ class Simulator(Node):
         self._missed = self._missed_at_last_diag = 0
         self._resets = 0  # ~/reset and set_state: viewers restart their drift and traces on it
         self._worst_late = 0.0
+        self._unacked, self._ack_warn = 0, 0.0  # samples since the last wait for acks
         self._method = self._engine.method
         self._base_stamp(self.get_clock().now().nanoseconds)
         self._anchor()
@@ -197,11 +204,33 @@ class Simulator(Node):
                 self._clock_pub.publish(self._clock_msg)
             for publisher, name in self._active:
                 publisher.publish(data[name])
+            if self._paced and self._active:
+                self._unacked += 1
+                if self._unacked >= ACK_EVERY:
+                    self._wait_acked()
             if rtf > 0:
                 late = time.monotonic() - self._due_wall(t_ns)
                 self._worst_late = max(self._worst_late, late)
                 if late > self._p['deadline_tolerance']:
                     self._missed += 1
+
+    @property
+    def _paced(self) -> bool:
+        """Publishing waits for acknowledgements: as fast as possible, or when subscribers
+        were waited for (a recorder: it must get every sample, even if it lags)."""
+        return not self._p['real_time_factor'] or self._p['wait_for_subscribers'] > 0
+
+    def _wait_acked(self):
+        """Hold until reliable subscribers have acknowledged what was published, so that
+        no more than ACK_EVERY samples are ever unacknowledged and the STATE_DEPTH history
+        never overwrites one a subscriber (a recorder) has not got. A subscriber that keeps
+        up acknowledges within milliseconds: then this costs nothing."""
+        self._unacked = 0
+        slow = [name for p, name in self._active if not p.wait_for_all_acked(ACK_TIMEOUT)]
+        if slow and time.monotonic() >= self._ack_warn:
+            self._ack_warn = time.monotonic() + 5.0
+            self._log.warning(f'subscribers of {", ".join(slow)} acknowledge nothing for '
+                              f'{ACK_TIMEOUT.nanoseconds / NS:g} s; going on without them')
 
     def _catch_up(self, now=None):
         """Real-time modes: process what is due by the wall clock."""
@@ -248,11 +277,50 @@ class Simulator(Node):
         subscription each turn (~0.6 ms; the simulator has ~20), which cost more than the
         physics."""
         with events_executor(self) as executor:
+            self._wait_for_subscribers(executor)
             self._base_stamp(self.get_clock().now().nanoseconds)
             self._anchor()  # pace from the first turn of the loop, not from construction
             while self.context.ok() and not self._engine.finished and not (
                     self._quit_at is not None and time.monotonic() >= self._quit_at):
                 executor.spin_once(timeout_sec=self.run_once())
+
+    def _wait_for_subscribers(self, executor):
+        """Hold t = 0 until every state publisher has ``wait_for_subscribers`` matched
+        subscriptions (a recorder subscribed at its start: the bag then holds every sample
+        from the first), or ``wait_for_subscribers_timeout`` has passed: then start anyway,
+        with a warning naming the topics still without them."""
+        n = self._p['wait_for_subscribers']
+        if n <= 0:
+            return
+        pubs = [p for p, _ in self._pubs] + list(self._sensor_pubs.values())
+
+        def missing():
+            """Topics with fewer than n matched subscriptions, or with one discovered but
+            not matched yet (discovery delivers a node's subscriptions one by one)."""
+            return [p.topic_name for p in pubs if p.get_subscription_count() < max(
+                n, len(self.get_subscriptions_info_by_topic(p.topic_name)))]
+        timeout = self._p['wait_for_subscribers_timeout']
+        self._log.info(f'waiting up to {timeout:g} s for {n} matched subscription(s) on each '
+                       f'of {len(pubs)} state topics before t = 0 (wait_for_subscribers)')
+        now = time.monotonic()
+        deadline, settled = now + timeout, now + SUBSCRIBER_SETTLE_S
+        paused, self.paused = self.paused, True  # commands arriving meanwhile advance nothing
+        while self.context.ok() and time.monotonic() < deadline and self._quit_at is None:
+            if missing():
+                settled = time.monotonic() + SUBSCRIBER_SETTLE_S
+            elif time.monotonic() >= settled:
+                break
+            executor.spin_once(timeout_sec=0.02)
+        self.paused = paused
+        left = missing()
+        if left:
+            self._log.warning(f'starting at t = 0 without {n} subscription(s) on '
+                              f'{", ".join(left)} after {timeout:g} s (wait_for_subscribers); '
+                              'they miss the first samples')
+        else:
+            self._log.info('every state topic has its subscribers; starting at t = 0')
+        self._refresh_subscribers()
+        self._last_diag = (time.monotonic(), self._engine.t_ns)  # the rate leaves the wait out
 
     @property
     def finished(self) -> bool:
