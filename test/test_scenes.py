@@ -132,8 +132,10 @@ def nutation_deg(samples, spin_axis=0):
 
 
 def test_explorer1_goes_flat_within_one_orbit_keeping_momentum():
-    """Within 115 min the spin is within 1° of the major axis; |L| constant to 1e-10;
-    the nutation follows tan θ = tan θ0·exp(c t), c = α|L|²(1/I_s − 1/I_t), to 0.1°."""
+    """Within 115 min the spin is within 1° of the major axis; |L| constant to 1e-8;
+    the nutation follows tan θ = tan θ0·exp(c t), c = α|L|²(1/I_s − 1/I_t), to 0.1°.
+    (|L| was held to 1e-10 when auto could only pick a Lie–Poisson method; it now picks
+    dop853 at rtol 8e-12, 0.83 s of CPU against splitting6's 2.95 s, and |L| drifts 2.4e-9.)"""
     scene = load('explorer1')
     result = simulate(scene)
     s = result.samples
@@ -142,7 +144,7 @@ def test_explorer1_goes_flat_within_one_orbit_keeping_momentum():
     assert flat.size and s['t'][flat[0]] <= 115 * 60, 'not flat within one orbit'
     assert np.all(theta[flat[0]:] >= 89.0)  # and it stays flat
     L = np.linalg.norm(s['angular_momentum'], axis=1)
-    assert np.max(np.abs(L / L[0] - 1)) < 1e-10
+    assert np.max(np.abs(L / L[0] - 1)) < 1e-8
     I_s, I_t = scene.simulator['inertia'][0], scene.simulator['inertia'][1]
     c = scene.simulator['dissipation.coefficient'] * L[0] ** 2 * (1 / I_s - 1 / I_t)
     predicted = np.degrees(np.arctan(np.tan(np.radians(theta[0])) * np.exp(c * s['t'])))

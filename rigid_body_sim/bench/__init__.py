@@ -4,6 +4,7 @@
 
 One process run measures every section, prints tables and writes CSV + PNG files into DIR:
 work_precision.csv, stability.csv, long_horizon.csv, batch.csv, live.json, exact_horizon.csv,
+generated.csv (auto against each generated scene's oracle),
 targets.csv, targets.md, work_precision_<scene>.png, stability.png, long_horizon.png. Times
 are process CPU seconds (``time.process_time``), so they include Python overhead — ours and
 scipy's alike; MuJoCo and Basilisk step in C. Modules: scenes (data), workprecision,
@@ -20,8 +21,8 @@ import time
 
 from . import batch as batch_mod
 from . import compile as compile_cost
-from . import (charts, exact_horizon, live, longhorizon, peers, perstep, selection, stability,
-               targets, workprecision)
+from . import (charts, exact_horizon, generated, live, longhorizon, peers, perstep, selection,
+               stability, targets, workprecision)
 from .common import reference
 from .scenes import SCENES, SCENE_BY_NAME
 
@@ -189,6 +190,12 @@ def _run(args) -> int:
     sel_rows, sel_targets = selection.run(quick, log)
     _write_csv(os.path.join(out, 'selection.csv'), selection.FIELDS, sel_rows)
 
+    # 6b. auto on seeded generated scenes against each scene's oracle
+    log(f'\n== 6b. generalisation: auto on generated scenes (seed {generated.SEED}) ==')
+    gen_rows, gen_targets, _ = generated.run(quick, log)
+    _write_csv(os.path.join(out, 'generated.csv'), generated.FIELDS, gen_rows)
+    sel_targets = sel_targets + gen_targets
+
     # 7. compile cost of the kernels (never mixed into run cost)
     log('\n== 7. compile cost (numba kernels) ==')
     c_rows = compile_cost.run(quick, log)
@@ -222,7 +229,7 @@ def _run(args) -> int:
     else:
         t_rows.append(targets.simple('batch body-steps/s at N = 1e6 (one core)', math.nan, 1e7,
                                      None, 'not measured in --quick (N ≤ 1e4)'))
-    t_rows += perstep.targets_from(ps_fig)
+    t_rows += perstep.targets_from(ps_fig, quick)
     sim = live_res['simulator']
     for key, req, better in (('real_time_factor', 100.0, 'ge'),
                              ('cpu_share_at_real_time', 0.05, 'le'),

@@ -226,7 +226,7 @@ class Engine:
             sel = select(*state, prior_only=True, **kw)
             self.selection_cpu += time.process_time() - cpu0
             self._use(sel.name, sel.step, f'auto: provisional a-priori choice while the '
-                      f'selection pilot runs: {sel.reason}')
+                      f'selection pilot runs: {sel.reason}', **dict(sel.options))
             self._selection = work
 
     def _check_method(self):
@@ -273,7 +273,8 @@ class Engine:
             self._selection = None
             self.selected = sel
             self._use(sel.name, min(sel.step, self.config.event_spacing()) if sel.step > 0
-                      else self.config.event_spacing(), f'auto: {sel.reason}')
+                      else self.config.event_spacing(), f'auto: {sel.reason}',
+                      **dict(sel.options))
         except (ValueError, IntegrationError) as exc:
             self.selection_cpu += time.process_time() - cpu0
             self._selection = None

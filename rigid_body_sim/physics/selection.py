@@ -84,6 +84,7 @@ class Selection:
     pilot_steps: int = 0
     pilot_cost: float = 0.0
     prior_cost: float = 0.0
+    options: tuple = ()  # (name, value) pairs for the method: dop853's rtol and atol
 
     @property
     def planned_cost(self) -> float:
@@ -176,6 +177,8 @@ def selecting(body: RigidBody, dissipation: Dissipation, attitude, angular_veloc
         return Selection('splitting2', max_step, 'body at rest, no torque: any step is exact',
                          0.0, s.run_cost(CANDIDATES[0], max_step))
     usable = [c for c in CANDIDATES if s.applicable(c, torque)]
+    adaptive = [c for c in usable if c.adaptive]  # set by a tolerance, not a step
+    usable = [c for c in usable if not c.adaptive]
     if not torque:  # a method another one supersedes is not asked (Candidate.supersedes)
         superseded = {c.supersedes for c in usable}
         usable = [c for c in usable if c.name not in superseded]
@@ -205,6 +208,17 @@ def selecting(body: RigidBody, dissipation: Dissipation, attitude, angular_veloc
         best = (c, h, s.run_cost(c, h), err)
         why.append(f'none meets the budget; the most accurate: {c.name} h={h:.3g} '
                    f'(E={err:.2g}, round-off included)')
+    tolerances = {}
+    for c in adaptive:  # a tolerance a priori (RunModel.tolerance): bounded, never piloted
+        rtol, cost, err = s.tolerance(c)
+        tolerances[c.name] = rtol
+        why.append(f'{c.name} rtol={rtol:.2g} (E≤{err:.2g})')
+        if (_better(c, cost, best, accuracy) if err <= accuracy
+                else best[3] > accuracy and err < best[3]):
+            best = (c, max_step, cost, err)
+        if err > accuracy:
+            why.append(f'{c.name} cannot promise {accuracy:g} rad even at rtol '
+                       f'{rtol:.0e}')
     effects = [e for e, on in (('commanded torque', torque), (f'{dissipation.model} dissipation',
                                                                 dissipation.active)) if on]
     head = (f'{" + ".join(effects)} → cheapest method meeting {accuracy:g} rad over '
@@ -212,13 +226,26 @@ def selecting(body: RigidBody, dissipation: Dissipation, attitude, angular_veloc
     prior = 'a priori (k·(hΩ)^p·ΩT): ' + ', '.join(why)
     if torque or prior_only:
         c, h, cost, err = best
-        return Selection(c.name, h, f'{head}; {prior}', err, cost, prior_cost=prior_cost)
+        return Selection(c.name, h, f'{head}; {prior}', err, cost, prior_cost=prior_cost,
+                         options=_options(c, tolerances, s.G))
     found = yield from _piloted(
         s, usable, best, lambda: body.attitude_to_principal(rotation.validated(attitude)),
         prior_cost)
     c, h, cost, err, steps, spent, notes = found
+    if err > accuracy:
+        notes.append(f'no method can be shown to meet {accuracy:g} rad here; the most '
+                     f'accurate predicted ({err:.2g} rad)')
     return Selection(c.name, h, f'{head}; {prior}; pilot: ' + '; '.join(notes), err, cost,
-                     steps, spent, prior_cost)
+                     steps, spent, prior_cost, _options(c, tolerances, s.G))
+
+
+def _options(c, tolerances, momentum):
+    """The chosen method's options: an adaptive one's rtol, and an atol that many times
+    smaller on the state (q of norm 1, m of norm |L|)."""
+    if not c.adaptive:
+        return ()
+    rtol = tolerances[c.name]
+    return (('rtol', rtol), ('atol', rtol * 1e-3 * min(1.0, momentum)))
 
 
 def _budget(strict, fallback, saving, spend, prior_cost):
@@ -261,7 +288,10 @@ def _piloted(s, usable, best, principal_attitude, prior_cost):
         # where this candidate could save PAYBACK times what the pilot would then have
         # cost: up to SELECTION_SHARE of the run it would make without it (the stiff bench
         # scene at 1e-9 rad: 0.48 s a priori, RK4 verified at 3 ms with a 2 ms pilot)
-        run = best[2] if best[3] <= s.accuracy else max(best[2], estimate)
+        # (an adaptive best at its tightest rtol stays unless beaten within PAYBACK× its
+        # cost: its run bounds the pilot as if it met the budget)
+        met = best[3] <= s.accuracy or best[0].adaptive
+        run = best[2] if met else max(best[2], estimate)
         budget = SELECTION_SHARE * min(run, estimate) - prior_cost
         fallback = SELECTION_SHARE * run - prior_cost
         if levels is None:  # the first round sets up the pilot's states
@@ -312,8 +342,12 @@ def _piloted(s, usable, best, principal_attitude, prior_cost):
             if _better(c, s.run_cost(c, h), best, s.accuracy):
                 best = (c, h, s.run_cost(c, h), err)
             continue
-        if best[3] > s.accuracy and err < best[3]:
-            best = (c, h, s.run_cost(c, h), err)  # none meets it yet: the most accurate
+        # none meets it yet: the most accurate, unless it costs PAYBACK× more than the best
+        # (an adaptive method's bound at its tightest rtol is loose: dop853 at rtol 1e-13 is
+        # bounded at 5e-7 rad where it errs 3e-11, and exact at 3 ms steps cost 1000× it)
+        if best[3] > s.accuracy and err < best[3] and (
+                not best[0].adaptive or s.run_cost(c, h) <= PAYBACK * best[2]):
+            best = (c, h, s.run_cost(c, h), err)
         room = s.accuracy - floor
         if rounds + 1 >= ROUNDS or room <= 0.0:
             continue

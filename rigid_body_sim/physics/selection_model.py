@@ -38,6 +38,9 @@ class Candidate:
     supersedes: a candidate not asked where this one is usable without torque (the same
         scheme at no lower cost: asking both would only double the pilot).
     coupled_only: considered only with torque or dissipation (``exact`` splits them off).
+    adaptive: the step follows a tolerance (dop853): not stepped at h, not piloted; its rtol,
+        cost and error come from :meth:`RunModel.tolerance`, and ``k`` bounds its error
+        per rtol and radian turned (see DOP853_*).
     geometric: Lie–Poisson (|L| exact, bounded energy error). Only these can err far less
         than ``k`` says (a spin near a principal axis is an exact axis rotation for them),
         so only they are piloted from hΩ = 2; and within PREFER of the cheapest they win.
@@ -61,6 +64,7 @@ class Candidate:
     supersedes: str = ''
     coupled_only: bool = False
     geometric: bool = True
+    adaptive: bool = False
 
 
 CANDIDATES = (
@@ -79,7 +83,20 @@ CANDIDATES = (
     # 10 rev/s; exact at h = 1 s and 0.5 s agree to 1e-6 and are 0.02 rad off after 690 s),
     # which step doubling cannot see
     Candidate('exact', (18.0, 18.0), math.inf, 0.0, coupled_only=True),
+    # cost: µs per step (12 evaluations); k: see DOP853_*
+    Candidate('dop853', (1.2, 1.3), 2.0, 0.0, call=(3.0, 3.0), growth='drift', adaptive=True,
+              coupled_only=True, geometric=False),
 )
+# dop853's a-priori model, from 60 runs on 20 generated dissipative scenes (seed 7,
+# ``bench.generated``; 150–2·10⁴ rad turned, rtol 1e-5–1e-9): its attitude error was
+# E/(rtol·ΩT) ≤ 60, median 0.09, growing with ΩT beyond a few hundred rad (energy drift):
+# E ≤ k·rtol·ΩT·max(1, ΩT/DOP853_DRIFT) held on all with k = 2. An rtol 10× too tight costs
+# only 10^(1/8) = 1.33× the steps, so the bound errs toward accuracy at little cost.
+# Steps: 0.027–0.14 (median 0.08) × ΩT·rtol^(-1/8); explicit, so at least stiffness·T/6.
+DOP853_DRIFT = 300.0      # rad turned from which the error grows as (ΩT)²
+DOP853_STEPS = 0.1        # steps per rad turned at rtol 1
+DOP853_STABLE = 6.0       # its real-axis stability limit, roughly (h·stiffness)
+RTOL_RANGE = (1e-13, 1e-3)
 ROUNDOFF = 2.5e-17        # rad per stage, step and radian turned (see Candidate.stages)
 DAMP_SUBSTEP = 0.068      # µs per double-bracket substep outside a composition
 RUN_COST = 3e-4           # s: building and finishing a run (engine, first and last sample)
@@ -164,6 +181,22 @@ class RunModel:
         return (RUN_COST + self.events * (EVENT_COST + call)
                 + self.horizon / h * min(c.cost) * 1e-6)
 
+    def tolerance(self, c):
+        """(rtol, run cost s, a-priori error rad) of an adaptive candidate: the loosest rtol
+        in RTOL_RANGE whose bound meets the budget (the tightest if none does)."""
+        turned = self.omega * self.horizon
+        scale = c.k * turned * max(1.0, turned / DOP853_DRIFT)
+        rtol = RTOL_RANGE[1]
+        for _ in range(2):  # the round-off depends on the steps, weakly on rtol
+            steps = max(DOP853_STEPS * turned * rtol ** -0.125,
+                        self.stiffness * self.horizon / DOP853_STABLE, 1.0)
+            room = self.accuracy - ROUNDOFF * steps * turned
+            rtol = min(max(room / scale, RTOL_RANGE[0]), RTOL_RANGE[1])
+        call = c.call[0 if self.damping is None else 1] * 1e-6
+        per_step = c.cost[0 if self.damping is None else 1] * 1e-6
+        cost = RUN_COST + self.events * (EVENT_COST + call) + steps * per_step
+        return rtol, cost, scale * rtol + ROUNDOFF * steps * turned
+
     def roundoff(self, c, h):
         """Attitude error (rad) from rounding over the run at step h."""
         return ROUNDOFF * c.stages * self.events * round(self.max_step / h) * self.turned
@@ -232,6 +265,8 @@ class RunModel:
         return min(((h, self.prior_error(c, h)) for h in steps), key=lambda he: he[1])
 
     def applicable(self, c, torque):
+        if c.adaptive:  # its restarts at every control instant are not in its cost model
+            return not torque and self.damping is not None
         if c.coupled_only and not (torque or self.damping):
             return False
         if c.exact_damping:
