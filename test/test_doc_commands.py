@@ -1,7 +1,29 @@
 """Every command the docs show is run (a renamed flag breaks this test, not a user), and
 every shell block says whether it is runnable (doc_blocks.py: the convention)."""
+import pytest
 
-from doc_blocks import make_workdir, run
+from doc_blocks import blocks, doc_files, make_workdir, run
+
+ALL = [b for path in doc_files() for b in blocks(path)]
+RUNNABLE = [b for b in ALL if b.kind == 'runnable']
+
+
+def test_every_shell_block_is_marked():
+    unmarked = [b.id for b in ALL if not b.kind]
+    assert not unmarked, ('shell blocks without <!-- runnable --> or <!-- not-runnable: why -->'
+                          f' (see CONTRIBUTING.md): {unmarked}')
+
+
+def test_the_docs_have_runnable_blocks():
+    assert len(RUNNABLE) >= 5, [b.id for b in RUNNABLE]
+
+
+@pytest.mark.parametrize('block', RUNNABLE, ids=[b.id for b in RUNNABLE])
+def test_runnable_block(block, tmp_path):
+    cwd = make_workdir(str(tmp_path))
+    for command in block.commands:
+        ok, what = run(command, block.options, cwd)
+        assert ok, f'{block.id}: {what}'
 
 
 def test_the_runner_fails_on_a_renamed_flag(tmp_path):
