@@ -2,6 +2,7 @@
 #                          make test   (set up, then run the whole test suite)
 # For developers:          make check  (physics, engine and lint only: within 30 s)
 #                          make tour   (the README's tour thumbnails, into docs/tour)
+#                          make docs   (the documentation site, into out/docs/html)
 # Setup is a .venv in the repo that is also an ament prefix for this package,
 # so `ros2 run`-style lookups (lib/rigid_body_sim/<exe>, ament index) work in it.
 
@@ -20,6 +21,7 @@ NODES       := simulator controller recorder replay viewer
 INTERFACES  := $(wildcard interfaces/* interfaces/*/* interfaces/*/*/*)
 
 .PHONY: demo test check venv bench clean tour ament-layout
+.PHONY: docs
 .DEFAULT_GOAL := demo
 
 demo: venv
@@ -35,6 +37,11 @@ check: venv
 # The README's tour: one thumbnail per phenomenon of free rotation, into docs/tour.
 tour: venv
 	$(VENV)/bin/rigid-body-sim tour --out docs/tour
+
+# The documentation (docs/, Sphinx + MyST) into out/docs: warnings are errors (-W), every
+# internal reference must resolve (-n); the reference pages are generated from the code.
+docs: venv
+	$(PY) -m sphinx -b html -W --keep-going -n -q docs out/docs/html
 
 bench: venv
 	$(VENV)/bin/rigid-body-sim bench --out out/bench

@@ -13,7 +13,7 @@ import math
 from numbers import Integral, Real
 from typing import Any, Dict, Iterable, Mapping, Optional, Tuple
 
-KINDS = ('float', 'int', 'bool', 'string', 'float_array')
+KINDS = ('float', 'int', 'bool', 'string', 'float_array', 'string_array')
 
 
 def _is_number(v) -> bool:
@@ -24,7 +24,7 @@ def _is_number(v) -> bool:
 class ParamSpec:
     """One parameter: default, description, unit, type and valid range.
 
-    kind: ``float`` | ``int`` | ``bool`` | ``string`` | ``float_array``.
+    kind: ``float`` | ``int`` | ``bool`` | ``string`` | ``float_array`` | ``string_array``.
     low/high: bounds (``None`` = unbounded); ``low_open``/``high_open`` make them strict.
     sizes: allowed lengths of a ``float_array``; choices: allowed strings.
     scalar_ok: a ``float_array`` that also takes one number (``natural_frequency:=1.0``).
@@ -105,6 +105,11 @@ class ParamSpec:
             if self.choices and v not in self.choices:
                 raise ValueError(f'{self.name} = {v!r} is not one of: {", ".join(self.choices)}')
             return v
+        if self.kind == 'string_array':
+            if isinstance(v, (str, bytes)) or not hasattr(v, '__iter__') or \
+                    not all(isinstance(x, str) for x in v):
+                raise ValueError(f'{self.name} must be a list of strings, got {v!r}')
+            return list(v)
         # float_array
         if self.scalar_ok and _is_number(v):
             v = [v]

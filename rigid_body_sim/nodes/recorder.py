@@ -34,57 +34,25 @@ from rigid_body_sim.bag.reader import recover_hint
 from rigid_body_sim.bag.schema import (DEFAULT_QOS_YAML, TypeNotFound, message_class,
                                        qos_to_dict, qos_yaml)
 from rigid_body_sim.bag.writer import BagWriter
+from rigid_body_sim.node_interfaces import (RECORDED_BY_DEFAULT, RECORDED_TYPES,
+                                            RECORDER_PARAMETERS)
 from rigid_body_sim.nodes.process import signals_ignored, start_ros
 
-# What the simulator and controller publish (relative names resolve in our namespace).
-# /clock is left out: replay --clock regenerates it from the log time. /tf appears only
-# where tf2_msgs is installed.
-DEFAULT_TOPICS = [
-    'attitude', 'pose', 'transform', 'odometry', 'angular_velocity', 'angular_momentum',
-    'angular_momentum_body', 'kinetic_energy', 'imu', 'torque_command', 'wrench_command',
-    'attitude_target', '/diagnostics', '/tf', 'gyro', 'star_tracker',
-    'wheel_states', 'gimbal_states', 'actuator_command',  # scenes with wheels / CMGs
-]
-# Their types (the nodes' own): these are subscribed at start, before their publishers exist.
-KNOWN_TYPES = {
-    'attitude': 'geometry_msgs/msg/QuaternionStamped', 'pose': 'geometry_msgs/msg/PoseStamped',
-    'transform': 'geometry_msgs/msg/TransformStamped', 'odometry': 'nav_msgs/msg/Odometry',
-    'angular_velocity': 'geometry_msgs/msg/Vector3Stamped',
-    'angular_momentum': 'geometry_msgs/msg/Vector3Stamped',
-    'angular_momentum_body': 'geometry_msgs/msg/Vector3Stamped',
-    'kinetic_energy': 'std_msgs/msg/Float64', 'imu': 'sensor_msgs/msg/Imu',
-    'torque_command': 'geometry_msgs/msg/Vector3Stamped',
-    'wrench_command': 'geometry_msgs/msg/WrenchStamped',
-    'attitude_target': 'geometry_msgs/msg/QuaternionStamped',
-    '/diagnostics': 'diagnostic_msgs/msg/DiagnosticArray', '/tf': 'tf2_msgs/msg/TFMessage',
-    'gyro': 'sensor_msgs/msg/Imu', 'star_tracker': 'geometry_msgs/msg/QuaternionStamped',
-    'wheel_states': 'sensor_msgs/msg/JointState', 'gimbal_states': 'sensor_msgs/msg/JointState',
-    'actuator_command': 'std_msgs/msg/Float64MultiArray',
-}
+# The default topics, their types (subscribed at start, before their publishers exist) and
+# the parameters are data, shared with the docs' reference.
+DEFAULT_TOPICS = RECORDED_BY_DEFAULT
+KNOWN_TYPES = RECORDED_TYPES
 # Messages taken per callback beyond the one the executor delivered (see _callback).
 DRAIN_LIMIT = 200
 
 
 class Recorder(Node):
-    """Node ``mcap_recorder``; parameters are documented in the package README."""
+    """Node ``mcap_recorder``; parameters: ``node_interfaces.RECORDER_PARAMETERS``."""
 
     def __init__(self) -> None:
         super().__init__('mcap_recorder')
-        p = self.declare_parameter
-        p('topics', DEFAULT_TOPICS)
-        p('all', False)
-        p('exclude', [''])
-        p('output', '')
-        p('name', '')
-        p('max_bag_duration', 0.0)
-        p('max_bag_size', 0)
-        p('flush_period', 1.0)
-        p('compression', 'zstd')
-        p('qos_depth', 1000)
-        p('discovery_period', 0.2)
-        p('simulator_node', 'attitude_simulator')
-        p('config_timeout', 10.0)
-        p('scene', '')
+        for spec in RECORDER_PARAMETERS:
+            self.declare_parameter(spec.name, spec.default)
         get = self.get_parameter
 
         self._all = bool(get('all').value)
