@@ -1,5 +1,6 @@
 """What a newcomer meets first: --help lists the choices and units, the demo's status line
 never shows NaN, and a setup stage says what it does and shows its log only on failure."""
+import math
 import os
 import subprocess
 import sys
@@ -28,6 +29,14 @@ class _FakeNode:
         return None
 
 
+def _at(w, t):
+    """Put the watcher's last sample at sim time ``t`` after the simulator's t = 0 (its
+    diagnostics give that stamp; here 100 s)."""
+    w.origin = 100.0
+    w.stamp = w.origin + t / w.time_scale
+    w.t0 = w.stamp if w.t0 is None else w.t0
+
+
 def test_demo_status_line_is_empty_until_the_first_sample_then_has_no_nan():
     import numpy as np
 
@@ -36,13 +45,14 @@ def test_demo_status_line_is_empty_until_the_first_sample_then_has_no_nan():
     w = _Watcher(_FakeNode(), np.array([0.0, 0.0, 0.0, 1.0]), time_scale=2.0)
     assert w.status() == ''
     w.q, w.w, w.L, w.T = np.array([0.0, 0.0, 0.0, 1.0]), np.ones(3), np.ones(3), 1.5
-    w.t0, w.t = 100.0, 0.0
+    _at(w, 0.0)
     line = w.status()
     assert line.startswith('t =') and 'nan' not in line.lower() and 'rtf' not in line
     assert line.endswith('[free]') and w.ended_in() == 'free'
     w.rtf = 0.02  # the first report's rate spans the start-up wait: not shown before 1 s
     assert 'rtf' not in w.status()
-    w.t, w.rtf, w.phase = 2.0, 1.0, 'slew'
+    _at(w, 2.0)
+    w.rtf, w.phase = 1.0, 'slew'
     assert 'rtf  1.00' in w.status() and w.ended_in() == 'slew'
     # from the simulator's diagnostics: its first report spans start-up and is not shown
     from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
@@ -98,9 +108,10 @@ def test_demo_summary_explains_an_unfinished_run():
     from rigid_body_sim.scene import load
     scene = load(os.path.join(REPO, 'config', 'default.yaml'))
     w = _Watcher(_FakeNode(), np.array([0.0, 0.0, 0.0, 1.0]))
-    w.t = 10.0
-    assert 'free phase lasts 17 s' in _phase_hint(w, scene)
-    w.phase, w.slew_start, w.t = 'slew', 20.0, 24.0
-    assert 'settles to 2 % in 5.83/ω_n = 7.3 s' in _phase_hint(w, scene)
-    w.t = 40.0
-    assert _phase_hint(w, scene) == ''
+    _at(w, 10.0)
+    assert 'free phase lasts 17 s' in _phase_hint(w, scene, math.nan)
+    w.phase = 'slew'
+    _at(w, 24.0)  # the slew began at 20 s (the summary takes that from the bag)
+    assert 'settles to 2 % in 5.83/ω_n = 7.3 s' in _phase_hint(w, scene, 20.0)
+    _at(w, 40.0)
+    assert _phase_hint(w, scene, 20.0) == ''

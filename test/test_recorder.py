@@ -155,7 +155,9 @@ def test_sigkill_then_recover(ros_process, namespace, rclpy_node, tmp_path):
     for topic in ('attitude', 'odometry'):  # the publisher waits for 2 subscribers on each
         rclpy_node.create_subscription(message_class(TOPICS[topic]), f'{namespace}/{topic}',
                                        lambda _: None, QoSProfile(depth=1000), raw=True)
-    start_publisher(ros_process, namespace, rate=500, duration=4, subscribers=2)
+    # depth 1000, as the README advises for high-rate publishers: with 10, a recorder
+    # stalled by a loaded machine for 20 ms loses messages before any SIGKILL
+    start_publisher(ros_process, namespace, rate=500, duration=4, subscribers=2, depth=1000)
     assert spin_until(rclpy_node, lambda: len(seen) >= 1000, 30, spinner(rclpy_node))
     rec.signal(signal.SIGKILL)
     received_at_kill = len(seen)

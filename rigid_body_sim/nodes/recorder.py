@@ -84,6 +84,7 @@ class Recorder(Node):
         self._record: dict[str, Callable[[bytes, dict], None]] = {}
         self._skipped: set[str] = set()
         self._early: set[str] = set()  # subscribed before any publisher was seen
+        self._before_clock: list[tuple[str, bytes, dict]] = []  # use_sim_time, no /clock yet
         # Same keys as the offline run's bag (rigid_body_sim.offline) where they overlap.
         self._config: dict[str, Any] = {'mode': 'live', 'scene': get('scene').value or None,
                                         'recorder': self._own_parameters()}
@@ -208,6 +209,7 @@ class Recorder(Node):
         write = self.writer.write
         clock = self.get_clock()
         sim_time = self._sim_time
+        before_clock = self._before_clock
         state = {'added': None}  # None until the first message: then True, or False (refused)
 
         def record(data: bytes, info: dict) -> None:
@@ -217,10 +219,25 @@ class Recorder(Node):
                 state['added'] = self._add_to_bag(topic, type_name)
                 if not state['added']:
                     return
-            stamp = clock.now().nanoseconds if sim_time else \
-                info.get('received_timestamp') or time.time_ns()
+            if sim_time:
+                stamp = clock.now().nanoseconds
+                if stamp == 0:  # no /clock yet: held until it comes (topics subscribed at
+                    before_clock.append((topic, data, info))  # start can beat it)
+                    return
+                if before_clock:
+                    self._write_before_clock(stamp)
+            else:
+                stamp = info.get('received_timestamp') or time.time_ns()
             write(topic, data, stamp, info.get('source_timestamp'))
         return record
+
+    def _write_before_clock(self, stamp: int) -> None:
+        """Messages that arrived before the first /clock, logged at the first sim time
+        (with no clock at all, at 0 when the bag closes): none is lost, and none is logged
+        before the replayed timeline starts."""
+        held, self._before_clock[:] = list(self._before_clock), []
+        for topic, data, info in held:
+            self.writer.write(topic, data, stamp, info.get('source_timestamp'))
 
     # --- run configuration ---------------------------------------------------------
 
@@ -297,6 +314,8 @@ class Recorder(Node):
 
     def close(self) -> None:
         self.drain()
+        if self._before_clock:
+            self._write_before_clock(self.get_clock().now().nanoseconds)
         self.writer.close()
         counts = self.writer.topic_counts()
         # After SIGINT the context is gone: log without the /rosout publisher.

@@ -283,6 +283,10 @@ class Simulator(Node):
             while self.context.ok() and not self._engine.finished and not (
                     self._quit_at is not None and time.monotonic() >= self._quit_at):
                 executor.spin_once(timeout_sec=self.run_once())
+            if self._engine.finished and self._paced and self.context.ok():
+                # the last samples are still in flight when the run ends: a recorder that
+                # was waited for must get them before this process takes its writers away
+                self._wait_acked()
 
     def _wait_for_subscribers(self, executor):
         """Hold t = 0 until every state publisher has ``wait_for_subscribers`` matched
