@@ -28,15 +28,8 @@ from rigid_body_sim.bag.schema import TypeNotFound, message_class, qos_to_dict, 
 from rigid_body_sim.bag.writer import BagWriter
 from rigid_body_sim.nodes.process import signals_ignored, start_ros
 
-# What the simulator and controller publish (relative names resolve in our namespace).
-# /clock is left out: replay --clock regenerates it from the log time. /tf appears only
-# where tf2_msgs is installed.
-DEFAULT_TOPICS = [
-    'attitude', 'pose', 'transform', 'odometry', 'angular_velocity', 'angular_momentum',
-    'angular_momentum_body', 'kinetic_energy', 'imu', 'torque_command', 'wrench_command',
-    'attitude_target', '/diagnostics', '/tf', 'gyro', 'star_tracker',
-    'wheel_states', 'gimbal_states', 'actuator_command',  # scenes with wheels / CMGs
-]
+from rigid_body_sim.nodes.recorder_specs import (DEFAULT_OUTPUT_DIR, DEFAULT_TOPICS,  # noqa: F401
+                                                 RECORDER)
 # Messages taken per callback beyond the one the executor delivered (see _callback).
 DRAIN_LIMIT = 200
 
@@ -46,21 +39,8 @@ class Recorder(Node):
 
     def __init__(self) -> None:
         super().__init__('mcap_recorder')
-        p = self.declare_parameter
-        p('topics', DEFAULT_TOPICS)
-        p('all', False)
-        p('exclude', [''])
-        p('output', '')
-        p('name', '')
-        p('max_bag_duration', 0.0)
-        p('max_bag_size', 0)
-        p('flush_period', 1.0)
-        p('compression', 'zstd')
-        p('qos_depth', 1000)
-        p('discovery_period', 0.2)
-        p('simulator_node', 'attitude_simulator')
-        p('config_timeout', 10.0)
-        p('scene', '')
+        for spec in RECORDER:  # the specs recorder --help prints (nodes/usage.py)
+            self.declare_parameter(spec.name, spec.default)
         get = self.get_parameter
 
         self._all = bool(get('all').value)
@@ -68,8 +48,8 @@ class Recorder(Node):
         self._exclude = {self.resolve_topic_name(t) for t in get('exclude').value if t}
         self._depth = int(get('qos_depth').value)
         self._sim_time = bool(get('use_sim_time').value)
-        output = get('output').value or \
-            f'rigid_body_sim_{datetime.datetime.now():%Y_%m_%d-%H_%M_%S}'
+        output = get('output').value or os.path.join(
+            DEFAULT_OUTPUT_DIR, f'rigid_body_sim_{datetime.datetime.now():%Y_%m_%d-%H_%M_%S}')
         self._warn_unfinished(os.path.abspath(output))
         self.writer = BagWriter(output, name=get('name').value or None,
                                 max_bag_duration=float(get('max_bag_duration').value),
