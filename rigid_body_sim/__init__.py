@@ -24,17 +24,28 @@ def _ensure_ament_prefix() -> None:
         os.environ['AMENT_PREFIX_PATH'] = os.pathsep.join(paths + [sys.prefix])
 
 
-def cli_command() -> str:
-    """How to call ``rigid-body-sim`` here, for hints the software prints: the bare name
-    if it is on PATH, the venv's own script (``make venv``) by its path, else the colcon
-    way (``ros2 run``; colcon installs it under lib/rigid_body_sim, not on PATH)."""
+def command(name: str = 'rigid-body-sim') -> str:
+    """How to call this package's executable ``name`` here, for hints and examples the
+    software prints: the bare name if this interpreter's own copy is on PATH (an activated
+    venv) or, for ``rigid-body-sim``, any copy is; the venv's script by its path
+    (``.venv/bin/NAME``, relative when under the working directory); else the colcon way
+    (``ros2 run``; colcon installs the executables under lib/rigid_body_sim, not on PATH)."""
     import shutil
-    if shutil.which('rigid-body-sim'):
-        return 'rigid-body-sim'
-    beside = os.path.join(os.path.dirname(sys.executable), 'rigid-body-sim')
+    found = shutil.which(name)
+    beside = os.path.join(os.path.dirname(sys.executable), name)
     if os.path.isfile(beside):
-        return beside
-    return 'ros2 run rigid_body_sim rigid-body-sim'
+        if found and os.path.realpath(found) == os.path.realpath(beside):
+            return name
+        rel = os.path.relpath(beside)
+        return beside if rel.startswith(os.pardir) else rel
+    if found and name == 'rigid-body-sim':
+        return name
+    return f'ros2 run rigid_body_sim {name}'
+
+
+def cli_command() -> str:
+    """How to call ``rigid-body-sim`` here (see :func:`command`)."""
+    return command('rigid-body-sim')
 
 
 _ensure_ament_prefix()

@@ -8,7 +8,23 @@ import importlib
 import importlib.util
 import math
 import os
+import re
 import sys
+
+# what argparse takes for a negative number rather than an option, exponents included
+# (its own pattern stops at -1.5: `--accuracy -1e-3` gave "expected one argument")
+NEGATIVE_NUMBER = re.compile(r'^-(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?$|^-inf$|^-nan$',
+                             re.IGNORECASE)
+
+
+class ArgumentParser(argparse.ArgumentParser):
+    """argparse's parser, for which ``-1e-3`` is a value, not an option: a number that may
+    be negative parses, and its range check then says what is wrong with it. Subparsers
+    are made of this class too (argparse makes them of the parent's type)."""
+
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, **kwargs)
+        self._negative_number_matcher = NEGATIVE_NUMBER
 
 
 def number(low=-math.inf, high=math.inf, low_open=False, integer=False):
@@ -45,10 +61,13 @@ SUBCOMMANDS = {
 
 
 def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(
+    from . import command
+    nodes = ', '.join(command(n) for n in ('simulator', 'controller', 'recorder', 'replay',
+                                            'viewer'))
+    parser = ArgumentParser(
         prog='rigid-body-sim',
-        description='Spacecraft attitude simulation (ROS 2 Jazzy). Nodes: '
-                    'ros2 run rigid_body_sim simulator|controller|recorder|replay')
+        description='Spacecraft attitude simulation (ROS 2 Jazzy). The live nodes, each '
+                    f'with --help: {nodes}.')
     sub = parser.add_subparsers(dest='command', metavar='COMMAND')
     available = {}
     for name, (module, help_text) in SUBCOMMANDS.items():

@@ -31,4 +31,7 @@ def warm() -> bool:
 
 
 if __name__ == '__main__':
+    import argparse
+    argparse.ArgumentParser(prog='python3 -m rigid_body_sim.compiled', description=__doc__.split(
+        '::')[0].replace('\n', ' ')).parse_args()  # -h/--help answered without compiling
     warm()

@@ -154,31 +154,36 @@ RECORDED_TYPES = {t.name: t.type for node in (SIMULATOR, CONTROLLER) for t in no
                   if t.name in RECORDED_BY_DEFAULT}
 assert set(RECORDED_TYPES) == set(RECORDED_BY_DEFAULT), 'a default topic with no type'
 
-# The recorder declares these (nodes/recorder.py); its values are read without a check.
+# where a bag goes without -p output: under out/ (ignored by git), named by the start time
+DEFAULT_OUTPUT_DIR = 'out'
+
+# The recorder declares these (nodes/recorder.py) and `recorder --help` prints them
+# (nodes/usage.py), so the node, its help and the docs' reference cannot drift apart.
 RECORDER_PARAMETERS = (
-    ParamSpec('topics', RECORDED_BY_DEFAULT, 'topics to record (relative names resolve in '
-              'the node\'s namespace)', kind='string_array'),
-    ParamSpec('all', False, 'record every topic (hidden ones aside)', kind='bool'),
+    ParamSpec('topics', RECORDED_BY_DEFAULT, 'topics to record (relative names resolve in the '
+              'node\'s namespace); default: what the simulator and controller publish',
+              kind='string_array'),
+    ParamSpec('all', False, 'record every topic (hidden ones excepted)', kind='bool'),
     ParamSpec('exclude', [''], 'topics never recorded', kind='string_array'),
-    ParamSpec('output', '', 'bag directory; empty = rigid_body_sim_<date-time>',
-              kind='string'),
-    ParamSpec('name', '', 'file name stem inside the bag directory; empty = the '
+    ParamSpec('output', '', 'bag directory; empty = out/rigid_body_sim_<date-time>',
+              kind='string', path=True),
+    ParamSpec('name', '', 'file name stem inside the bag (<name>_0.mcap); empty = the '
               'directory\'s name', kind='string'),
-    ParamSpec('max_bag_duration', 0.0, 'split into a new file after this long; 0 = never',
-              unit='s', low=0.0),
-    ParamSpec('max_bag_size', 0, 'split into a new file past this size; 0 = never',
-              kind='int', unit='B', low=0),
-    ParamSpec('flush_period', 1.0, 'chunks reach the disk at least this often (what a '
-              'SIGKILL can lose)', unit='s', low=0.0),
+    ParamSpec('max_bag_duration', 0.0, 'start a new file after this much log time; 0 = one '
+              'file', kind='float', unit='s', low=0.0),
+    ParamSpec('max_bag_size', 0, 'start a new file past this size; 0 = no limit', kind='int',
+              unit='bytes', low=0),
+    ParamSpec('flush_period', 1.0, 'chunks reach the disk at least this often (what a crash '
+              'can lose)', kind='float', unit='s', low=0.0, low_open=True),
     ParamSpec('compression', 'zstd', 'chunk compression', kind='string',
               choices=('zstd', 'lz4', 'none')),
-    ParamSpec('qos_depth', 1000, 'subscription depth (at least the publishers\' own)',
-              kind='int', low=1),
-    ParamSpec('discovery_period', 0.2, 'how often new topics are looked for', unit='s',
-              low=0.0, low_open=True),
-    ParamSpec('simulator_node', 'attitude_simulator', 'node whose parameters are stored as '
-              'the run configuration; empty = none', kind='string'),
-    ParamSpec('config_timeout', 10.0, 'how long to wait for the simulator\'s parameters',
-              unit='s', low=0.0),
+    ParamSpec('qos_depth', 1000, 'history depth of the subscriptions (at least the '
+              'publishers\')', kind='int', low=1),
+    ParamSpec('discovery_period', 0.2, 'how often new publishers are looked for', kind='float',
+              unit='s', low=0.0, low_open=True),
+    ParamSpec('simulator_node', 'attitude_simulator', 'node whose parameters go into the '
+              'bag\'s run configuration', kind='string'),
+    ParamSpec('config_timeout', 10.0, 'how long to wait for them', kind='float', unit='s',
+              low=0.0),
     ParamSpec('scene', '', 'scene name stored in the run configuration', kind='string'),
 )

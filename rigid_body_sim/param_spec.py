@@ -29,6 +29,8 @@ class ParamSpec:
     sizes: allowed lengths of a ``float_array``; choices: allowed strings.
     scalar_ok: a ``float_array`` that also takes one number (``natural_frequency:=1.0``).
     false_is: a ``string`` that takes YAML's ``false`` as this value (an unquoted ``off``).
+    path: a ``string`` naming a file or directory to write; one starting with ``-`` is
+    refused (a mistyped option would otherwise become a file named like it).
     read_only: can only be given at start-up (params file / ``-p``).
     note: extra constraint text (e.g. when a change applies).
     """
@@ -47,6 +49,7 @@ class ParamSpec:
     read_only: bool = False
     scalar_ok: bool = False
     false_is: Optional[str] = None
+    path: bool = False
     note: str = ''
 
     def __post_init__(self):
@@ -67,6 +70,8 @@ class ParamSpec:
             parts.append(' or '.join(str(s) for s in self.sizes) + ' values')
         if self.choices:
             parts.append('one of: ' + ', '.join(self.choices))
+        if self.path:
+            parts.append('must not start with "-"')
         if self.note:
             parts.append(self.note)
         return '; '.join(parts)
@@ -104,6 +109,8 @@ class ParamSpec:
                 raise ValueError(f'{self.name} must be a string, got {v!r}')
             if self.choices and v not in self.choices:
                 raise ValueError(f'{self.name} = {v!r} is not one of: {", ".join(self.choices)}')
+            if self.path:
+                check_output_path(v, self.name)
             return v
         if self.kind == 'string_array':
             if isinstance(v, (str, bytes)) or not hasattr(v, '__iter__') or \
@@ -123,6 +130,16 @@ class ParamSpec:
         for i, x in enumerate(values):
             self._check_number(x, f'{self.name}[{i}]')
         return values
+
+
+def check_output_path(path: str, what: str = 'output') -> str:
+    """``path``, or ValueError if it starts with ``-``: such a path is almost always an
+    option given where a path was expected (``--help``), and writing it would leave a
+    file named like an option."""
+    if str(path).startswith('-'):
+        raise ValueError(f'{what} {str(path)!r} starts with "-" (an option where a path was '
+                         f'expected?); write ./{path} if that is the name you mean')
+    return path
 
 
 def defaults(specs: Iterable[ParamSpec]) -> Dict[str, Any]:

@@ -68,9 +68,10 @@ def resolve(scene: str) -> str:
         return scene
     path = os.path.join(config_dir(), scene + '.yaml')
     if not os.path.isfile(path):
-        names = ', '.join(n for n, _, _ in list_scenes())
-        raise SceneError(f'unknown scene {scene!r}; built-in scenes: {names} '
-                         '(or give a path to a params file)')
+        from .params_file import closest
+        names = [n for n, _, _ in list_scenes()]
+        raise SceneError(f'unknown scene {scene!r}{closest(scene, names)}; built-in scenes: '
+                         f'{", ".join(names)} (or give a path to a params file)')
     return path
 
 

@@ -206,3 +206,12 @@ def test_recorder_with_sim_time_records_replayed_clock(ros_process, namespace, b
     original, copy = read_info(bag), read_info(str(out))
     assert copy.message_count == N
     assert original.start_ns <= copy.start_ns and copy.end_ns <= original.end_ns + 20_000_000
+
+
+def test_replay_topics_logs_the_count_of_the_topics_it_replays(ros_process, bag, namespace):
+    proc = ros_process(venv_exe('replay'), bag, '--delay', '0', '--topics',
+                       f'{namespace}/attitude', '--ros-args', '-r', f'__ns:={namespace}')
+    assert proc.wait(120) == 0, proc.output()
+    out = proc.output()
+    assert f'playing {bag}: 1 topics, {N} messages' in out, out   # the bag holds 2 N
+    assert f'published {N} messages' in out, out

@@ -26,6 +26,7 @@ from rigid_body_sim.bag.errors import recover_hint
 from rigid_body_sim.bag.errors import BagError
 from rigid_body_sim.bag.schema import DEFAULT_QOS_YAML, TypeNotFound, message_definition
 from rigid_body_sim.bag.schema import type_hash as installed_type_hash
+from rigid_body_sim.param_spec import check_output_path
 
 RUN_CONFIGURATION = 'rigid_body_sim/run_configuration'
 CHUNK_SIZE = 768 * 1024      # rosbag2's default (mcap DefaultChunkSize)
@@ -131,6 +132,10 @@ class BagWriter:
                  chunk_size: int = CHUNK_SIZE, fsync: bool = False) -> None:
         if compression not in _COMPRESSION:
             raise BagError(f'unknown compression {compression!r} (use zstd, lz4 or none)')
+        try:
+            check_output_path(directory, 'output directory')
+        except ValueError as exc:
+            raise BagError(str(exc)) from None
         self.directory = os.path.abspath(directory)
         if os.path.isdir(self.directory) and os.listdir(self.directory):
             raise BagError(f'output directory {directory} already exists and is not empty')

@@ -148,6 +148,11 @@ def redraw_work_precision(directory):
 
 
 if __name__ == "__main__":
-    import sys
-    for p in redraw_work_precision(sys.argv[1] if len(sys.argv) > 1 else 'docs/bench'):
+    import argparse
+    parser = argparse.ArgumentParser(prog='python -m rigid_body_sim.bench.charts',
+                                     description='Redraw the work-precision charts from a '
+                                     'bench directory\'s results.')
+    parser.add_argument('directory', nargs='?', default='docs/bench',
+                        help='the bench output (default: %(default)s)')
+    for p in redraw_work_precision(parser.parse_args().directory):
         print(p)

@@ -9,7 +9,6 @@ Per regime (elliptic A, separatrix, symmetric, steady spin): µs for one body at
 engine's runs of samples), for ``at`` (exact_kernel) and ``at_numpy``, and the
 construction of a TorqueFreeSolution. Best of five repetitions each.
 """
-import sys
 import time
 
 import numpy as np
@@ -58,4 +57,9 @@ def run(quick=False, log=print):
 
 
 if __name__ == '__main__':
-    run(quick='--quick' in sys.argv)
+    import argparse
+    parser = argparse.ArgumentParser(prog='python -m rigid_body_sim.bench.exact_eval',
+                                     description='Time the exact solution: one body at one '
+                                     'time and at many, compiled against numpy.')
+    parser.add_argument('--quick', action='store_true', help='fewer repetitions')
+    run(quick=parser.parse_args().quick)

@@ -16,8 +16,7 @@ Numeric parameters are declared with ``dynamic_typing`` so that a params file ma
 ``1`` where ``1.0`` is meant (a classic ROS 2 trap); :meth:`ParamSpec.coerce` then accepts
 integers and doubles, rejects everything else, and checks the range with a readable reason.
 """
-import sys
-from typing import Any, Dict, Iterable, List, Mapping, Sequence, Tuple
+from typing import Any, Dict, Iterable, List, Mapping, Sequence
 
 from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
@@ -31,6 +30,7 @@ from .. import params_file
 from ..engine import specs as engine_specs
 from ..param_spec import ParamSpec
 from ..engine.specs import QOS_CHOICES, frame_id_problem  # noqa: F401 (re-exported)
+from .usage import ros_arguments, ros_sources, scene_hint
 
 # declared by rclpy on every node, or scene metadata the nodes read from '/**'
 AUTOMATIC = {'use_sim_time', 'start_type_description_service', 'scene.name',
@@ -77,6 +77,8 @@ def descriptor(spec: ParamSpec) -> ParameterDescriptor:
                                             step=1)]
     elif spec.kind == 'bool':
         d.type = ParameterType.PARAMETER_BOOL
+    elif spec.kind == 'string_array':
+        d.type = ParameterType.PARAMETER_STRING_ARRAY
     elif spec.false_is is not None:
         d.dynamic_typing = True  # YAML's unquoted `off` arrives as false; coerce() maps it
     else:
@@ -88,41 +90,6 @@ def _value(parameter: Parameter):
     v = parameter.value
     return list(v) if parameter.type_ in (Parameter.Type.DOUBLE_ARRAY,
                                           Parameter.Type.INTEGER_ARRAY) else v
-
-
-def ros_arguments(argv=None) -> Tuple[List[str], Dict[str, str]]:
-    """(params files, {name: 'name:=value'} of -p overrides) in the process's --ros-args."""
-    argv = sys.argv if argv is None else argv
-    files, overrides, ros = [], {}, False
-    args = iter(argv)
-    for a in args:
-        if a == '--ros-args':
-            ros = True
-        elif a == '--':
-            ros = False
-        elif ros and a == '--params-file':
-            files.append(next(args, ''))
-        elif ros and a in ('-p', '--param'):
-            text = next(args, '')
-            overrides[text.split(':=', 1)[0]] = text
-    return files, overrides
-
-
-def ros_sources(argv=None) -> List[Tuple[str, str]]:
-    """('file', path) and ('param', 'name:=value') of the process's --ros-args, in order."""
-    argv = sys.argv if argv is None else argv
-    out, ros = [], False
-    args = iter(argv)
-    for a in args:
-        if a == '--ros-args':
-            ros = True
-        elif a == '--':
-            ros = False
-        elif ros and a == '--params-file':
-            out.append(('file', next(args, '')))
-        elif ros and a in ('-p', '--param'):
-            out.append(('param', next(args, '')))
-    return out
 
 
 def _same(a, b) -> bool:
@@ -194,8 +161,8 @@ def check_overrides(node, specs: Sequence[ParamSpec], argv=None) -> None:
         except params_file.ParamsFileError as exc:
             problems.append(str(exc))
     problems += [f'-p {text}: {name}: unknown parameter of {fqn}'
-                 f'{params_file.closest(name, own)}' for name, text in cli.items()
-                 if name not in own]
+                 f'{scene_hint() if name == "scene" else params_file.closest(name, own)}'
+                 for name, text in cli.items() if name not in own]
     # anything else rcl handed over (e.g. from files given some other way)
     for name in getattr(node, '_parameter_overrides', {}):
         if name not in own | SHARED and name not in seen:

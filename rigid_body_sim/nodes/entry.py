@@ -10,7 +10,9 @@ node module is imported, as they do once it runs (``process.run_node``); then Py
 handlers are back before ``main`` starts.
 
 This module imports nothing heavy, so its own import is over before a user could press
-Ctrl-C.
+Ctrl-C. ``-h``/``--help`` and ROS arguments that cannot work (a missing params file) are
+answered here too (``nodes.usage``), before the node's module is imported: help never
+starts ROS nor writes a file.
 """
 import importlib
 import os
@@ -28,6 +30,10 @@ def _quiet_exit(signum, frame):
 def _run(module: str) -> int:
     previous = {sig: signal.signal(sig, _quiet_exit) for sig in (signal.SIGINT, signal.SIGTERM)}
     try:
+        from . import usage
+        code = usage.answer(module, sys.argv)
+        if code is not None:
+            return code
         main = importlib.import_module(f'rigid_body_sim.nodes.{module}').main
     finally:
         for sig, handler in previous.items():

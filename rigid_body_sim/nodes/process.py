@@ -122,7 +122,13 @@ def executors_kept() -> bool:
 def start_ros(node_name: str, args=None):
     """``rclpy.init`` with the package's signal handling (``stop_between_callbacks``);
     None once ROS is up, else the exit code: 0 for a Ctrl-C before rclpy's handler was up
-    (a stop like any other), 2 with the reason for bad ``--ros-args`` (e.g. a bad remap)."""
+    (a stop like any other), 2 with the reason for bad ``--ros-args`` (e.g. a bad remap,
+    a params file that does not exist)."""
+    from .usage import ros_arguments_problem
+    problem = ros_arguments_problem(sys.argv if args is None else args)
+    if problem:  # rcl's own answer is a raw error with C source paths
+        print(f'[FATAL] [{node_name}]: {problem}', file=sys.stderr)
+        return 2
     prefer_asynchronous_publication()
     stop_between_callbacks()
     try:

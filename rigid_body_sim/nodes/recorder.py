@@ -34,8 +34,8 @@ from rigid_body_sim.bag.reader import recover_hint
 from rigid_body_sim.bag.schema import (DEFAULT_QOS_YAML, TypeNotFound, message_class,
                                        qos_to_dict, qos_yaml)
 from rigid_body_sim.bag.writer import BagWriter
-from rigid_body_sim.node_interfaces import (RECORDED_BY_DEFAULT, RECORDED_TYPES,
-                                            RECORDER_PARAMETERS)
+from rigid_body_sim.node_interfaces import (DEFAULT_OUTPUT_DIR, RECORDED_BY_DEFAULT,
+                                            RECORDED_TYPES, RECORDER_PARAMETERS)
 from rigid_body_sim.nodes.process import signals_ignored, start_ros
 
 # The default topics, their types (subscribed at start, before their publishers exist) and
@@ -51,7 +51,7 @@ class Recorder(Node):
 
     def __init__(self) -> None:
         super().__init__('mcap_recorder')
-        for spec in RECORDER_PARAMETERS:
+        for spec in RECORDER_PARAMETERS:  # the specs recorder --help prints (nodes/usage.py)
             self.declare_parameter(spec.name, spec.default)
         get = self.get_parameter
 
@@ -60,8 +60,8 @@ class Recorder(Node):
         self._exclude = {self.resolve_topic_name(t) for t in get('exclude').value if t}
         self._depth = int(get('qos_depth').value)
         self._sim_time = bool(get('use_sim_time').value)
-        output = get('output').value or \
-            f'rigid_body_sim_{datetime.datetime.now():%Y_%m_%d-%H_%M_%S}'
+        output = get('output').value or os.path.join(
+            DEFAULT_OUTPUT_DIR, f'rigid_body_sim_{datetime.datetime.now():%Y_%m_%d-%H_%M_%S}')
         self._warn_unfinished(os.path.abspath(output))
         self.writer = BagWriter(output, name=get('name').value or None,
                                 max_bag_duration=float(get('max_bag_duration').value),

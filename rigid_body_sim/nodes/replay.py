@@ -1,4 +1,4 @@
-"""replay: publish a recorded bag again (``ros2 run rigid_body_sim replay PATH [options]``).
+"""replay: publish a recorded bag again (``replay PATH [options]``; ``replay --help``).
 
 Each message goes out on its topic with its recorded type and offered QoS, as the stored
 serialized bytes (no deserialize/re-serialize), spaced by log time. ``--clock`` publishes
@@ -18,53 +18,10 @@ from rclpy.executors import ExternalShutdownException
 
 from rigid_body_sim.bag.errors import BagError
 
-from ..cli import number
 from .process import signals_ignored, start_ros
+from .replay_args import parse_args, split_ros_args  # noqa: F401 (tests use them from here)
 
 NODE_NAME = 'mcap_replay'
-USAGE_EPILOG = 'Example: ros2 run rigid_body_sim replay my_bag --rate 2 --clock'
-
-
-def parse_args(argv: list[str]) -> argparse.Namespace:
-    parser = argparse.ArgumentParser(prog='replay', description='Publish a recorded bag again.',
-                                     epilog=USAGE_EPILOG)
-    parser.add_argument('path', help='bag directory or .mcap file')
-    parser.add_argument('--rate', type=number(0.0, 1e6, low_open=True), default=1.0,
-                        help='playback speed factor')
-    parser.add_argument('--loop', action='store_true', help='play again when the bag ends')
-    parser.add_argument('--start-offset', type=number(0.0), default=0.0, metavar='S',
-                        help='skip the first S seconds of the bag')
-    parser.add_argument('--topics', nargs='+', metavar='TOPIC', help='only these topics')
-    parser.add_argument('--remap', action='append', default=[], metavar='OLD:=NEW',
-                        help='publish topic OLD as NEW (repeatable)')
-    parser.add_argument('--clock', nargs='?', type=number(0.0, 1e6), const=100.0, default=0.0,
-                        metavar='HZ', help='publish /clock from log time (default 100 Hz)')
-    parser.add_argument('--delay', type=number(0.0, 3600.0), default=0.5, metavar='S',
-                        help='wait S seconds after creating publishers so subscribers match')
-    parser.add_argument('--wait-for-subscribers', type=number(0.0, 1e6), default=0.0,
-                        metavar='S',
-                        help='wait up to S seconds until every replayed topic has a subscriber')
-    args = parser.parse_args(argv)
-    if args.rate <= 0:
-        parser.error('--rate must be positive')
-    for item in args.remap:
-        if ':=' not in item:
-            parser.error(f'--remap expects OLD:=NEW, got {item!r}')
-    return args
-
-
-def split_ros_args(argv: list[str]) -> tuple[list[str], list[str]]:
-    """(our arguments, ROS arguments). Done by hand: rcl would swallow ``--remap a:=b``
-    values as deprecated bare remap rules."""
-    ours, ros, in_ros = [], [], False
-    for arg in argv[1:]:
-        if arg == '--ros-args':
-            in_ros = True
-        elif arg == '--' and in_ros:
-            in_ros = False
-            continue
-        (ros if in_ros else ours).append(arg)
-    return ours, argv[:1] + ros
 
 
 def _absolute(topic: str) -> str:
@@ -107,6 +64,10 @@ class Player:
             self.clock_pub = node.create_publisher(Clock, '/clock', QoSProfile(depth=1))
             self._clock_msg = Clock()
         self.published = 0
+
+    def message_count(self) -> int:
+        """The messages of the replayed topics (not the whole bag's)."""
+        return sum(self.info.topics[name].count for name in self.publishers)
 
     def sleep(self, seconds: float) -> None:
         """Sleep, in slices: a Ctrl-C shuts the context down and ends the wait."""
@@ -179,7 +140,7 @@ def main(argv: list[str] | None = None) -> int:
         node = rclpy.create_node(NODE_NAME)
         player = Player(node, args)
         node.get_logger().info(f'playing {args.path}: {len(player.publishers)} topics, '
-                               f'{player.info.message_count} messages, rate {args.rate}')
+                               f'{player.message_count()} messages, rate {args.rate}')
         player.sleep(args.delay)
         player.wait_for_subscribers(args.wait_for_subscribers)
         while node.context.ok():

@@ -16,6 +16,8 @@ is the double bracket by its exact flow (``splitting2_lstable``).
 """
 import hashlib
 import math
+import os
+import sys
 
 import numpy as np
 
@@ -29,11 +31,19 @@ try:
     # count round trip per array (≈ 0.15 µs, 5× a body's whole step); inlined, none
     inline = njit(cache=True, nogil=True, error_model='numpy', inline='always')
     COMPILED = not getattr(__import__('numba').config, 'DISABLE_JIT', False)
-except ImportError:  # pragma: no cover - numba is a pinned dependency
+except Exception as exc:  # noqa: BLE001 - numba missing, or broken (a numpy it refuses)
     def jit(function):
         return function
     inline = jit
     COMPILED = False
+    # asked for (NUMBA_DISABLE_JIT=1, as the tests do) it is a mode; otherwise say so
+    # once: a system Python without numba once ran a benchmark uncompiled for 10
+    # CPU-minutes without a word
+    if os.environ.get('NUMBA_DISABLE_JIT', '').strip() in ('', '0'):
+        print(f'warning: rigid_body_sim: numba cannot be imported ({type(exc).__name__}: '
+              f'{exc}); the kernels run uncompiled, 10-1000x slower. Install the pinned '
+              'numba (make venv, or pip install -r requirements.txt), or set '
+              'NUMBA_DISABLE_JIT=1 to run uncompiled on purpose.', file=sys.stderr)
 
 MODEL_CODES = {'none': 0, 'double_bracket': 1, 'viscous': 2}
 

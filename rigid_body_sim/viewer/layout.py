@@ -49,11 +49,21 @@ def text() -> str:
 
 
 def main(argv=None):
-    argv = sys.argv[1:] if argv is None else argv
-    path = argv[0] if argv else PATH
-    with open(path, 'w') as f:
+    from ..cli import ArgumentParser
+    from ..param_spec import check_output_path
+    parser = ArgumentParser(prog='python -m rigid_body_sim.viewer.layout',
+                            description='Write the Foxglove layout the viewer is meant for '
+                                        '(the 3D panel, the plots and the diagnostics).')
+    parser.add_argument('path', nargs='?', default=os.path.normpath(PATH),
+                        help='where to write it (default: %(default)s)')
+    args = parser.parse_args(sys.argv[1:] if argv is None else argv)
+    try:
+        check_output_path(args.path, 'layout path')
+    except ValueError as exc:
+        parser.error(str(exc))
+    with open(args.path, 'w') as f:
         f.write(text())
-    print(f'wrote {os.path.normpath(path)}')
+    print(f'wrote {os.path.normpath(args.path)}')
     return 0
 
 

@@ -11,7 +11,7 @@ VIEWER = (
               'logged)', kind='int', low=0, high=65535, read_only=True),
     ParamSpec('mcap_output', '', 'also write every Foxglove channel to this MCAP file '
               '(Foxglove-only playback; the ROS bag is the recorder\'s); empty = off',
-              kind='string', read_only=True),
+              kind='string', read_only=True, path=True),
     ParamSpec('simulator_node', 'attitude_simulator', 'name of the simulator node whose '
               'inertia parameter gives the body (in this node\'s namespace)', kind='string',
               read_only=True),
