@@ -14,12 +14,14 @@ def warm() -> bool:
     """Warm everything; True when numba compiled (False with NUMBA_DISABLE_JIT=1)."""
     from . import control_kernel
     from .engine import Engine, EngineConfig
-    from .physics import (batch_kernels, dop853_dense, dop853_kernel, exact, gyrostat_kernel,
-                          implicit_kernel, kernels)
+    from .physics import exact
+    from .physics.integrators import (dop853_dense, dop853_kernel, explicit_kernel,
+                                      gyrostat_kernel, implicit_kernel, splitting_batch_kernel,
+                                      splitting_kernel)
     from .sensors import noise
-    compiled = kernels.warm()
-    for module in (batch_kernels, implicit_kernel, dop853_kernel, dop853_dense, exact,
-                   control_kernel, gyrostat_kernel, noise):
+    compiled = splitting_kernel.warm()
+    for module in (explicit_kernel, splitting_batch_kernel, implicit_kernel, dop853_kernel,
+                   dop853_dense, exact, control_kernel, gyrostat_kernel, noise):
         module.warm()
     for method in ('splitting2', 'rk4'):
         config = EngineConfig.from_parameters(

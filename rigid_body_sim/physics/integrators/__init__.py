@@ -6,7 +6,7 @@ from .base import PRESERVES, IntegrationError, Integrator
 from .explicit import Euler, RK4
 from .exact_flow import Exact
 from .implicit import ImplicitMidpoint
-from .ivp import DOP853
+from .dop853 import DOP853
 from .lstable import Splitting2LStable
 from .splitting import Splitting2, Splitting4, Splitting6
 

@@ -80,7 +80,7 @@ class Integrator:
 
     def run(self, q, m, h: float, n: int, torque: Optional[np.ndarray] = None, t0: float = 0.0):
         """``n`` steps of ``h`` from (q, m) at time t0; new arrays. Methods with a compiled
-        loop (``physics.kernels``) override this for one body; IntegrationError names the
+        loop (``integrators/*_kernel.py``) override this for one body; IntegrationError names the
         step and time where the state stopped being finite."""
         for k in range(n):
             q, m = self.step(q, m, h, torque, t0 + k * h)

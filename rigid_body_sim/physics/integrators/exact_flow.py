@@ -11,8 +11,7 @@ import math
 
 import numpy as np
 
-from .. import exact_build
-from ..exact import TorqueFreeSolution
+from ..exact import TorqueFreeSolution, build as exact_build
 from .splitting import Splitting2
 
 
@@ -64,7 +63,7 @@ class Exact(Splitting2):
 
     def _flow(self, q, m, h):
         """The free flow for h from (q, m), a new solution each time: for one body a
-        compiled one-shot (:func:`..exact_build.flow`, ~1 µs instead of a TorqueFreeSolution's
+        compiled one-shot (:func:`..exact.build.flow`, ~1 µs instead of a TorqueFreeSolution's
         ~300 µs of numpy set-up); a non-finite state gives NaN, which step() reports."""
         if q.ndim > 1 or m.ndim > 1:
             return TorqueFreeSolution(self.dynamics.moments, q, m).at(h)

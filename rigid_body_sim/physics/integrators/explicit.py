@@ -5,7 +5,8 @@ e.g. Fukushima 2008); neither |m| nor T is conserved.
 """
 import numpy as np
 
-from .. import kernels
+from .. import dynamics_kernel
+from . import explicit_kernel
 from .base import Integrator
 
 
@@ -18,13 +19,13 @@ class _ExplicitRK(Integrator):
     def _normalised(q):
         return q / np.linalg.norm(q, axis=-1, keepdims=True)
 
-    _kernel_loop = None        # compiled loop in physics.kernels
+    _kernel_loop = None        # compiled loop in explicit_kernel
     _stages = 1
 
     def __init__(self, dynamics, **options):
         super().__init__(dynamics, **options)
         d = dynamics.dissipation
-        self._model = kernels.MODEL_CODES[d.model] if d.active else 0
+        self._model = dynamics_kernel.MODEL_CODES[d.model] if d.active else 0
         self._coefficient = d.coefficient
         self._moments = np.array(dynamics.moments, dtype=float)
 
@@ -48,7 +49,7 @@ class Euler(_ExplicitRK):
     name = 'euler'
     order = 1
     stability = 'unstable for free rotation at any step (amplification √(1 + (hλ)²) > 1)'
-    _kernel_loop = staticmethod(kernels.euler_run)
+    _kernel_loop = staticmethod(explicit_kernel.euler_run)
 
     def _step(self, q, m, h, torque, t):
         dq, dm = self._rates(q, m, torque)
@@ -60,7 +61,7 @@ class RK4(_ExplicitRK):
     name = 'rk4'
     order = 4
     stability = 'real-axis limit hλ ≈ 2.785 (stiff dissipation); imaginary-axis limit hλ = 2√2'
-    _kernel_loop = staticmethod(kernels.rk4_run)
+    _kernel_loop = staticmethod(explicit_kernel.rk4_run)
     _stages = 4
 
     def _step(self, q, m, h, torque, t):

@@ -6,7 +6,8 @@ transform of ½[Ω]: the quaternion norm is kept exactly, no renormalising.
 """
 import numpy as np
 
-from .. import implicit_kernel, kernels, rotation
+from .. import dynamics_kernel, rotation
+from . import implicit_kernel
 from .base import IntegrationError, Integrator
 
 _EPS = np.finfo(float).eps
@@ -39,7 +40,7 @@ class ImplicitMidpoint(Integrator):
         super().__init__(dynamics)
         self.max_iterations = int(max_iterations)
         d = dynamics.dissipation
-        self._model = kernels.MODEL_CODES[d.model] if d.active else 0
+        self._model = dynamics_kernel.MODEL_CODES[d.model] if d.active else 0
         self._coefficient = d.coefficient
         self._moments = np.array(dynamics.moments, dtype=float)
 

@@ -22,8 +22,8 @@ solution A → 6); dissipation stays outside those compositions because their ne
 substeps would run damping backwards (anti-damping), so with dissipation the coupling
 error is second order.
 
-Loops: one body runs ``kernels.splitting_run``; ``run`` on a batch runs
-``batch_kernels.batch_run`` (bodies side by side, merged half-flows); ``step`` on a batch
+Loops: one body runs ``splitting_kernel.splitting_run``; ``run`` on a batch runs
+``splitting_batch_kernel.batch_run`` (bodies side by side, merged half-flows); ``step`` on a batch
 stays on numpy (the reference the compiled loops are tested against).
 """
 import functools
@@ -31,7 +31,8 @@ import math
 
 import numpy as np
 
-from .. import batch_kernels, kernels
+from .. import dynamics_kernel
+from . import splitting_batch_kernel, splitting_kernel
 from .base import IntegrationError, Integrator
 
 # Outer, middle, inner axis of the symmetric composition  a(h/2) b(h/2) c(h) b(h/2) a(h/2)
@@ -128,7 +129,7 @@ class Splitting2(Integrator):
         ranks = sorted(range(3), key=self._moments_list.__getitem__)
         self._axes = tuple(ranks[r] for r in _ORDER)
         d = dynamics.dissipation
-        self._model = kernels.MODEL_CODES[d.model] if d.active else 0
+        self._model = dynamics_kernel.MODEL_CODES[d.model] if d.active else 0
         self._coefficient = d.coefficient
 
     @functools.cached_property
@@ -169,9 +170,9 @@ class Splitting2(Integrator):
 
     def _kernel(self, q, m, h, n, tau, has_tau):
         weights, axes, moments = self._kernel_args
-        failed, evals = kernels.splitting_run(q, m, h, n, weights, axes, moments, tau, has_tau,
-                                              self._model, self._coefficient,
-                                              self.inner_dissipation(m, h))
+        failed, evals = splitting_kernel.splitting_run(q, m, h, n, weights, axes, moments, tau,
+                                                       has_tau, self._model, self._coefficient,
+                                                       self.inner_dissipation(m, h))
         self.nfev += evals
         return failed
 
@@ -179,9 +180,9 @@ class Splitting2(Integrator):
         return self._kernel_args[0], self._kernel_args[1]
 
     def run(self, q, m, h, n, torque=None, t0=0.0):
-        """One body: the compiled loop (physics.kernels); a batch (q (..., 4), m (..., 3),
+        """One body: the compiled loop (splitting_kernel); a batch (q (..., 4), m (..., 3),
         torque (3,) shared or (..., 3) per body): the compiled batch loop
-        (physics.batch_kernels), every body as if run alone — damping's substeps and
+        (splitting_batch_kernel), every body as if run alone — damping's substeps and
         inner/outer placement are chosen per body, where the numpy ``step`` on a batch
         chooses them once for the batch."""
         if np.ndim(q) == 1 and np.ndim(m) == 1:
@@ -205,7 +206,7 @@ class Splitting2(Integrator):
         else:
             inner = np.zeros(1, dtype=bool)
         weights, axes, moments = self._kernel_args
-        failed, body, evals = batch_kernels.batch_run(
+        failed, body, evals = splitting_batch_kernel.batch_run(
             q, m, float(h), int(n), weights, axes, moments, tau, torque is not None,
             self._model, self._coefficient, inner)
         self.nfev += evals
@@ -274,7 +275,8 @@ class Splitting2(Integrator):
                 self._dissipate_symmetric(mc, 0.5 * hw, xp)
 
     def _dissipate_symmetric(self, mc, t, xp):
-        """D(t), time-symmetric (t of either sign): see kernels._double_bracket_symmetric."""
+        """D(t), time-symmetric (t of either sign): see
+        dynamics_kernel._double_bracket_symmetric."""
         d = self.dynamics.dissipation
         moments = self._moments_list
         if d.model == 'viscous':
@@ -285,14 +287,14 @@ class Splitting2(Integrator):
         _rotate_about(mc, _bracket_velocity(m0, t, moments, d.coefficient), xp)
         scale = xp.sqrt(m0[0] * m0[0] + m0[1] * m0[1] + m0[2] * m0[2])
         self.nfev += 1
-        for _ in range(kernels.SYMMETRIC_MAX_ITER):
+        for _ in range(dynamics_kernel.SYMMETRIC_MAX_ITER):
             mid = [0.5 * (m0[i] + mc[i]) for i in range(3)]
             new = list(m0)
             _rotate_about(new, _bracket_velocity(mid, t, moments, d.coefficient), xp)
             change = sum(abs(new[i] - mc[i]) for i in range(3))
             mc[:] = new
             self.nfev += 1
-            if np.all(change <= kernels.SYMMETRIC_TOL * scale):
+            if np.all(change <= dynamics_kernel.SYMMETRIC_TOL * scale):
                 break
 
     def _dissipate_components(self, mc, t, xp):

@@ -11,7 +11,7 @@ from typing import Tuple
 
 import numpy as np
 
-from .integrators import create, get_integrator
+from ..integrators import create, get_integrator
 
 @dataclass(frozen=True)
 class Candidate:

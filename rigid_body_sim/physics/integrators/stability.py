@@ -43,7 +43,7 @@ def _eigenvalues(dynamics, m) -> np.ndarray:
 
 def _states(dynamics, m0) -> np.ndarray:
     """Momenta along the torque-free motion through m0 over one ω period."""
-    from .exact import TorqueFreeSolution
+    from ..exact import TorqueFreeSolution
     try:
         solution = TorqueFreeSolution(dynamics.moments, np.array([0.0, 0.0, 0.0, 1.0]), m0)
         period = float(np.ravel(solution.omega_period)[0])

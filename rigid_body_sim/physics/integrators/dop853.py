@@ -3,7 +3,8 @@ solve_ivp for a batch."""
 import numpy as np
 from scipy.integrate import solve_ivp
 
-from .. import dop853_dense, dop853_kernel, kernels
+from .. import dynamics_kernel
+from . import dop853_dense, dop853_kernel
 from .base import IntegrationError, Integrator
 
 
@@ -30,7 +31,7 @@ class DOP853(Integrator):
             raise ValueError('dop853 needs rtol > 0 and atol > 0')
         self.rtol, self.atol = float(rtol), float(atol)
         d = dynamics.dissipation
-        self._model = kernels.MODEL_CODES[d.model] if d.active else 0
+        self._model = dynamics_kernel.MODEL_CODES[d.model] if d.active else 0
         self._coefficient = d.coefficient
         self._moments = np.array(dynamics.moments, dtype=float)
         self._zero = np.zeros(3)

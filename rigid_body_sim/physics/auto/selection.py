@@ -37,17 +37,18 @@
   accurate it can predict and says so in its reason.
 
 Adding a method (e.g. a compiled ``dop853``) is one ``Candidate`` line in
-:mod:`.selection_model`, which holds the a-priori model (costs, error constants, time scales).
+:mod:`.model`, which holds the a-priori model (costs, error constants, time scales).
 """
 import math
 from dataclasses import dataclass
 
 import numpy as np
 
-from . import pilot, rotation
-from .body import RigidBody
-from .dynamics import Dissipation, Dynamics
-from .selection_model import CANDIDATES, Candidate, RunModel, is_symmetric
+from .. import rotation
+from ..body import RigidBody
+from ..dynamics import Dissipation, Dynamics
+from . import pilot
+from .model import CANDIDATES, Candidate, RunModel, is_symmetric
 
 __all__ = ['CANDIDATES', 'Candidate', 'Selection', 'select', 'selecting']
 
