@@ -30,7 +30,6 @@ from .config import NS
 from .sources import NEVER
 
 MODEL_CODES = dynamics_kernel.MODEL_CODES
-METHOD_CODES = {'splitting2': 0, 'splitting4': 0, 'splitting6': 0, 'rk4': 1, 'euler': 2}
 INNER_LIMIT = 0.5  # = splitting.INNER_LIMIT: damping inside the compositions when weak
 
 
@@ -157,9 +156,10 @@ def advance(engine, until_ns: int) -> None:
     loop; otherwise nothing (``Engine.advance`` goes event by event)."""
     law, c = engine._law, engine.config
     stop = min(engine._next_sample, engine.end_ns)
+    code = None if engine._integ is None else engine._integ.loop_code  # the method's own
     if (stop > until_ns or law.next_t >= stop or engine._selection is not None
             or engine.command.torque is not None or engine.command.expiry != NEVER
-            or engine.method not in METHOD_CODES
+            or code is None
             or not (engine._torque_seen or c.integrator != specs.AUTO)):
         return
     spec = engine._integ.loop_spec()
@@ -176,7 +176,7 @@ def advance(engine, until_ns: int) -> None:
     out[2] = law.free
     h = closed_loop_run(
         q, m, engine.t_ns, stop, law.next_t, settings.period_ns, engine.step_max,
-        METHOD_CODES[engine.method], spec[0], spec[1], engine.dynamics.moments,
+        code, spec[0], spec[1], engine.dynamics.moments,
         MODEL_CODES[d.model] if d.active else 0, d.coefficient,
         engine.body.principal_axes, engine.body.principal_to_body, MODE_CODES[ctl.mode],
         ctl.target, model_body.principal_axes, model_body.principal_moments,

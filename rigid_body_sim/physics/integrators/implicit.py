@@ -8,7 +8,7 @@ import numpy as np
 
 from .. import dynamics_kernel, rotation
 from . import implicit_kernel
-from .base import IntegrationError, Integrator
+from .base import Candidate, IntegrationError, Integrator, same_order
 
 _EPS = np.finfo(float).eps
 
@@ -30,6 +30,10 @@ class ImplicitMidpoint(Integrator):
     """
     name = 'implicit_midpoint'
     order = 2
+    orders = same_order(2)
+    stages = 1
+    auto = Candidate((0.12, 0.17), 0.025, stiff_only=True, geometric=False)
+    kernel_modules = (implicit_kernel,)
     implicit = True
     preserves = frozenset({'angular_momentum_norm', 'kinetic_energy', 'unit_quaternion',
                            'time_reversible'})

@@ -17,6 +17,7 @@ import math
 import numpy as np
 
 from .. import dynamics_kernel
+from .base import Candidate
 from .splitting import Splitting2
 
 EXACT_DOUBLE_BRACKET = 3  # dynamics_kernel's code for the double bracket by its exact flow
@@ -47,6 +48,9 @@ class Splitting2LStable(Splitting2):
     """Strang splitting with the double-bracket damping in closed form: order 2, L-stable."""
     name = 'splitting2_lstable'
     order = 2
+    loop_code = None  # the closed loop damps by substeps: event by event here
+    # L-stable: the double bracket's sub-flow in closed form, the same cost at any hλ
+    auto = Candidate((0.092, 0.16), 0.30, exact_damping=True, supersedes='splitting2')
     preserves = Splitting2.preserves  # the free flow is splitting2's; D keeps |m| too
     stability = ('L-stable for dissipation: the damping sub-flow is exact, so a stiff mode '
                  'decays by e^{−hλ} → 0 per step at any hλ (implicit midpoint: → −1); |m| '

@@ -33,7 +33,7 @@ import numpy as np
 
 from .. import dynamics_kernel
 from . import splitting_batch_kernel, splitting_kernel
-from .base import IntegrationError, Integrator
+from .base import Candidate, IntegrationError, Integrator, same_order
 
 # Outer, middle, inner axis of the symmetric composition  a(h/2) b(h/2) c(h) b(h/2) a(h/2)
 # as ranks of the principal moments (0 = smallest, 1 = intermediate, 2 = largest).
@@ -115,6 +115,11 @@ class Splitting2(Integrator):
     """
     name = 'splitting2'
     order = 2
+    orders = same_order(2)     # compositions: theirs with weak damping, 2 with stiff
+    stages = 1                 # = len(weights)
+    loop_code = 0
+    auto = Candidate((0.092, 0.23), 0.30)
+    kernel_modules = (splitting_kernel, splitting_batch_kernel)
     preserves = frozenset({'angular_momentum_norm', 'unit_quaternion', 'poisson',
                            'time_reversible'})
     stability = 'no step-size limit for free rotation (error bounded, |m| exact at any h)'
@@ -165,7 +170,7 @@ class Splitting2(Integrator):
         with the damping inside, where it is weak; the damping outside couples at order 2."""
         if not dynamics.dissipation.active or len(cls.weights) == 1 or \
                 cls._weak(dynamics, momentum_norm, h):
-            return cls.order
+            return super().order_on(dynamics, momentum_norm, h)
         return 2
 
     def _kernel(self, q, m, h, n, tau, has_tau):
@@ -326,6 +331,9 @@ class Splitting4(Splitting2):
     """Yoshida triple-jump composition of ``splitting2``: order 4, Lie–Poisson."""
     name = 'splitting4'
     order = 4
+    orders = same_order(4)
+    stages = 3
+    auto = Candidate((0.24, 0.83), 0.07, call=(2.5, 11.0))
     weights = (_YOSHIDA4_OUTER, 1.0 - 2.0 * _YOSHIDA4_OUTER, _YOSHIDA4_OUTER)
 
 
@@ -333,4 +341,7 @@ class Splitting6(Splitting2):
     """Yoshida's 7-stage composition (solution A) of ``splitting2``: order 6, Lie–Poisson."""
     name = 'splitting6'
     order = 6
+    orders = same_order(6)
+    stages = 7
+    auto = Candidate((0.52, 1.96), 1.2e-3, call=(2.5, 11.0))
     weights = (_Y6[2], _Y6[1], _Y6[0], 1.0 - 2.0 * sum(_Y6), _Y6[0], _Y6[1], _Y6[2])
