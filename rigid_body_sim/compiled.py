@@ -4,9 +4,9 @@ never lands in the middle of a run::
 
     python3 -c "import rigid_body_sim.compiled as c; c.warm()"
 
-Each kernel module warms its own kernels; the engine's closed loop is warmed through a
-short controlled run, so it sees the argument types the engine passes (read-only model
-arrays).
+Each registered method names its kernel modules (``Integrator.kernel_modules``), each of
+which warms its own kernels; the engine's closed loop is warmed through a short controlled
+run, so it sees the argument types the engine passes (read-only model arrays).
 """
 
 
@@ -14,13 +14,13 @@ def warm() -> bool:
     """Warm everything; True when numba compiled (False with NUMBA_DISABLE_JIT=1)."""
     from . import control_kernel
     from .engine import Engine, EngineConfig
-    from .physics import (batch_kernels, dop853_dense, dop853_kernel, exact, gyrostat_kernel,
-                          implicit_kernel, kernels)
+    from .physics import INTEGRATORS, jit
+    from .physics.integrators import gyrostat_kernel
     from .sensors import noise
-    compiled = kernels.warm()
-    for module in (batch_kernels, implicit_kernel, dop853_kernel, dop853_dense, exact,
-                   control_kernel, gyrostat_kernel, noise):
+    modules = [m for cls in INTEGRATORS.values() for m in cls.kernel_modules]
+    for module in dict.fromkeys(modules + [control_kernel, gyrostat_kernel, noise]):
         module.warm()
+    compiled = jit.COMPILED
     for method in ('splitting2', 'rk4'):
         config = EngineConfig.from_parameters(
             {'integrator': method, 'duration': 0.1, 'publish_rate': 20.0},

@@ -8,7 +8,7 @@ axes as columns in the body frame (v_principal = v_body @ axes).
 """
 import math
 
-from .physics.kernels import jit
+from .physics.jit import jit
 
 MODE_CODES = {'off': 0, 'detumble': 1, 'slew': 2}
 

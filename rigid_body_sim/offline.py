@@ -42,7 +42,7 @@ class RunResult:
     body: object = None
     bag: Optional[str] = None
     plots: list = field(default_factory=list)
-    # auto's choice (physics.selection.Selection: predicted error and run cost, the pilot's
+    # auto's choice (physics.auto.Selection: predicted error and run cost, the pilot's
     # predicted cost, a deterministic measure of what choosing cost), None for a fixed method
     selection: object = None
     kernel_load_cpu_seconds: float = 0.0  # loading the compiled kernels before the run

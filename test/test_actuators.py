@@ -9,7 +9,7 @@ import pytest
 from rigid_body_sim.engine import Engine, EngineConfig
 from rigid_body_sim.engine.actuators import pyramid
 from rigid_body_sim.offline import simulate
-from rigid_body_sim.physics import gyrostat_kernel as gk
+from rigid_body_sim.physics.integrators import gyrostat_kernel as gk
 from rigid_body_sim.physics import rotation
 from rigid_body_sim.scene import load
 

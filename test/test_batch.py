@@ -1,4 +1,4 @@
-"""Compiled batch loop (physics.batch_kernels) behind ``Integrator.run`` on a batch.
+"""Compiled batch loop (splitting_batch_kernel) behind ``Integrator.run`` on a batch.
 
 Every body of a batch must come out as if it had been run alone by the single-body kernel
 (bitwise where no half-flows merge, to round-off where they do), compiled and as plain
@@ -13,8 +13,8 @@ import sys
 import numpy as np
 import pytest
 
-from rigid_body_sim.physics import (Dissipation, Dynamics, IntegrationError, batch_kernels,
-                                    create, kernels)
+from rigid_body_sim.physics import Dissipation, Dynamics, IntegrationError, create, jit
+from rigid_body_sim.physics.integrators import splitting_batch_kernel
 
 pytestmark = pytest.mark.fast  # make check
 
@@ -52,7 +52,7 @@ def _single_runs(name, dyn, q, m, h, n, torque):
 @pytest.mark.parametrize('name,model,torque', CASES)
 def test_batch_run_equals_single_body_runs(name, model, torque):
     """150 bodies (two full blocks and a partial one), 200 steps of 0.01 s."""
-    q0, m0, tau = _bodies(2 * batch_kernels.BLOCK + 22, 3)
+    q0, m0, tau = _bodies(2 * splitting_batch_kernel.BLOCK + 22, 3)
     dyn, torque = _dynamics(model), _torque(torque, tau)
     integ = create(name, dyn)
     q, m = integ.run(q0, m0, 0.01, 200, torque)
@@ -144,8 +144,8 @@ _SCRIPT = '''
 import json, sys, numpy as np
 sys.path.insert(0, %r)
 from test_batch import CASES, _bodies, _dynamics, _failing_batch, _torque
-from rigid_body_sim.physics import IntegrationError, create, kernels
-out = {"compiled": kernels.COMPILED}
+from rigid_body_sim.physics import IntegrationError, create, jit
+out = {"compiled": jit.COMPILED}
 q0, m0, tau = _bodies(5, 8)
 for name, model, torque in CASES:
     q, m = create(name, _dynamics(model)).run(q0, m0, 0.01, 40, _torque(torque, tau))
@@ -168,7 +168,7 @@ def test_plain_python_agrees_with_the_compiled_batch_loop():
                           capture_output=True, text=True, timeout=600)
     assert proc.returncode == 0, proc.stderr[-3000:]
     plain = json.loads(proc.stdout)
-    assert plain.pop("compiled") is False and kernels.COMPILED
+    assert plain.pop("compiled") is False and jit.COMPILED
     q0, m0, tau = _bodies(5, 8)
     for name, model, torque in CASES:
         q, m = create(name, _dynamics(model)).run(q0, m0, 0.01, 40, _torque(torque, tau))

@@ -11,7 +11,7 @@ import pytest
 from ros_helpers import venv_exe
 
 from rigid_body_sim.physics import Dissipation, Dynamics
-from rigid_body_sim.physics.stability import check_step, largest_stable_step
+from rigid_body_sim.physics.integrators.stability import check_step, largest_stable_step
 
 
 def _run(*args, timeout=120):

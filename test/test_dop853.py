@@ -14,7 +14,8 @@ from jit_modes import run_both
 from scipy.integrate import solve_ivp
 
 from rigid_body_sim.physics import (Dissipation, Dynamics, IntegrationError, create,
-                                    dop853_kernel, kernels, rotation)
+                                    dynamics_kernel, rotation)
+from rigid_body_sim.physics.integrators import dop853_kernel
 from rigid_body_sim.physics.exact import TorqueFreeSolution
 
 pytestmark = pytest.mark.fast  # make check
@@ -31,17 +32,17 @@ M0, TAU = np.array([0.3, 0.6, 2.7]), np.array([0.01, -0.02, 0.005])
 @pytest.mark.parametrize('rtol', [1e-3, 1e-6, 1e-10, 1e-13])
 def test_takes_scipys_steps_on_the_same_rhs(model, rtol):
     """nfev equal and the state equal to 1e-12 after 5 s: the same tableau, error norm, step
-    control and initial step as solve_ivp(method='DOP853') on kernels._rates. The error norm
-    is a sum with cancellation, summed in another order than scipy's BLAS: its 8th digit
+    control and initial step as solve_ivp(method='DOP853') on dynamics_kernel._rates. The error
+    norm is a sum with cancellation, summed in another order than scipy's BLAS: its 8th digit
     differs, which moves h in its 9th, so at rtol 1e-3 the state differs by ~rtol·1e-9
     (measured 3.6e-12; ≤ 2e-15 at rtol ≤ 1e-6)."""
-    code = kernels.MODEL_CODES[model]
+    code = dynamics_kernel.MODEL_CODES[model]
     coefficient = 0.0 if model == 'none' else 0.2
     atol = rtol * 1e-2
 
     def rhs(_, y):
         dq, dm = np.empty(4), np.empty(3)
-        kernels._rates(y[:4], y[4:], MOMENTS, TAU, code, coefficient, dq, dm)
+        dynamics_kernel._rates(y[:4], y[4:], MOMENTS, TAU, code, coefficient, dq, dm)
         return np.concatenate((dq, dm))
 
     y0 = np.concatenate((Q0, M0))
@@ -127,8 +128,8 @@ def test_a_torque_change_keeps_the_step_and_recomputes_the_derivative():
 
 _SCRIPT = '''
 import json, numpy as np
-from rigid_body_sim.physics import Dissipation, Dynamics, create, kernels
-out = {"compiled": kernels.COMPILED}
+from rigid_body_sim.physics import Dissipation, Dynamics, create, jit
+out = {"compiled": jit.COMPILED}
 for model in ("none", "double_bracket", "viscous"):
     integ = create("dop853", Dynamics(np.array([1.0, 2.0, 3.0]), Dissipation(model, 0.2)),
                    rtol=1e-9, atol=1e-11)
@@ -211,11 +212,11 @@ def test_the_engine_runs_one_integration_through_its_events():
     assert (nfev - 2) % 15 == 0 and 50 <= (nfev - 2) // 15 <= 200, nfev
 
 
-def test_the_cached_kernels_are_keyed_on_kernels_py_too():
-    """They embed kernels._rates: after kernels.py changes they must recompile, not run the
-    old rates from numba's cache (which checks only the defining file)."""
+def test_the_cached_kernels_are_keyed_on_dynamics_kernel_py_too():
+    """They embed dynamics_kernel._rates: after dynamics_kernel.py changes they must recompile,
+    not run the old rates from numba's cache (which checks only the defining file)."""
     import numba
-    from rigid_body_sim.physics import dop853_dense
+    from rigid_body_sim.physics.integrators import dop853_dense
     for kernel in (dop853_kernel._rhs, dop853_kernel._initial_step, dop853_kernel._rk_step,
                    dop853_kernel.attempt, dop853_kernel.integrate, dop853_dense._build,
                    dop853_dense._interpolate, dop853_dense.advance):

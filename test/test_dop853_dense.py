@@ -1,4 +1,4 @@
-"""DOP853 with dense output (physics.dop853_dense) against scipy's solve_ivp(t_eval=...).
+"""DOP853 with dense output (integrators.dop853_dense) against scipy's solve_ivp(t_eval=...).
 
 A run sampled by consecutive calls must give scipy's dense-output values at the sample
 times, to round-off, and cost the steps of the unsampled run plus 3 evaluations per step
@@ -21,8 +21,8 @@ import pytest
 from jit_modes import run_both
 from scipy.integrate import DOP853, solve_ivp
 
-from rigid_body_sim.physics import (Dissipation, Dynamics, IntegrationError, create,
-                                    dop853_dense, dop853_kernel, kernels)
+from rigid_body_sim.physics import Dissipation, Dynamics, IntegrationError, create, dynamics_kernel
+from rigid_body_sim.physics.integrators import dop853_dense, dop853_kernel
 
 MOMENTS = np.array([1.0, 2.0, 3.0])
 Q0 = np.array([0.1, -0.2, 0.3, 0.9]) / np.linalg.norm([0.1, -0.2, 0.3, 0.9])
@@ -33,12 +33,12 @@ SCENES = [('none', 0.0, None), ('viscous', 0.2, TAU), ('double_bracket', 0.3, TA
 
 
 def scipy_rhs(model, coefficient, tau):
-    """kernels._rates (the kernel's own right-hand side) on y = (q, m), for scipy."""
-    code, tau = kernels.MODEL_CODES[model], np.zeros(3) if tau is None else tau
+    """dynamics_kernel._rates (the kernel's own right-hand side) on y = (q, m), for scipy."""
+    code, tau = dynamics_kernel.MODEL_CODES[model], np.zeros(3) if tau is None else tau
 
     def rhs(_, y):
         dq, dm = np.empty(4), np.empty(3)
-        kernels._rates(y[:4], y[4:], MOMENTS, tau, code, coefficient, dq, dm)
+        dynamics_kernel._rates(y[:4], y[4:], MOMENTS, tau, code, coefficient, dq, dm)
         return np.concatenate((dq, dm))
     return rhs
 
@@ -181,8 +181,8 @@ _SCRIPT = '''
 import json, sys, numpy as np
 sys.path.insert(0, %r)
 from test_dop853_dense import SCENES, Q0, M0, sampled
-from rigid_body_sim.physics import Dissipation, Dynamics, create, kernels
-out = {"compiled": kernels.COMPILED}
+from rigid_body_sim.physics import Dissipation, Dynamics, create, jit
+out = {"compiled": jit.COMPILED}
 for model, coefficient, tau in SCENES:
     dyn = Dynamics(np.array([1.0, 2.0, 3.0]), Dissipation(model, coefficient))
     integ = create("dop853", dyn, rtol=1e-10, atol=1e-12)

@@ -1,4 +1,4 @@
-"""Double-double arithmetic (physics.double_double) against exact rational arithmetic.
+"""Double-double arithmetic (physics.exact.double_double) against exact rational arithmetic.
 
 TwoSum and TwoProd must be error-free (hi + lo equals the exact sum/product as a
 Fraction, with hi the rounded result); the compound operations must meet their stated
@@ -10,7 +10,7 @@ from fractions import Fraction as F
 import numpy as np
 import pytest
 
-from rigid_body_sim.physics import double_double as dd
+from rigid_body_sim.physics.exact import double_double as dd
 
 pytestmark = pytest.mark.fast
 EPS2 = F(1, 2 ** 106)                      # double-double unit round-off (2^-106 = 1.2e-32)

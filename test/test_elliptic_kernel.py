@@ -1,4 +1,4 @@
-"""Compiled Jacobi elliptic functions and Carlson integrals (physics.elliptic_kernel)
+"""Compiled Jacobi elliptic functions and Carlson integrals (physics.exact.elliptic_kernel)
 against scipy.special (the same algorithms) and mpmath (the truth, near m → 1 too).
 
 Tolerances (eps = 2.2e-16), stated per function, with the measured values in brackets:
@@ -18,7 +18,7 @@ import numpy as np
 import pytest
 import scipy.special as sp
 
-from rigid_body_sim.physics import elliptic_kernel as ek
+from rigid_body_sim.physics.exact import elliptic_kernel as ek
 
 pytestmark = pytest.mark.fast
 EPS = np.finfo(float).eps

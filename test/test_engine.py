@@ -177,7 +177,7 @@ def test_run_json_reports_selection_cpu_and_sample_count(tmp_path):
     # the planned cost of choosing (the a-priori pass and the pilot) is at most 10 % of the
     # run the model predicts; load only adds to the CPU measured, so it stays below the run
     assert 0.0 < summary['selection_planned_cpu_seconds'] < summary['cpu_seconds']
-    from rigid_body_sim.physics.selection import CANDIDATES
+    from rigid_body_sim.physics.auto import CANDIDATES
     assert summary['integrator'] in [c.name for c in CANDIDATES]
     assert summary['pilot_steps'] > 0  # dissipation, no torque: auto ran its pilot
     assert summary['evaluations'] >= summary['steps'] > 0

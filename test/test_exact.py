@@ -4,7 +4,8 @@ import pytest
 from scipy.integrate import solve_ivp
 from scipy.optimize import brentq
 
-from rigid_body_sim.physics import exact_kernel, rotation
+from rigid_body_sim.physics import rotation
+from rigid_body_sim.physics.exact import kernel as exact_kernel
 from rigid_body_sim.physics.exact import TorqueFreeSolution
 
 pytestmark = pytest.mark.fast  # make check
@@ -239,7 +240,7 @@ def test_invalid_time_raises():
 @pytest.mark.parametrize('moments, m0, regime', CASES + [((1.0, 2.0, 3.0), (1e-6, 2.0, 0.0), 'B')])
 def test_scalar_path_matches_vectorised(moments, m0, regime):
     """The single-body scalar-t call and the many-times call (both the compiled kernel,
-    :mod:`.exact_kernel`) give the same bits, and reproduce the vectorised numpy code
+    :mod:`.exact.kernel`) give the same bits, and reproduce the vectorised numpy code
     (``at_numpy``) to round-off of the phase: 1e-15·(4 + |t|) (double-double vs long-double
     constants and phases, Carlson/Cephes in numba vs scipy, each within a few eps: at
     t = 0.3 s the numpy path is 1.7e-15 rad from 40 digits, the kernel 1.4e-16).

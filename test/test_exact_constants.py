@@ -1,4 +1,4 @@
-"""The exact solution's constants in double-double (physics.exact_constants) against
+"""The exact solution's constants in double-double (physics.exact.constants) against
 mpmath at high precision: Bulirsch's cel for K and Π, and the rates, K, Π·cphi and k'² of
 real bodies, down to k'² ~ 1e-14 beside the separatrix, where long double left k'² with a
 relative error ~1e-19/k'²."""
@@ -6,7 +6,7 @@ import mpmath
 import numpy as np
 import pytest
 
-from rigid_body_sim.physics import exact_constants, exact_kernel as ek
+from rigid_body_sim.physics.exact import constants as exact_constants, kernel as ek
 from rigid_body_sim.physics.exact import TorqueFreeSolution
 
 pytestmark = pytest.mark.fast

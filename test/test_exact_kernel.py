@@ -1,4 +1,4 @@
-"""The compiled evaluation of the torque-free solution (physics.exact_kernel) against the
+"""The compiled evaluation of the torque-free solution (physics.exact.kernel) against the
 vectorised numpy path (TorqueFreeSolution.at_numpy: long double, scipy.special), against
 the 40-digit reference, and compiled against plain Python (NUMBA_DISABLE_JIT=1).
 """
@@ -10,7 +10,8 @@ import pytest
 from jit_modes import run_both
 
 from rigid_body_sim.bench.reference40 import Reference40, attitude_error
-from rigid_body_sim.physics import exact_kernel, rotation
+from rigid_body_sim.physics import rotation
+from rigid_body_sim.physics.exact import kernel as exact_kernel
 from rigid_body_sim.physics.exact import TorqueFreeSolution
 
 pytestmark = pytest.mark.fast
@@ -82,11 +83,13 @@ def test_near_separatrix_against_the_reference():
 
 _SCRIPT = '''
 import json, sys, numpy as np
-from rigid_body_sim.physics import double_double as dd, elliptic_kernel as ek, exact_kernel
+from rigid_body_sim.physics import jit
+from rigid_body_sim.physics.exact import double_double as dd, elliptic_kernel as ek
+from rigid_body_sim.physics.exact import kernel as exact_kernel
 from rigid_body_sim.physics.exact import TorqueFreeSolution
 from rigid_body_sim.bench.exact_horizon import case
 from rigid_body_sim.bench.reference40 import Reference40, attitude_error
-out = {"compiled": exact_kernel.kernels.COMPILED}
+out = {"compiled": jit.COMPILED}
 out["ellipj"] = [ek.ellipj(u, m, 1.0 - m) for u in (0.3, -2.0, 5.0)
                  for m in (0.0, 1e-10, 0.3, 0.99, 1.0 - 1e-11)]
 out["carlson"] = [(ek.rf(x, y, 1.0), ek.rj(x, y, 1.0, p))
@@ -141,20 +144,18 @@ def test_compiled_and_plain_python_agree():
 
 
 def test_kernel_module_is_registered_for_warm_up():
-    """compiled.warm runs exact.warm, which compiles (or loads) the exact kernels."""
-    import inspect
-
-    from rigid_body_sim import compiled
-    from rigid_body_sim.physics import exact, kernels
-    assert ' exact,' in inspect.getsource(compiled.warm)
-    assert exact.warm() is kernels.COMPILED
+    """compiled.warm runs exact.warm (a kernel module of the registered ``exact``), which
+    compiles (or loads) the exact kernels."""
+    from rigid_body_sim.physics import INTEGRATORS, exact, jit
+    assert exact in INTEGRATORS['exact'].kernel_modules
+    assert exact.warm() is jit.COMPILED
 
 
 def test_compiled_classification_is_the_numpy_one():
     """exact_build.build (compiled) and TorqueFreeSolution (numpy) classify alike — pack
     raises otherwise — at the rules' edges too: moments equal within 1e-12 of the largest
     or just beyond, momentum exactly on an axis or 1e-90·G off it, Δ2 = 0 exactly."""
-    from rigid_body_sim.physics import exact_build
+    from rigid_body_sim.physics.exact import build as exact_build
     cases = [((1.0, 1.0 + 1e-12, 2.0), (0.3, 0.4, 0.5)),
              ((1.0, 1.0 + 3e-12, 2.0), (0.3, 0.4, 0.5)),
              ((2.0, 2.0 - 1e-12 * 2.0, 2.0), (0.3, 0.4, 0.5)), ((1.0, 2.0, 3.0), (0.0, 2.0, 0.0)),
@@ -177,7 +178,8 @@ def test_one_shot_flow_is_the_solution():
     result for every regime (to 4 eps: TorqueFreeSolution re-normalises q0), and a
     non-finite state through the integrator raises IntegrationError (not ValueError), as
     in every method."""
-    from rigid_body_sim.physics import Dissipation, Dynamics, IntegrationError, create, exact_build
+    from rigid_body_sim.physics import Dissipation, Dynamics, IntegrationError, create
+    from rigid_body_sim.physics.exact import build as exact_build
     rng = np.random.default_rng(13)
     for label, moments, m0 in _bodies(rng):
         q0 = rng.normal(size=4)

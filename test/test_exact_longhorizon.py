@@ -54,7 +54,7 @@ def test_cel_complete_integrals_to_long_double_precision():
     scalar and vectorised alike (mpmath at 330 digits resolves 1 − m = 1e-200)."""
     import mpmath
 
-    from rigid_body_sim.physics.extended import LD, cel
+    from rigid_body_sim.physics.exact.extended import LD, cel
     kp2 = np.array([1e-200, 1e-30, 5e-7, 1e-3, 0.5, 1.0], LD)
     n = np.array([0.0, 1e-8, 0.5, 3.0, 36.05, 1e6], LD)
     kk, nn = (a.ravel() for a in np.meshgrid(kp2, n))
@@ -77,7 +77,7 @@ def test_deep_near_separatrix_bodies(m0):
     terms to k'² = 1.8e-9 … 2.3e-13: ≤ 1e-12 rad at 1e3 s and at 1e6 s (measured ≤ 6.1e-14;
     with the constants in long double, the numpy path's, 5e-11 … 2.4e-9 rad at 1e3 s: k'²
     and K carried 1e-19/k'² of relative error). The double-double constants
-    (physics.exact_constants) are what this checks."""
+    (physics.exact.constants) are what this checks."""
     q0 = np.array([0.1, -0.2, 0.3, 0.9]) / np.linalg.norm([0.1, -0.2, 0.3, 0.9])
     sol, ref = TorqueFreeSolution((2.0, 3.0, 6.0), q0, m0), Reference40((2.0, 3.0, 6.0), q0, m0)
     for t in (1e3, 1e6):

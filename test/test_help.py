@@ -155,7 +155,7 @@ def test_missing_numba_warns_once_unless_jit_is_disabled(tmp_path):
     fake = tmp_path / 'numba'
     fake.mkdir()
     (fake / '__init__.py').write_text('raise ImportError("numba broken for this test")\n')
-    code = ('import rigid_body_sim.physics.kernels as k, rigid_body_sim.physics.exact_kernel; '
+    code = ('import rigid_body_sim.physics.jit as k, rigid_body_sim.physics.exact.kernel; '
             'print(k.COMPILED)')
     env = {'PYTHONPATH': os.pathsep.join([str(tmp_path)] + [p for p in os.environ.get(
         'PYTHONPATH', '').split(os.pathsep) if p])}

@@ -1,4 +1,4 @@
-"""Compiled step loops (physics.kernels): the same source compiled and as plain Python.
+"""Compiled step loops (integrators/*_kernel.py): the same source compiled and as plain Python.
 
 The compiled loops must agree with the uncompiled run of the same functions
 (NUMBA_DISABLE_JIT=1, in a subprocess) and with the numpy batch path of each method,
@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 from jit_modes import run_both
 
-from rigid_body_sim.physics import Dissipation, Dynamics, IntegrationError, create, kernels
+from rigid_body_sim.physics import Dissipation, Dynamics, IntegrationError, create, jit
 
 pytestmark = pytest.mark.fast  # make check
 
@@ -25,8 +25,8 @@ Q0, M0, TAU = (0.1, -0.2, 0.3, 0.9), (0.3, 0.6, 2.7), (0.01, -0.02, 0.005)
 
 _SCRIPT = '''
 import json, sys, numpy as np
-from rigid_body_sim.physics import Dissipation, Dynamics, create, kernels
-out = {"compiled": kernels.COMPILED}
+from rigid_body_sim.physics import Dissipation, Dynamics, create, jit
+out = {"compiled": jit.COMPILED}
 for name, model in json.loads(sys.argv[1]):
     d = Dissipation(model, 0.0 if model == "none" else 0.2)
     integ = create(name, Dynamics(np.array(%r), d))
@@ -135,7 +135,7 @@ def test_a_non_positive_step_is_refused_before_the_loop():
     integ = create('splitting2', Dynamics(np.array(MOMENTS)))
     with pytest.raises(IntegrationError, match='finite and positive'):
         integ.run(np.array([0, 0, 0, 1.0]), np.array(M0), float('nan'), 3)
-    assert kernels.COMPILED
+    assert jit.COMPILED
 
 
 _CONTROL = '''
@@ -180,10 +180,10 @@ def test_a_kernel_is_keyed_on_the_files_it_calls(tmp_path):
 
     def stamp(kernel):
         return kernel._cache._cache_file._source_stamp
-    first = stamp(kernels.depends_on(numba.njit(cache=True)(f), module))
-    again = stamp(kernels.depends_on(numba.njit(cache=True)(f), module))
+    first = stamp(jit.depends_on(numba.njit(cache=True)(f), module))
+    again = stamp(jit.depends_on(numba.njit(cache=True)(f), module))
     dep.write_text('x = 2\n')
-    changed = stamp(kernels.depends_on(numba.njit(cache=True)(f), module))
+    changed = stamp(jit.depends_on(numba.njit(cache=True)(f), module))
     assert first == again != changed
     plain = numba.njit(cache=True)(closed_loop.closed_loop_run.py_func)
     assert stamp(closed_loop.closed_loop_run) != stamp(plain)

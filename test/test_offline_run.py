@@ -12,8 +12,8 @@ from rigid_body_sim import cli, offline
 from rigid_body_sim.bag.reader import iter_messages, read_info
 from rigid_body_sim.engine import Engine
 from rigid_body_sim.physics import INTEGRATORS
-from rigid_body_sim.physics.stability import check_step, distortion
-from rigid_body_sim.physics.step_advice import advise
+from rigid_body_sim.physics.integrators.stability import check_step, distortion
+from rigid_body_sim.physics.auto.step_advice import advise
 from rigid_body_sim.scene import list_scenes, load
 
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))

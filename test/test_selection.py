@@ -7,8 +7,8 @@ import pytest
 
 from rigid_body_sim.engine import Engine
 from rigid_body_sim.offline import engine_for, simulate
-from rigid_body_sim.physics import INTEGRATORS, Dissipation, Dynamics, RigidBody, create, pilot
-from rigid_body_sim.physics.selection import CANDIDATES, select
+from rigid_body_sim.physics import INTEGRATORS, Dissipation, Dynamics, RigidBody, create
+from rigid_body_sim.physics.auto import CANDIDATES, pilot, select
 from rigid_body_sim.scene import load
 
 EXPLORER_I = np.array([0.04, 0.2, 0.2])
@@ -159,7 +159,7 @@ def test_the_whole_selection_is_planned_within_a_tenth_of_the_run(duration):
     and short runs take the a-priori choice: at 1–30 s the fixed cost of the run dominates,
     at 100 s and 690 s pilots run; over 1 s even asking a second candidate a priori would
     pass 10 %). The CPU measured is the bench's to report."""
-    from rigid_body_sim.physics import selection
+    from rigid_body_sim.physics.auto import selection
     sel = simulate(load('explorer1'), duration=duration).selection
     assert sel.planned_cost <= 0.1 * sel.predicted_cost, sel.reason
     assert (sel.pilot_steps > 0) == (duration >= 100.0), sel.reason

@@ -2,7 +2,7 @@
 
 ``python -m rigid_body_sim.bench.actuators [--steps N]`` times, in the same run and on the
 same body and step, the compiled loops the engine runs: ``splitting2`` on the body alone
-with a held torque (``kernels.splitting_run``), and the gyrostat's Strang step
+with a held torque (``splitting_kernel.splitting_run``), and the gyrostat's Strang step
 (``gyrostat_kernel.gyrostat_run``) with four reaction wheels and with the four-CMG
 pyramid, both allocating a body torque every step (pseudo-inverse; singularity-robust
 inverse). It prints µs per step and the ratios; the issue's target is ≤ 2×.
@@ -14,7 +14,7 @@ import numpy as np
 
 from ..engine import EngineConfig
 from ..engine.actuators import Actuators
-from ..physics import kernels
+from ..physics.integrators import splitting_kernel
 from .common import best_of
 
 TARGET = 2.0
@@ -30,8 +30,8 @@ def _body(n):
     weights = np.array([1.0])
 
     def run():
-        kernels.splitting_run(Q0.copy(), M0.copy(), H, n, weights, AXES, MOMENTS, TAU, True,
-                              0, 0.0, False)
+        splitting_kernel.splitting_run(Q0.copy(), M0.copy(), H, n, weights, AXES, MOMENTS, TAU,
+                                       True, 0, 0.0, False)
     run()
     return best_of(run)
 

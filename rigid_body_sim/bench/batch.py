@@ -1,8 +1,8 @@
 """Batch throughput: body-steps per CPU second for N bodies advanced together, one core.
 
 Per N, three paths with h = 0.01 s on random tumbling bodies:
-* splitting2 ``run``: the compiled batch loop (physics.batch_kernels), n steps per call —
-  how a caller advances a batch between samples. Warmed first: compile cost is
+* splitting2 ``run``: the compiled batch loop (physics.integrators.splitting_batch_kernel),
+  n steps per call — how a caller advances a batch between samples. Warmed first: compile cost is
   bench/compile.py's, never mixed into run cost.
 * splitting2 ``step``: one call per step, the numpy batch path (for N = 1 the single-body
   kernel) — the path the compiled loop replaced, measured in the same run.

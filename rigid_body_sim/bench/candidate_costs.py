@@ -1,4 +1,4 @@
-"""The per-step costs in ``auto``'s model (``physics.selection_model.CANDIDATES``) against
+"""The per-step costs in ``auto``'s model (``physics.auto.model.CANDIDATES``) against
 the compiled loops measured here, free and with weak double-bracket damping.
 
 ``python -m rigid_body_sim.bench.candidate_costs``
@@ -16,7 +16,7 @@ import sys
 import numpy as np
 
 from ..physics import Dissipation, Dynamics, create
-from ..physics.selection_model import CANDIDATES, DAMP_SUBSTEP
+from ..physics.auto.model import CANDIDATES, DAMP_SUBSTEP
 from .common import best_of
 
 MOMENTS = (0.04, 0.2, 0.2)   # Explorer 1, kg·m²

@@ -3,7 +3,7 @@
 :class:`ActuatorConfig` is built from the ``actuators.*`` parameters (validated, with
 notes such as a normalised axis); :class:`Actuators` holds their state and commands and
 advances body + actuators by the compiled gyrostat kernel
-(``physics.gyrostat_kernel``). Frames: axes and torques in the body frame at this
+(``physics.integrators.gyrostat_kernel``). Frames: axes and torques in the body frame at this
 interface; the kernel works in the principal frame.
 
 Body torque → actuators (``actuators.command`` = torque): CMGs if the scene has any
@@ -18,7 +18,7 @@ from typing import Optional, Tuple
 import numpy as np
 
 from ..physics import IntegrationError
-from ..physics import gyrostat_kernel as gk
+from ..physics.integrators import gyrostat_kernel as gk
 from .actuator_specs import PYRAMID_SKEW
 
 NS = 1_000_000_000  # = config.NS (config imports this module)

@@ -5,7 +5,7 @@ Driven event by event from Python, every control instant costs ~10 µs of interp
 around a sub-microsecond law and a few sub-microsecond steps. This kernel runs the whole
 stretch between two samples instead: at each control instant it evaluates the same law
 (``control_kernel.control_torque``) with the same mission schedule and clip, then steps the
-same compiled integrator loop (``physics.kernels``) to the next instant, with the step
+same compiled integrator loop (``physics.integrators``) to the next instant, with the step
 split exactly as :meth:`Engine._integrate` splits it. The trajectory is the one the
 event-by-event path computes (the tests compare both). :func:`advance` is the engine's
 side: it decides when the kernel applies, packs its arguments and takes its results back.
@@ -22,14 +22,14 @@ import numpy as np
 from .. import control_kernel
 from ..control_kernel import MODE_CODES, control_torque
 from ..physics import IntegrationError
-from ..physics import kernels
-from ..physics.kernels import depends_on, jit
+from ..physics import dynamics_kernel
+from ..physics.integrators import explicit_kernel, splitting_kernel
+from ..physics.jit import depends_on, jit
 from . import specs
 from .config import NS
 from .sources import NEVER
 
-MODEL_CODES = kernels.MODEL_CODES
-METHOD_CODES = {'splitting2': 0, 'splitting4': 0, 'splitting6': 0, 'rk4': 1, 'euler': 2}
+MODEL_CODES = dynamics_kernel.MODEL_CODES
 INNER_LIMIT = 0.5  # = splitting.INNER_LIMIT: damping inside the compositions when weak
 
 
@@ -117,17 +117,17 @@ def closed_loop_run(q, m, t_ns, t_stop_ns, control_ns, period_ns, h_max, method,
         n = max(1, int(math.ceil(span / (h_max * 1e9) - 1e-9)))
         h = span / (n * 1e9)
         if method == 0:
-            failed, e = kernels.splitting_run(q, m, h, n, weights, split_axes, moments, tau_p,
-                                              has_tau, model, coefficient,
-                                              _inner(m, h, weights, moments, model,
-                                                     coefficient))
+            failed, e = splitting_kernel.splitting_run(
+                q, m, h, n, weights, split_axes, moments, tau_p, has_tau, model, coefficient,
+                _inner(m, h, weights, moments, model, coefficient))
             evals += e
         elif method == 1:
-            failed = kernels.rk4_steps(q, m, h, n, moments, tau_p, model, coefficient, scratch)
+            failed = explicit_kernel.rk4_steps(q, m, h, n, moments, tau_p, model, coefficient,
+                                               scratch)
             evals += 4 * (n if failed < 0 else failed + 1)
         else:
-            failed = kernels.euler_steps(q, m, h, n, moments, tau_p, model, coefficient,
-                                         scratch)
+            failed = explicit_kernel.euler_steps(q, m, h, n, moments, tau_p, model, coefficient,
+                                                 scratch)
             evals += n if failed < 0 else failed + 1
         if failed >= 0:
             out[0] = t
@@ -145,8 +145,9 @@ def closed_loop_run(q, m, t_ns, t_stop_ns, control_ns, period_ns, h_max, method,
     return h
 
 
-# it calls the step loops and the law from their own files (see kernels.depends_on)
-closed_loop_run = depends_on(closed_loop_run, kernels, control_kernel)
+# it calls the step loops and the law from their own files (see jit.depends_on)
+closed_loop_run = depends_on(closed_loop_run, splitting_kernel, explicit_kernel,
+                             dynamics_kernel, control_kernel)
 
 
 def advance(engine, until_ns: int) -> None:
@@ -155,9 +156,10 @@ def advance(engine, until_ns: int) -> None:
     loop; otherwise nothing (``Engine.advance`` goes event by event)."""
     law, c = engine._law, engine.config
     stop = min(engine._next_sample, engine.end_ns)
+    code = None if engine._integ is None else engine._integ.loop_code  # the method's own
     if (stop > until_ns or law.next_t >= stop or engine._selection is not None
             or engine.command.torque is not None or engine.command.expiry != NEVER
-            or engine.method not in METHOD_CODES
+            or code is None
             or not (engine._torque_seen or c.integrator != specs.AUTO)):
         return
     spec = engine._integ.loop_spec()
@@ -174,7 +176,7 @@ def advance(engine, until_ns: int) -> None:
     out[2] = law.free
     h = closed_loop_run(
         q, m, engine.t_ns, stop, law.next_t, settings.period_ns, engine.step_max,
-        METHOD_CODES[engine.method], spec[0], spec[1], engine.dynamics.moments,
+        code, spec[0], spec[1], engine.dynamics.moments,
         MODEL_CODES[d.model] if d.active else 0, d.coefficient,
         engine.body.principal_axes, engine.body.principal_to_body, MODE_CODES[ctl.mode],
         ctl.target, model_body.principal_axes, model_body.principal_moments,

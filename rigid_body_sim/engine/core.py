@@ -23,7 +23,7 @@ import numpy as np
 
 from ..physics import Dynamics, IntegrationError, create, rotation
 from ..physics.exact import TorqueFreeSolution
-from ..physics.selection import select, selecting
+from ..physics.auto import select, selecting
 from . import closed_loop, health, sensing
 from .actuators import Actuators
 from .config import NS, EngineConfig
@@ -232,10 +232,10 @@ class Engine:
     def _check_method(self):
         """[(verdict, message)] for the fixed method at its step from the current state:
         outside its stability region ('refuse' far outside, else 'warn'), or a predicted
-        error (auto's error model, physics.step_advice) far from the accuracy budget,
+        error (auto's error model, physics.auto.step_advice) far from the accuracy budget,
         too damped or too amplified alike ('warn', with the step that would meet it)."""
-        from ..physics.stability import check_step
-        from ..physics.step_advice import advise, run_step
+        from ..physics.auto.step_advice import advise, run_step
+        from ..physics.integrators.stability import check_step
         c = self.config
         spacing = c.sample_period if c.control is None else \
             min(c.sample_period, c.control.period_ns / NS)

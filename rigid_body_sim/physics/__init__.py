@@ -1,12 +1,13 @@
-"""Rigid-body rotation physics, free of ROS: numpy and scipy only.
+"""Rigid-body rotation physics, free of ROS: numpy, scipy and numba.
 
 * :mod:`.body` — inertia validation, principal moments and axes.
-* :mod:`.dynamics` — Euler's equations, torques and dissipation (principal frame).
-* :mod:`.integrators` — the registry of methods with one interface.
-* :mod:`.exact` — the torque-free solution in closed form (Jacobi elliptic functions);
-  :mod:`.exact_kernel` its compiled evaluation (:mod:`.elliptic_kernel`,
-  :mod:`.double_double`), :mod:`.exact_build` and :mod:`.exact_constants` its compiled
-  set-up, :mod:`.exact_numpy` the vectorised numpy path (long double, :mod:`.extended`).
+* :mod:`.dynamics` — Euler's equations, torques and dissipation (principal frame);
+  :mod:`.dynamics_kernel` its compiled twin, shared by every method's loop.
+* :mod:`.integrators` — the registry of methods with one interface; each method's module
+  sits beside its compiled loop (``splitting.py`` with ``splitting_kernel.py``, …).
+* :mod:`.exact` — the torque-free solution in closed form (Jacobi elliptic functions).
+* :mod:`.auto` — ``integrator: auto``: selection, its model and pilot.
+* :mod:`.jit` — numba's settings for every kernel.
 * :mod:`.propagator` — propagation in the user's body frame.
 """
 from .body import RigidBody

@@ -25,7 +25,7 @@ import math
 
 import numpy as np
 
-from ..physics.kernels import jit
+from ..physics.jit import jit
 
 # IEEE 952: the Allan deviation of 1/f (flicker) rate noise is flat at this multiple of B
 FLICKER_FLOOR = math.sqrt(2.0 * math.log(2.0) / math.pi)

@@ -1,17 +1,21 @@
 """The integrator registry: every method by name, all with the interface of ``Integrator``.
 
-Adding a method: write its module (a subclass of Integrator) and add it to ``_METHODS``.
+Adding a method: write its module (a subclass of Integrator that states its facts: orders,
+stages, stability function, closed-loop code, auto's costs, its compiled loops' modules),
+beside its compiled loop (``<method>_kernel.py``), and add it to ``_METHODS``. ``auto``,
+the warm-up, the stability check and the engine's closed loop read the facts from here.
 """
-from .base import PRESERVES, IntegrationError, Integrator
+from .base import KINDS, PRESERVES, Candidate, IntegrationError, Integrator
 from .explicit import Euler, RK4
 from .exact_flow import Exact
 from .implicit import ImplicitMidpoint
-from .ivp import DOP853
+from .dop853 import DOP853
 from .lstable import Splitting2LStable
 from .splitting import Splitting2, Splitting4, Splitting6
 
-_METHODS = (Euler, RK4, DOP853, ImplicitMidpoint, Splitting2, Splitting4, Splitting6, Exact,
-            Splitting2LStable)
+# auto asks its candidates in this order where their costs tie
+_METHODS = (Splitting2, Splitting4, Splitting6, RK4, ImplicitMidpoint, Splitting2LStable, Exact,
+            DOP853, Euler)
 
 INTEGRATORS = {cls.name: cls for cls in _METHODS}
 
@@ -30,5 +34,5 @@ def create(name: str, dynamics, **options) -> Integrator:
     return get_integrator(name)(dynamics, **options)
 
 
-__all__ = ['INTEGRATORS', 'Integrator', 'IntegrationError', 'PRESERVES', 'create',
-           'get_integrator']
+__all__ = ['INTEGRATORS', 'Candidate', 'Integrator', 'IntegrationError', 'KINDS', 'PRESERVES',
+           'create', 'get_integrator']

@@ -4,7 +4,8 @@ An integrator advances the principal-frame state (q, m) of one body or a batch
 (q: (..., 4), m: (..., 3)) by a step h, with a body torque τ (principal frame) held
 constant over the step (zero-order hold). Methods differ only in ``_step``.
 """
-from typing import ClassVar, FrozenSet, Optional
+from dataclasses import dataclass
+from typing import Callable, ClassVar, FrozenSet, Mapping, Optional, Tuple
 
 import math
 
@@ -19,6 +20,71 @@ class IntegrationError(RuntimeError):
     def __init__(self, integrator: str, h: float, t: float, reason: str):
         self.integrator, self.h, self.t, self.reason = integrator, h, t, reason
         super().__init__(f'{integrator} failed at t = {t:.9g} s with step h = {h:.6g} s: {reason}')
+
+
+@dataclass(frozen=True)
+class Candidate:
+    """A method's facts for ``integrator: auto`` (its class's ``auto``; None: auto never
+    picks it). ``name`` and ``stages`` come from the class (``auto.model.CANDIDATES``).
+
+    cost: CPU µs per step (compiled loops; only ratios matter), free and with weak
+        dissipation (inside the compositions); stiff double-bracket damping outside a
+        composition adds DAMP_SUBSTEP per substep. Measured on a 2-core AMD EPYC by
+        ``python -m rigid_body_sim.bench.candidate_costs``, which flags a ratio gone stale
+        (the earlier table, from slower loops, had RK4 at 6× and the damped compositions at
+        2.5× their cost, and steered auto off them).
+    k: a-priori error constant, the largest of E/((hΩ)^p·ΩT) over 80 random bodies and
+        states (near-symmetric bodies and near-axis spins included), 30 turns, hΩ ≤ 0.1;
+        inf: the method is chosen only after a pilot.
+    growth: 'linear' or 'drift' (energy drift: phase error ∝ T²).
+    stability: largest h·max(Ω, stiffness) (explicit methods).
+    stiff_only: considered only where dissipation is stiff at the step (A-stable methods).
+    exact_damping: the double bracket's sub-flow in closed form: considered with that
+        damping, in torque-free runs at any stiffness (the same splitting as splitting2, its
+        damping exact at a lower cost than splitting2's substeps; Explorer 1 over 30 s at
+        h = 0.0119 s: the same error, 0.92 against 1.17 ms) and with torque only where it
+        is stiff (the engine's compiled closed loop damps by substeps, so it runs event by
+        event there).
+    supersedes: a candidate not asked where this one is usable without torque (the same
+        scheme at no lower cost: asking both would only double the pilot).
+    coupled_only: considered only with torque or dissipation (``exact`` splits them off).
+    adaptive: the step follows a tolerance (dop853): not stepped at h, not piloted; its rtol,
+        cost and error come from :meth:`RunModel.tolerance`, and ``k`` bounds its error
+        per rtol and radian turned (see DOP853_*).
+    geometric: Lie–Poisson (|L| exact, bounded energy error). Only these can err far less
+        than ``k`` says (a spin near a principal axis is an exact axis rotation for them),
+        so only they are piloted from hΩ = 2; and within PREFER of the cheapest they win.
+    stages: round-off weight: the attitude error from rounding is ROUNDOFF·stages·N·ΩT
+        after N steps (a rotation by the same angle every step rounds alike every step,
+        so |L| drifts and the phase error grows with N·T; measured on Explorer 1: 1e-6 rad
+        after 3·10⁵ steps of splitting6 over 300 s, ~5·10⁻⁸ after 5·10⁴ over 100 s).
+        ``exact`` evaluates a closed form at each step: no repeated rotation, 0.
+    call: µs per engine interval around the compiled loop (the compositions check the
+        damping's stiffness in Python on every call).
+    """
+    cost: Tuple[float, float]
+    k: float
+    call: Tuple[float, float] = (2.5, 2.5)
+    growth: str = 'linear'
+    stability: float = math.inf
+    stiff_only: bool = False
+    exact_damping: bool = False
+    supersedes: str = ''
+    coupled_only: bool = False
+    geometric: bool = True
+    adaptive: bool = False
+    name: str = ''
+    stages: float = 0.0
+
+
+# The kinds of dynamics a method's order is stated for (``Integrator.orders``), as the tests
+# measure them: free rotation, each dissipation model (weak: λh ≪ 1), a held torque.
+KINDS = ('torque_free', 'double_bracket', 'viscous', 'torque')
+
+
+def same_order(order: int) -> dict:
+    """``orders`` of a method whose order is the same on every kind of dynamics."""
+    return dict.fromkeys(KINDS, order)
 
 
 # Names of invariants a method may keep exactly (to round-off) in free rotation.
@@ -36,6 +102,18 @@ class Integrator:
         adaptive: chooses its own internal steps (h is then an output interval).
         preserves: invariants kept exactly in torque-free motion (see PRESERVES).
         stability: known stability limit, in words.
+        orders: the order per kind of dynamics (see KINDS) as the tests measure it; None
+            where the method has no stepping error (exact, torque-free) or does not apply.
+        stages: sub-steps per step (evaluations of an explicit method, stages of a
+            composition): auto's round-off weight (0: exact and dop853, modelled otherwise).
+        amplification: the stability function R(z) of a linear method (explicit Runge–Kutta),
+            None for the others (``stability.py`` checks steps against it).
+        loop_code: the method's code in the engine's compiled closed loop
+            (``engine/closed_loop.py``), None if it runs event by event there.
+        auto: its :class:`Candidate` facts for ``integrator: auto`` (cost per step, error
+            constant, …), None if auto never picks it.
+        kernel_modules: modules of its compiled loops, each with ``warm()``
+            (``rigid_body_sim.compiled.warm`` warms the registry's).
         nfev: right-hand-side evaluations (or equivalent sub-flows) so far.
     """
     name: ClassVar[str] = ''
@@ -44,6 +122,12 @@ class Integrator:
     adaptive: ClassVar[bool] = False
     preserves: ClassVar[FrozenSet[str]] = frozenset()
     stability: ClassVar[str] = ''
+    orders: ClassVar[Mapping[str, Optional[int]]] = {}
+    stages: ClassVar[float] = 0.0
+    amplification: ClassVar[Optional[Callable]] = None
+    loop_code: ClassVar[Optional[int]] = None
+    auto: ClassVar[Optional[Candidate]] = None
+    kernel_modules: ClassVar[tuple] = ()
 
     def __init__(self, dynamics: Dynamics, **options):
         if options:
@@ -74,13 +158,15 @@ class Integrator:
     @classmethod
     def order_on(cls, dynamics: Dynamics, momentum_norm: float, h: float) -> int:
         """The order on ``dynamics`` at step h for |m| = ``momentum_norm``, asked without
-        an instance (``auto`` asks it per candidate and step). Methods whose order depends
-        on the damping's stiffness override this."""
-        return cls.order
+        an instance (``auto`` asks it per candidate and step): ``orders`` for the
+        dissipation model (torque-free without one). Methods whose order depends on the
+        damping's stiffness override this."""
+        d = dynamics.dissipation
+        return cls.orders.get(d.model if d.active else 'torque_free') or cls.order
 
     def run(self, q, m, h: float, n: int, torque: Optional[np.ndarray] = None, t0: float = 0.0):
         """``n`` steps of ``h`` from (q, m) at time t0; new arrays. Methods with a compiled
-        loop (``physics.kernels``) override this for one body; IntegrationError names the
+        loop (``integrators/*_kernel.py``) override this for one body; IntegrationError names the
         step and time where the state stopped being finite."""
         for k in range(n):
             q, m = self.step(q, m, h, torque, t0 + k * h)

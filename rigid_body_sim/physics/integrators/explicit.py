@@ -5,8 +5,9 @@ e.g. Fukushima 2008); neither |m| nor T is conserved.
 """
 import numpy as np
 
-from .. import kernels
-from .base import Integrator
+from .. import dynamics_kernel
+from . import explicit_kernel
+from .base import Candidate, Integrator, same_order
 
 
 class _ExplicitRK(Integrator):
@@ -18,20 +19,21 @@ class _ExplicitRK(Integrator):
     def _normalised(q):
         return q / np.linalg.norm(q, axis=-1, keepdims=True)
 
-    _kernel_loop = None        # compiled loop in physics.kernels
-    _stages = 1
+    _kernel_loop = None        # compiled loop in explicit_kernel
+    stages = 1                 # evaluations per step
+    kernel_modules = (explicit_kernel,)
 
     def __init__(self, dynamics, **options):
         super().__init__(dynamics, **options)
         d = dynamics.dissipation
-        self._model = kernels.MODEL_CODES[d.model] if d.active else 0
+        self._model = dynamics_kernel.MODEL_CODES[d.model] if d.active else 0
         self._coefficient = d.coefficient
         self._moments = np.array(dynamics.moments, dtype=float)
 
     def _kernel(self, q, m, h, n, tau, has_tau):
         failed = type(self)._kernel_loop(q, m, h, n, self._moments, tau, self._model,
                                          self._coefficient)
-        self.nfev += self._stages * (n if failed < 0 else failed + 1)
+        self.nfev += self.stages * (n if failed < 0 else failed + 1)
         return failed
 
     def loop_spec(self):
@@ -47,8 +49,11 @@ class Euler(_ExplicitRK):
     """Explicit Euler: first order; |m| and T grow at every step (by h²|ṁ|² and h²/2·ṁ·(ṁ/I))."""
     name = 'euler'
     order = 1
+    orders = same_order(1)
+    loop_code = 2
+    amplification = staticmethod(lambda z: 1.0 + z)
     stability = 'unstable for free rotation at any step (amplification √(1 + (hλ)²) > 1)'
-    _kernel_loop = staticmethod(kernels.euler_run)
+    _kernel_loop = staticmethod(explicit_kernel.euler_run)
 
     def _step(self, q, m, h, torque, t):
         dq, dm = self._rates(q, m, torque)
@@ -59,9 +64,13 @@ class RK4(_ExplicitRK):
     """Classical 4th-order Runge–Kutta: energy drifts linearly in time (∝ h⁴ per unit time)."""
     name = 'rk4'
     order = 4
+    orders = same_order(4)
+    loop_code = 1
+    amplification = staticmethod(lambda z: 1.0 + z + z * z / 2.0 + z ** 3 / 6.0 + z ** 4 / 24.0)
+    auto = Candidate((0.047, 0.056), 1.2e-3, growth='drift', stability=2.5, geometric=False)
     stability = 'real-axis limit hλ ≈ 2.785 (stiff dissipation); imaginary-axis limit hλ = 2√2'
-    _kernel_loop = staticmethod(kernels.rk4_run)
-    _stages = 4
+    _kernel_loop = staticmethod(explicit_kernel.rk4_run)
+    stages = 4
 
     def _step(self, q, m, h, torque, t):
         dq1, dm1 = self._rates(q, m, torque)

@@ -6,8 +6,9 @@ transform of ½[Ω]: the quaternion norm is kept exactly, no renormalising.
 """
 import numpy as np
 
-from .. import implicit_kernel, kernels, rotation
-from .base import IntegrationError, Integrator
+from .. import dynamics_kernel, rotation
+from . import implicit_kernel
+from .base import Candidate, IntegrationError, Integrator, same_order
 
 _EPS = np.finfo(float).eps
 
@@ -29,6 +30,10 @@ class ImplicitMidpoint(Integrator):
     """
     name = 'implicit_midpoint'
     order = 2
+    orders = same_order(2)
+    stages = 1
+    auto = Candidate((0.12, 0.17), 0.025, stiff_only=True, geometric=False)
+    kernel_modules = (implicit_kernel,)
     implicit = True
     preserves = frozenset({'angular_momentum_norm', 'kinetic_energy', 'unit_quaternion',
                            'time_reversible'})
@@ -39,7 +44,7 @@ class ImplicitMidpoint(Integrator):
         super().__init__(dynamics)
         self.max_iterations = int(max_iterations)
         d = dynamics.dissipation
-        self._model = kernels.MODEL_CODES[d.model] if d.active else 0
+        self._model = dynamics_kernel.MODEL_CODES[d.model] if d.active else 0
         self._coefficient = d.coefficient
         self._moments = np.array(dynamics.moments, dtype=float)
 

@@ -6,7 +6,7 @@ on the stiff bench scene). This method is ``splitting2`` — D(h/2) K a b c b a 
 exact axis rotations for the free body — with the double bracket's sub-flow D taken in
 closed form instead of by substeps: on |m| = L the flow ṁ = α m×(m×Ω) reads
 ṁ_i = α m_i (2T − L²/I_i), solved by m_i(t) ∝ m_i(0) e^{−αL²t/I_i} rescaled to |m| = L
-(``kernels.double_bracket_exact``). Every transverse mode then decays by its exact factor
+(``dynamics_kernel.double_bracket_exact``). Every transverse mode then decays by its exact factor
 e^{−λh/2} per half step, which tends to 0 as hλ → ∞ (L-stable), at a constant cost per
 step: ``splitting2`` gets the same damping right but with ⌈hλ⌉ Lie-midpoint substeps.
 |m| stays exact (D only rotates m), T never rises through D, and the coupling with the
@@ -16,14 +16,15 @@ import math
 
 import numpy as np
 
-from .. import kernels
+from .. import dynamics_kernel
+from .base import Candidate
 from .splitting import Splitting2
 
-EXACT_DOUBLE_BRACKET = 3  # the kernels' code for the double bracket by its exact flow
+EXACT_DOUBLE_BRACKET = 3  # dynamics_kernel's code for the double bracket by its exact flow
 
 
 def _double_bracket_exact(mc, t, moments, alpha):
-    """kernels.double_bracket_exact on (N,) component arrays (the batch path), in place."""
+    """dynamics_kernel.double_bracket_exact on (N,) component arrays (the batch path), in place."""
     norm2 = mc[0] * mc[0] + mc[1] * mc[1] + mc[2] * mc[2]
     c = alpha * norm2 * t
     inv = [1.0 / i for i in moments]
@@ -47,6 +48,9 @@ class Splitting2LStable(Splitting2):
     """Strang splitting with the double-bracket damping in closed form: order 2, L-stable."""
     name = 'splitting2_lstable'
     order = 2
+    loop_code = None  # the closed loop damps by substeps: event by event here
+    # L-stable: the double bracket's sub-flow in closed form, the same cost at any hλ
+    auto = Candidate((0.092, 0.16), 0.30, exact_damping=True, supersedes='splitting2')
     preserves = Splitting2.preserves  # the free flow is splitting2's; D keeps |m| too
     stability = ('L-stable for dissipation: the damping sub-flow is exact, so a stiff mode '
                  'decays by e^{−hλ} → 0 per step at any hλ (implicit midpoint: → −1); |m| '
@@ -54,7 +58,7 @@ class Splitting2LStable(Splitting2):
 
     def __init__(self, dynamics):
         super().__init__(dynamics)
-        if self._model == kernels.MODEL_CODES['double_bracket']:
+        if self._model == dynamics_kernel.MODEL_CODES['double_bracket']:
             self._model = EXACT_DOUBLE_BRACKET
 
     def loop_spec(self):
@@ -68,7 +72,7 @@ class Splitting2LStable(Splitting2):
         alpha = self.dynamics.dissipation.coefficient
         if xp is math:  # one body (Splitting2._dissipate): the compiled flow itself
             m = np.array(mc, dtype=float)
-            kernels.double_bracket_exact(m, t, self._kernel_args[2], alpha)
+            dynamics_kernel.double_bracket_exact(m, t, self._kernel_args[2], alpha)
             mc[:] = [float(v) for v in m]
         else:
             _double_bracket_exact(mc, t, self._moments_list, alpha)

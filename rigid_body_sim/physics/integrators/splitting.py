@@ -22,8 +22,8 @@ solution A → 6); dissipation stays outside those compositions because their ne
 substeps would run damping backwards (anti-damping), so with dissipation the coupling
 error is second order.
 
-Loops: one body runs ``kernels.splitting_run``; ``run`` on a batch runs
-``batch_kernels.batch_run`` (bodies side by side, merged half-flows); ``step`` on a batch
+Loops: one body runs ``splitting_kernel.splitting_run``; ``run`` on a batch runs
+``splitting_batch_kernel.batch_run`` (bodies side by side, merged half-flows); ``step`` on a batch
 stays on numpy (the reference the compiled loops are tested against).
 """
 import functools
@@ -31,8 +31,9 @@ import math
 
 import numpy as np
 
-from .. import batch_kernels, kernels
-from .base import IntegrationError, Integrator
+from .. import dynamics_kernel
+from . import splitting_batch_kernel, splitting_kernel
+from .base import Candidate, IntegrationError, Integrator, same_order
 
 # Outer, middle, inner axis of the symmetric composition  a(h/2) b(h/2) c(h) b(h/2) a(h/2)
 # as ranks of the principal moments (0 = smallest, 1 = intermediate, 2 = largest).
@@ -114,6 +115,11 @@ class Splitting2(Integrator):
     """
     name = 'splitting2'
     order = 2
+    orders = same_order(2)     # compositions: theirs with weak damping, 2 with stiff
+    stages = 1                 # = len(weights)
+    loop_code = 0
+    auto = Candidate((0.092, 0.23), 0.30)
+    kernel_modules = (splitting_kernel, splitting_batch_kernel)
     preserves = frozenset({'angular_momentum_norm', 'unit_quaternion', 'poisson',
                            'time_reversible'})
     stability = 'no step-size limit for free rotation (error bounded, |m| exact at any h)'
@@ -128,7 +134,7 @@ class Splitting2(Integrator):
         ranks = sorted(range(3), key=self._moments_list.__getitem__)
         self._axes = tuple(ranks[r] for r in _ORDER)
         d = dynamics.dissipation
-        self._model = kernels.MODEL_CODES[d.model] if d.active else 0
+        self._model = dynamics_kernel.MODEL_CODES[d.model] if d.active else 0
         self._coefficient = d.coefficient
 
     @functools.cached_property
@@ -164,14 +170,14 @@ class Splitting2(Integrator):
         with the damping inside, where it is weak; the damping outside couples at order 2."""
         if not dynamics.dissipation.active or len(cls.weights) == 1 or \
                 cls._weak(dynamics, momentum_norm, h):
-            return cls.order
+            return super().order_on(dynamics, momentum_norm, h)
         return 2
 
     def _kernel(self, q, m, h, n, tau, has_tau):
         weights, axes, moments = self._kernel_args
-        failed, evals = kernels.splitting_run(q, m, h, n, weights, axes, moments, tau, has_tau,
-                                              self._model, self._coefficient,
-                                              self.inner_dissipation(m, h))
+        failed, evals = splitting_kernel.splitting_run(q, m, h, n, weights, axes, moments, tau,
+                                                       has_tau, self._model, self._coefficient,
+                                                       self.inner_dissipation(m, h))
         self.nfev += evals
         return failed
 
@@ -179,9 +185,9 @@ class Splitting2(Integrator):
         return self._kernel_args[0], self._kernel_args[1]
 
     def run(self, q, m, h, n, torque=None, t0=0.0):
-        """One body: the compiled loop (physics.kernels); a batch (q (..., 4), m (..., 3),
+        """One body: the compiled loop (splitting_kernel); a batch (q (..., 4), m (..., 3),
         torque (3,) shared or (..., 3) per body): the compiled batch loop
-        (physics.batch_kernels), every body as if run alone — damping's substeps and
+        (splitting_batch_kernel), every body as if run alone — damping's substeps and
         inner/outer placement are chosen per body, where the numpy ``step`` on a batch
         chooses them once for the batch."""
         if np.ndim(q) == 1 and np.ndim(m) == 1:
@@ -205,7 +211,7 @@ class Splitting2(Integrator):
         else:
             inner = np.zeros(1, dtype=bool)
         weights, axes, moments = self._kernel_args
-        failed, body, evals = batch_kernels.batch_run(
+        failed, body, evals = splitting_batch_kernel.batch_run(
             q, m, float(h), int(n), weights, axes, moments, tau, torque is not None,
             self._model, self._coefficient, inner)
         self.nfev += evals
@@ -274,7 +280,8 @@ class Splitting2(Integrator):
                 self._dissipate_symmetric(mc, 0.5 * hw, xp)
 
     def _dissipate_symmetric(self, mc, t, xp):
-        """D(t), time-symmetric (t of either sign): see kernels._double_bracket_symmetric."""
+        """D(t), time-symmetric (t of either sign): see
+        dynamics_kernel._double_bracket_symmetric."""
         d = self.dynamics.dissipation
         moments = self._moments_list
         if d.model == 'viscous':
@@ -285,14 +292,14 @@ class Splitting2(Integrator):
         _rotate_about(mc, _bracket_velocity(m0, t, moments, d.coefficient), xp)
         scale = xp.sqrt(m0[0] * m0[0] + m0[1] * m0[1] + m0[2] * m0[2])
         self.nfev += 1
-        for _ in range(kernels.SYMMETRIC_MAX_ITER):
+        for _ in range(dynamics_kernel.SYMMETRIC_MAX_ITER):
             mid = [0.5 * (m0[i] + mc[i]) for i in range(3)]
             new = list(m0)
             _rotate_about(new, _bracket_velocity(mid, t, moments, d.coefficient), xp)
             change = sum(abs(new[i] - mc[i]) for i in range(3))
             mc[:] = new
             self.nfev += 1
-            if np.all(change <= kernels.SYMMETRIC_TOL * scale):
+            if np.all(change <= dynamics_kernel.SYMMETRIC_TOL * scale):
                 break
 
     def _dissipate_components(self, mc, t, xp):
@@ -324,6 +331,9 @@ class Splitting4(Splitting2):
     """Yoshida triple-jump composition of ``splitting2``: order 4, Lie–Poisson."""
     name = 'splitting4'
     order = 4
+    orders = same_order(4)
+    stages = 3
+    auto = Candidate((0.24, 0.83), 0.07, call=(2.5, 11.0))
     weights = (_YOSHIDA4_OUTER, 1.0 - 2.0 * _YOSHIDA4_OUTER, _YOSHIDA4_OUTER)
 
 
@@ -331,4 +341,7 @@ class Splitting6(Splitting2):
     """Yoshida's 7-stage composition (solution A) of ``splitting2``: order 6, Lie–Poisson."""
     name = 'splitting6'
     order = 6
+    orders = same_order(6)
+    stages = 7
+    auto = Candidate((0.52, 1.96), 1.2e-3, call=(2.5, 11.0))
     weights = (_Y6[2], _Y6[1], _Y6[0], 1.0 - 2.0 * sum(_Y6), _Y6[0], _Y6[1], _Y6[2])

@@ -9,7 +9,7 @@ the way ``auto`` verifies its own choice, and the step that would meet the budge
 
 * torque-free (with or without dissipation): ``auto``'s pilot (:func:`.pilot.error`,
   step doubling at the states :func:`.pilot.levels` picks along the dissipation's path),
-  plus the round-off model of :class:`.selection_model.RunModel`;
+  plus the round-off model of :class:`.model.RunModel`;
 * with torque (a control law, commands): the pilot cannot know the torque, so, as
   ``auto`` does, the a-priori bound k·(hΩ)^p·ΩT (``RunModel.prior_error``), for the
   methods ``auto`` has constants for;
@@ -26,8 +26,8 @@ from typing import Callable, Optional
 import numpy as np
 
 from . import pilot
-from .integrators import create, get_integrator
-from .selection_model import CANDIDATES, RunModel
+from ..integrators import create, get_integrator
+from .model import CANDIDATES, RunModel
 
 FAR = 10.0                  # predicted error over the budget that earns a warning
 OVER_RUN = 1.01             # a mode's amplitude off by this factor over the run is named
@@ -174,7 +174,7 @@ def _search(measure, h, error, accuracy, model, order) -> Optional[float]:
 
 
 def _with_stability(advice: Advice, dynamics, m) -> Advice:
-    from .stability import distortion
+    from ..integrators.stability import distortion
     damping, z, growth = distortion(advice.method, dynamics, m, advice.step)
     return Advice(advice.method, advice.step, advice.predicted_error, advice.accuracy,
                   advice.horizon, advice.basis, advice.meets, damping, z, growth)

@@ -16,8 +16,9 @@ import math
 
 import numpy as np
 
-from . import kernels
-from .kernels import _finite, depends_on, jit
+from .. import dynamics_kernel
+from ..dynamics_kernel import _finite
+from ..jit import depends_on, jit
 
 EPS = 2.220446049250313e-16  # np.finfo(float).eps
 HALVINGS = 4                 # a step fails when its h/2⁴ sub-steps fail too
@@ -227,8 +228,8 @@ def implicit_midpoint_run(q, m, h, n, moments, tau, model, coefficient, max_iter
     return -1, OK, 0, 0, evals
 
 
-# it embeds kernels._finite from another file (see kernels.depends_on)
-implicit_midpoint_run = depends_on(implicit_midpoint_run, kernels)
+# it embeds dynamics_kernel._finite from another file (see jit.depends_on)
+implicit_midpoint_run = depends_on(implicit_midpoint_run, dynamics_kernel)
 
 
 def substep_time(t, h, level, pos):

@@ -15,10 +15,11 @@ double), here in double-double.
 """
 import math
 
-from . import double_double, elliptic_kernel, kernels
+from .. import jit as jit_settings
+from . import double_double, elliptic_kernel
 from .double_double import dd_add, dd_div, dd_mul, dd_mul_d, dd_sqrt, two_prod, two_sum
 from .elliptic_kernel import rf
-from .kernels import depends_on, jit
+from ..jit import depends_on, jit
 
 _HALF_PI_H, _HALF_PI_L = 1.5707963267948966, 6.123233995736766e-17
 _CA = 1e-17                       # ~0.1·√eps_dd: the result is good to ~CA² (Bulirsch)
@@ -162,4 +163,4 @@ def elliptic(ix, iy, iz, mx, my, mz, separatrix, s, out):
         out[17] = turn * 2.0 * kf + r
 
 for _kernel in (cel, _delta, sum_squares, closed_rates, elliptic):
-    depends_on(_kernel, double_double, elliptic_kernel, kernels)
+    depends_on(_kernel, double_double, elliptic_kernel, jit_settings)

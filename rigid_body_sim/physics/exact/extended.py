@@ -1,6 +1,6 @@
 """Extended precision (``np.longdouble``) for the secular phases of :mod:`.exact`'s numpy
 path (``TorqueFreeSolution.at_numpy``); the compiled path does the same in double-double
-(:mod:`.exact_constants`, :mod:`.double_double`), which numba supports and every platform has.
+(:mod:`.constants`, :mod:`.double_double`), which numba supports and every platform has.
 
 Why: a phase such as λt or (G/I)t reaches ~1e7 rad at t = 1e6 s, so a float64 rate with a
 relative error of a few eps moves it by ~eps·|ω|·t (2e-9 rad for 10 rad/s), and the

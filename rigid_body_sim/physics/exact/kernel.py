@@ -1,11 +1,11 @@
 """Compiled evaluation of the torque-free solution (:mod:`.exact`): one body's constants
-in a float64 row (built by :mod:`.exact_build`), evaluated at one time or at many.
+in a float64 row (built by :mod:`.build`), evaluated at one time or at many.
 
 The formulas, frames and conventions are those of :mod:`.exact` (read its docstring). The
 quantities that grow with t — λt + u0, its reduction u = 2jK + r, (G/Iz)t + cphi·2jΠ and
 its reduction modulo 4π — are formed in double-double (:mod:`.double_double`, ~106 bits):
 each rate and complete integral is stored as a pair (hi, lo) computed in double-double
-(:mod:`.exact_constants`), and the products with t and j and the reductions are
+(:mod:`.constants`), and the products with t and j and the reductions are
 error-free transformations, so the phases keep ~1e-32 relative error. The Jacobi
 functions and Carlson's integrals (:mod:`.elliptic_kernel`) see only |r| ≤ K in float64,
 with k'² passed as such.
@@ -14,17 +14,18 @@ Kinds (row[KIND]): 0 closed form (symmetric or spherical body, steady spin, rest
 1 elliptic (cases A and B in their working frames), 2 separatrix. The closed form is the
 cheap one: two reduced phases, two sin/cos pairs, two quaternion products.
 
-Plain numerical Python compiled by ``kernels.jit``; under NUMBA_DISABLE_JIT=1 the same
+Plain numerical Python compiled by ``jit.jit``; under NUMBA_DISABLE_JIT=1 the same
 source runs on floats. Its disk cache is keyed on the callees' files too (``depends_on``).
 """
 import math
 
 import numpy as np
 
-from . import double_double, elliptic_kernel, exact_constants, kernels
+from .. import jit as jit_settings
+from . import constants as exact_constants, double_double, elliptic_kernel
 from .double_double import dd_add, dd_mul_d, dd_reduce, reduce_4pi
 from .elliptic_kernel import ellipj, rf, rj
-from .kernels import depends_on, jit
+from ..jit import depends_on, jit
 
 # Row layout. Closed form: L̂ (space), q0, m0, e (body), rates (hi, lo) of the space
 # precession G/I_t and the body spin ω_s.
@@ -190,4 +191,4 @@ def anchor_one(c):
 
 
 for _kernel in (fill_elliptic, _moving, evaluate_into, evaluate, at_one, at_times, anchor_one):
-    depends_on(_kernel, double_double, elliptic_kernel, exact_constants, kernels)
+    depends_on(_kernel, double_double, elliptic_kernel, exact_constants, jit_settings)

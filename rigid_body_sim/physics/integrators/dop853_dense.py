@@ -42,9 +42,11 @@ import math
 import numpy as np
 from scipy.integrate._ivp import dop853_coefficients as _coefficients
 
-from . import dop853_kernel, kernels
+from .. import dynamics_kernel
+from . import dop853_kernel
 from .dop853_kernel import DIM, N_STAGES, NON_FINITE, OK, _initial_step, _rhs, attempt
-from .kernels import COMPILED, _finite, depends_on, jit
+from ..dynamics_kernel import _finite
+from ..jit import COMPILED, depends_on, jit
 
 N_EXTENDED = _coefficients.N_STAGES_EXTENDED  # 16: the 13 of a step + 3 extra stages
 POWER = _coefficients.INTERPOLATOR_POWER  # 7 rows of F
@@ -220,10 +222,10 @@ def advance(q, m, span, tau, memory, moments, model, coefficient, rtol, atol):
     return OK, span, h_abs, nfev
 
 
-# numba's disk cache checks only this file; these embed dop853_kernel's and kernels' code
+# numba's disk cache checks only this file; these embed dop853_kernel's and dynamics_kernel's code
 # (and advance its tableau, imported from scipy through dop853_kernel)
 for _kernel in (views, _build, _interpolate, advance):
-    depends_on(_kernel, kernels, dop853_kernel)
+    depends_on(_kernel, dynamics_kernel, dop853_kernel)
 
 
 def warm():

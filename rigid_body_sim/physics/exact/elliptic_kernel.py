@@ -1,6 +1,6 @@
 """Jacobi elliptic functions and Carlson's symmetric integrals R_F, R_J, R_C on float64
-scalars, compiled by ``kernels.jit`` (plain Python under NUMBA_DISABLE_JIT=1): the compiled
-exact solution (:mod:`.exact_kernel`) cannot call scipy.special from numba.
+scalars, compiled by ``jit.jit`` (plain Python under NUMBA_DISABLE_JIT=1): the compiled
+exact solution (:mod:`.kernel`) cannot call scipy.special from numba.
 
 * :func:`ellipj` is Cephes' ``ellpj`` (descending Landen transformation / AGM, the
   algorithm behind ``scipy.special.ellipj``) with one change: it takes the complementary
@@ -15,7 +15,7 @@ Tested against scipy.special (test_elliptic_kernel.py) to a few ulp.
 """
 import math
 
-from .kernels import jit
+from ..jit import jit
 
 _MACHEP = 1.11022302462515654042e-16       # Cephes' MACHEP, 2^-53
 # Carlson's termination: Q = (3r)^(-1/6)·max|A0 − x|, (r/4)^(-1/6)·… for R_J, with the

@@ -1,7 +1,7 @@
 """Compiled batch loops: N independent bodies × n splitting steps, on one core.
 
 The bodies are q (N, 4) and m (N, 3), C-contiguous float64 arrays updated in place, in
-the conventions of ``physics.kernels``. Bodies go through in blocks of ``BLOCK``, each
+the conventions of ``dynamics_kernel``. Bodies go through in blocks of ``BLOCK``, each
 block's state held component by component (4 + 3 rows of BLOCK) in L1 cache for all n
 steps. One body's axis flows form a dependent chain (each sin/cos waits for the previous
 flow), so a loop over one body at a time is latency-bound; a flow applied across a block
@@ -13,30 +13,31 @@ consecutive stages and steps (first same as last): … b a(w_j h/2) · a(w_{j+1}
 component. Strang then costs four axis flows per step instead of five: a fifth fewer
 sin/cos, and an n-step run equals n single steps to round-off. A torque kick between the
 half-flows changes that component, so with torque each stage runs unmerged (bit for bit
-the operations of ``kernels.splitting_run``, which ``_block_flow`` repeats on columns).
-With dissipation every body runs ``kernels.splitting_run`` itself (through
-``kernels.splitting_bodies``): the double bracket's substep count is per body.
+the operations of ``splitting_kernel.splitting_run``, which ``_block_flow`` repeats on columns).
+With dissipation every body runs ``splitting_kernel.splitting_run`` itself (through
+``splitting_kernel.splitting_bodies``): the double bracket's substep count is per body.
 
 A block whose state turns non-finite is re-run body by body from its initial state by
-``kernels.splitting_run``: that names each body's exact first non-finite step (a merged
+``splitting_kernel.splitting_run``: that names each body's exact first non-finite step (a merged
 state lacks a half-flow at step boundaries) and keeps the single-step result where only
 a merged angle overflows.
 
-Like ``kernels``, the source is plain Python that numba compiles (``kernels.jit``) and
+Like ``splitting_kernel``, the source is plain Python that numba compiles (``jit.jit``) and
 that runs as such under NUMBA_DISABLE_JIT=1. No ``parallel=True``: the target is one core.
 """
 import math
 
 import numpy as np
 
-from .kernels import jit, splitting_bodies
+from ..jit import jit
+from .splitting_kernel import splitting_bodies
 
 BLOCK = 64  # bodies stepped side by side: enough independent flows, 5 kB of state
 
 
 @jit
 def _block_flow(qb, mb, count, axis, t, moments):
-    """kernels._axis_flow for time t on the first ``count`` bodies (columns) of a block."""
+    """dynamics_kernel._axis_flow for time t on the first ``count`` bodies (columns) of a block."""
     b = (axis + 1) % 3
     c = (axis + 2) % 3
     k = 0.5 * t / moments[axis]
@@ -145,15 +146,16 @@ def _blocks(q, m, lo, h, n, weights, axes, moments, tau, has_tau):
 
 
 def batch_run(q, m, h, n, weights, axes, moments, tau, has_tau, model, coefficient, inner):
-    """n steps of ``kernels.splitting_run`` for every body of q (N, 4), m (N, 3), in place.
+    """n steps of ``splitting_kernel.splitting_run`` for every body of q (N, 4), m (N, 3), in
+    place.
 
     tau (1, 3) shared or (N, 3) per body; inner (1,) shared or (N,) per body: damping inside
     the stages (``Splitting2.inner_dissipation``). Returns (first non-finite step or -1,
     a body that fails there, the largest sub-flow count of one body: the bodies' sub-flows
     run side by side, as the numpy path counts them).
 
-    Plain Python around two compiled loops, ``_blocks`` and ``kernels.splitting_bodies``:
-    a compiled call from this file into kernels.py would be frozen into this file's disk
+    Plain Python around two compiled loops, ``_blocks`` and ``splitting_kernel.splitting_bodies``:
+    a compiled call from this file into splitting_kernel.py would be frozen into this file's disk
     cache, which numba invalidates only when this file changes. The Python here runs once
     per call and once per failing block."""
     count = q.shape[0]

@@ -37,8 +37,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .exact import TorqueFreeSolution
-from .integrators import IntegrationError
+from ..exact import TorqueFreeSolution
+from ..integrators import IntegrationError
 
 LEVEL_SPACING = 1.0    # in u = ln tan β: one level per factor e in tan β
 # the end state of the path joins the levels once tan β grows by more than this (in u) over

@@ -20,10 +20,11 @@ from typing import Optional, Tuple
 
 import numpy as np
 
-STABILITY_FUNCTIONS = {
-    'euler': lambda z: 1.0 + z,
-    'rk4': lambda z: 1.0 + z + z * z / 2.0 + z ** 3 / 6.0 + z ** 4 / 24.0,
-}
+from . import INTEGRATORS
+
+# each method's own stability function (``Integrator.amplification``), where it has one
+STABILITY_FUNCTIONS = {name: cls.amplification for name, cls in INTEGRATORS.items()
+                       if cls.amplification is not None}
 WARN_GROWTH = 1.01   # spurious growth over the run that earns a warning
 REFUSE_PER_STEP = 2.0  # spurious growth per step: far outside the stability region
 SAMPLES = 32
@@ -43,7 +44,7 @@ def _eigenvalues(dynamics, m) -> np.ndarray:
 
 def _states(dynamics, m0) -> np.ndarray:
     """Momenta along the torque-free motion through m0 over one ω period."""
-    from .exact import TorqueFreeSolution
+    from ..exact import TorqueFreeSolution
     try:
         solution = TorqueFreeSolution(dynamics.moments, np.array([0.0, 0.0, 0.0, 1.0]), m0)
         period = float(np.ravel(solution.omega_period)[0])

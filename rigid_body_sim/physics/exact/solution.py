@@ -52,7 +52,7 @@ Long horizons. The phases grow without bound (λt, (G/Iz)t and 2j·cphi·Π reac
 t = 1e6 s), so float64 rates, each a few eps off, would move them by ~eps·|ω|·t (2e-9 rad at
 10 rad/s), Π's error is multiplied by j, and near the separatrix k'² comes from Δy by
 cancellation. :meth:`TorqueFreeSolution.at` therefore evaluates with the compiled kernel
-(:mod:`.exact_kernel`): rates, K, Π and k'² in double-double (:mod:`.exact_constants`, ~1e-32
+(:mod:`.kernel`): rates, K, Π and k'² in double-double (:mod:`.constants`, ~1e-32
 relative, on every platform), u = 2jK + r and the secular part of φ modulo 4π formed and
 reduced there, ψ taking jπ modulo 4π; the Jacobi and Carlson functions
 (:mod:`.elliptic_kernel`) see only |r| ≤ K in float64, with k'² passed as such (no 1 − m).
@@ -72,11 +72,12 @@ import math
 
 import numpy as np
 
-from . import exact_build, exact_kernel, rotation
-from .kernels import COMPILED
-from .exact_build import MOMENT_RTOL, SEPARATRIX_RTOL, STEADY_RTOL  # one rule, both paths
-from .exact_kernel import CLOSED as _CLOSED, ELLIPTIC as _ELLIPTIC, SEPARATRIX as _SEPARATRIX
-from .exact_numpy import NumpyPath
+from .. import rotation
+from ..jit import COMPILED
+from . import build as exact_build, kernel as exact_kernel
+from .build import MOMENT_RTOL, SEPARATRIX_RTOL, STEADY_RTOL  # one rule, both paths
+from .kernel import CLOSED as _CLOSED, ELLIPTIC as _ELLIPTIC, SEPARATRIX as _SEPARATRIX
+from .numpy_path import NumpyPath
 
 __all__ = ['TorqueFreeSolution', 'MOMENT_RTOL', 'SEPARATRIX_RTOL', 'STEADY_RTOL']
 
@@ -190,7 +191,7 @@ class TorqueFreeSolution(NumpyPath):
 
     def at(self, t):
         """(q, m) at time(s) t (s), t broadcast against the batch shape: the compiled
-        kernel (:mod:`.exact_kernel`), also with JIT disabled (then a Python loop, but the
+        kernel (:mod:`.kernel`), also with JIT disabled (then a Python loop, but the
         same numbers whatever the number of times: the numpy path differs near the
         separatrix, see at_numpy)."""
         if not self.batch_shape and isinstance(t, (float, int, np.floating, np.integer)):

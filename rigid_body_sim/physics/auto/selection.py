@@ -36,18 +36,21 @@
 * **Budget below the round-off floor:** no method meets it; auto picks the most
   accurate it can predict and says so in its reason.
 
-Adding a method (e.g. a compiled ``dop853``) is one ``Candidate`` line in
-:mod:`.selection_model`, which holds the a-priori model (costs, error constants, time scales).
+Adding a method needs nothing here: its class states its ``auto`` facts (a ``Candidate``:
+cost per step, error constant, …), which :mod:`.model` (the a-priori model: time scales,
+costs, errors) collects from the registry.
 """
 import math
 from dataclasses import dataclass
 
 import numpy as np
 
-from . import pilot, rotation
-from .body import RigidBody
-from .dynamics import Dissipation, Dynamics
-from .selection_model import CANDIDATES, Candidate, RunModel, is_symmetric
+from .. import rotation
+from ..body import RigidBody
+from ..dynamics import Dissipation, Dynamics
+from . import pilot
+from ..integrators import Candidate
+from .model import CANDIDATES, RunModel, is_symmetric
 
 __all__ = ['CANDIDATES', 'Candidate', 'Selection', 'select', 'selecting']
 

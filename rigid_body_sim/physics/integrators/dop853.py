@@ -3,8 +3,9 @@ solve_ivp for a batch."""
 import numpy as np
 from scipy.integrate import solve_ivp
 
-from .. import dop853_dense, dop853_kernel, kernels
-from .base import IntegrationError, Integrator
+from .. import dynamics_kernel
+from . import dop853_dense, dop853_kernel
+from .base import Candidate, IntegrationError, Integrator, same_order
 
 
 class DOP853(Integrator):
@@ -21,6 +22,12 @@ class DOP853(Integrator):
     """
     name = 'dop853'
     order = 8
+    orders = same_order(8)
+    stages = 0.0  # auto bounds its error per rtol (auto.model.DOP853_*), round-off included
+    # cost: µs per step (12 evaluations); k: see auto.model.DOP853_*
+    auto = Candidate((1.2, 1.3), 2.0, call=(3.0, 3.0), growth='drift', adaptive=True,
+                     coupled_only=True, geometric=False)
+    kernel_modules = (dop853_kernel, dop853_dense)
     adaptive = True
     stability = 'adaptive; step shrinks under stiff dissipation (cost grows with stiffness)'
 
@@ -30,7 +37,7 @@ class DOP853(Integrator):
             raise ValueError('dop853 needs rtol > 0 and atol > 0')
         self.rtol, self.atol = float(rtol), float(atol)
         d = dynamics.dissipation
-        self._model = kernels.MODEL_CODES[d.model] if d.active else 0
+        self._model = dynamics_kernel.MODEL_CODES[d.model] if d.active else 0
         self._coefficient = d.coefficient
         self._moments = np.array(dynamics.moments, dtype=float)
         self._zero = np.zeros(3)

@@ -4,24 +4,26 @@ The same method as scipy's ``solve_ivp(method='DOP853')`` — its tableau (impor
 scipy, so the coefficients are the same numbers), its error estimator (the 5th and 3rd
 order combination), step-size control (safety 0.9, factors 0.2–10, exponent −1/8) and
 initial step selection — so on the same right-hand side it takes the same steps, to
-round-off. The right-hand side is the rigid body's ``kernels._rates`` on the packed state
+round-off. The right-hand side is the rigid body's ``dynamics_kernel._rates`` on the packed state
 y = (q (4), m (3)), with the torque held over the call.
 
 :func:`integrate` is solve_ivp over one interval (landing on its end by clipping the last
 step); :func:`attempt` is one accepted step. The integrator runs across output steps with
 :mod:`dop853_dense` instead: natural steps, outputs from the dense output, no restarts.
 
-Plain numerical Python on float arrays, compiled by ``kernels.jit``; with
+Plain numerical Python on float arrays, compiled by ``jit.jit``; with
 NUMBA_DISABLE_JIT=1 the same source runs as ordinary Python (the tests compare the two).
-The kernels embed ``kernels._rates``, so their disk cache is keyed on kernels.py too.
+The kernels embed ``dynamics_kernel._rates``, so their disk cache is keyed on
+dynamics_kernel.py too.
 """
 import math
 
 import numpy as np
 from scipy.integrate._ivp import dop853_coefficients as _coefficients
 
-from . import kernels
-from .kernels import COMPILED, _finite, _rates, depends_on, jit
+from .. import dynamics_kernel
+from ..dynamics_kernel import _finite, _rates
+from ..jit import COMPILED, depends_on, jit
 
 N_STAGES = _coefficients.N_STAGES  # 12; stage 0 is the FSAL derivative, so 11 new + f_new
 # (A, B, E3, E5): scipy's arrays, contiguous copies so numba sees plain C arrays. The nodes
@@ -217,9 +219,9 @@ def integrate(y, f, span, h_abs, fresh, moments, tau, model, coefficient, rtol, 
     return OK, t, h_abs, nfev
 
 
-# numba's disk cache checks only this file; each of these embeds kernels._rates or _finite
+# numba's disk cache checks only this file; each of these embeds dynamics_kernel._rates or _finite
 for _kernel in (_rhs, _initial_step, _rk_step, attempt, integrate):
-    depends_on(_kernel, kernels)
+    depends_on(_kernel, dynamics_kernel)
 
 
 def warm():

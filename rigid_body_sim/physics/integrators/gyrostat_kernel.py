@@ -1,6 +1,6 @@
 """Compiled gyrostat step loop: a rigid body carrying reaction wheels and single-gimbal CMGs.
 
-State (principal frame of the body, as in ``kernels``): q (4,) principal → inertial,
+State (principal frame of the body, as in ``dynamics_kernel``): q (4,) principal → inertial,
 m (3,) the body's own momentum I·ω, hw (N,) the wheels' absolute axial momenta
 (h_i = J_i (a_i·ω + Ω_i), Hughes' form: the body inertia I excludes the wheels' spin-axis
 inertia) and delta (K,) the CMG gimbal angles. The total momentum is
@@ -12,7 +12,7 @@ and in the body frame Ḣ = H × ω + τ_ext. The motors exchange momentum insid
 
 Step (Strang, order 2): half a kick of the actuators (wheel momenta and gimbal angles move,
 H does not), the body's flow with the actuator momentum h_A frozen, half a kick. The body's
-flow is split as in ``kernels.splitting_run`` into exact rotations about the principal
+flow is split as in ``splitting_kernel.splitting_run`` into exact rotations about the principal
 axes: the Hamiltonian Σ_k (H_k − h_A,k)²/(2 I_k) has per-axis flows that rotate H (by −φ)
 and q (by +φ) about axis k at the constant rate (H_k − h_A,k)/I_k. Every sub-flow is a
 rotation, so |H| and the inertial H = R(q) H are kept to round-off, with or without
@@ -27,8 +27,9 @@ import math
 
 import numpy as np
 
-from . import kernels
-from .kernels import _finite, _rotate_half, depends_on, inline, jit
+from .. import dynamics_kernel
+from ..dynamics_kernel import _finite, _rotate_half
+from ..jit import depends_on, inline, jit
 
 # status slots (counters of steps on which a limit acted, and the last values)
 ST_WHEEL_TORQUE_SAT, ST_WHEEL_SPEED_SAT, ST_GIMBAL_RATE_SAT, ST_GIMBAL_ANGLE_SAT = 0, 1, 2, 3
@@ -331,9 +332,9 @@ def _flow(q, H, hA, axis, t, moments):
     _rotate_half(q, H, axis, 0.5 * (t * (H[axis] - hA[axis]) / moments[axis]))
 
 
-# numba's disk cache checks only this file; gyrostat_run embeds kernels' _finite and
+# numba's disk cache checks only this file; gyrostat_run embeds dynamics_kernel's _finite and
 # _rotate_half
-depends_on(gyrostat_run, kernels)
+depends_on(gyrostat_run, dynamics_kernel)
 
 
 def warm():

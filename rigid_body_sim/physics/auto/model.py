@@ -2,91 +2,21 @@
 methods with their measured costs and error constants, and :class:`RunModel`, the time
 scales of a run and what each candidate would cost and err on it.
 
-Kept apart from the search (selection.py, the pilot's best-first loop) so that a new
-method is one ``Candidate`` line here and nothing there.
+Kept apart from the search (selection.py, the pilot's best-first loop). The candidates
+are the registered methods' own facts (``Integrator.auto``, a :class:`Candidate`): a new
+method states them on its class and nothing here changes.
 """
 import math
-from dataclasses import dataclass
-from typing import Tuple
+from dataclasses import replace
 
 import numpy as np
 
-from .integrators import create, get_integrator
+from ..integrators import INTEGRATORS, create, get_integrator
 
-@dataclass(frozen=True)
-class Candidate:
-    """A method auto may choose.
-
-    cost: CPU µs per step (compiled loops; only ratios matter), free and with weak
-        dissipation (inside the compositions); stiff double-bracket damping outside a
-        composition adds DAMP_SUBSTEP per substep. Measured on a 2-core AMD EPYC by
-        ``python -m rigid_body_sim.bench.candidate_costs``, which flags a ratio gone stale
-        (the earlier table, from slower loops, had RK4 at 6× and the damped compositions at
-        2.5× their cost, and steered auto off them).
-    k: a-priori error constant, the largest of E/((hΩ)^p·ΩT) over 80 random bodies and
-        states (near-symmetric bodies and near-axis spins included), 30 turns, hΩ ≤ 0.1;
-        inf: the method is chosen only after a pilot.
-    growth: 'linear' or 'drift' (energy drift: phase error ∝ T²).
-    stability: largest h·max(Ω, stiffness) (explicit methods).
-    stiff_only: considered only where dissipation is stiff at the step (A-stable methods).
-    exact_damping: the double bracket's sub-flow in closed form: considered with that
-        damping, in torque-free runs at any stiffness (the same splitting as splitting2, its
-        damping exact at a lower cost than splitting2's substeps; Explorer 1 over 30 s at
-        h = 0.0119 s: the same error, 0.92 against 1.17 ms) and with torque only where it
-        is stiff (the engine's compiled closed loop damps by substeps, so it runs event by
-        event there).
-    supersedes: a candidate not asked where this one is usable without torque (the same
-        scheme at no lower cost: asking both would only double the pilot).
-    coupled_only: considered only with torque or dissipation (``exact`` splits them off).
-    adaptive: the step follows a tolerance (dop853): not stepped at h, not piloted; its rtol,
-        cost and error come from :meth:`RunModel.tolerance`, and ``k`` bounds its error
-        per rtol and radian turned (see DOP853_*).
-    geometric: Lie–Poisson (|L| exact, bounded energy error). Only these can err far less
-        than ``k`` says (a spin near a principal axis is an exact axis rotation for them),
-        so only they are piloted from hΩ = 2; and within PREFER of the cheapest they win.
-    stages: round-off weight: the attitude error from rounding is ROUNDOFF·stages·N·ΩT
-        after N steps (a rotation by the same angle every step rounds alike every step,
-        so |L| drifts and the phase error grows with N·T; measured on Explorer 1: 1e-6 rad
-        after 3·10⁵ steps of splitting6 over 300 s, ~5·10⁻⁸ after 5·10⁴ over 100 s).
-        ``exact`` evaluates a closed form at each step: no repeated rotation, 0.
-    call: µs per engine interval around the compiled loop (the compositions check the
-        damping's stiffness in Python on every call).
-    """
-    name: str
-    cost: Tuple[float, float]
-    k: float
-    stages: float
-    call: Tuple[float, float] = (2.5, 2.5)
-    growth: str = 'linear'
-    stability: float = math.inf
-    stiff_only: bool = False
-    exact_damping: bool = False
-    supersedes: str = ''
-    coupled_only: bool = False
-    geometric: bool = True
-    adaptive: bool = False
-
-
-CANDIDATES = (
-    Candidate('splitting2', (0.092, 0.23), 0.30, 1),
-    Candidate('splitting4', (0.24, 0.83), 0.07, 3, call=(2.5, 11.0)),
-    Candidate('splitting6', (0.52, 1.96), 1.2e-3, 7, call=(2.5, 11.0)),
-    Candidate('rk4', (0.047, 0.056), 1.2e-3, 4, growth='drift', stability=2.5,
-              geometric=False),
-    Candidate('implicit_midpoint', (0.12, 0.17), 0.025, 1, stiff_only=True, geometric=False),
-    # L-stable: the double bracket's sub-flow in closed form, the same cost at any hλ
-    Candidate('splitting2_lstable', (0.092, 0.16), 0.30, 1, exact_damping=True,
-              supersedes='splitting2'),
-    # with dissipation or torque each step builds a closed form from its state (~18 µs)
-    # exact keeps hΩ ≤ 2 like the others, though it rotates exactly: at steps that are
-    # multiples of the rotation period its splitting error aliases (Explorer 1 spins at
-    # 10 rev/s; exact at h = 1 s and 0.5 s agree to 1e-6 and are 0.02 rad off after 690 s),
-    # which step doubling cannot see
-    Candidate('exact', (18.0, 18.0), math.inf, 0.0, coupled_only=True),
-    # cost: µs per step (12 evaluations); k: see DOP853_*
-    Candidate('dop853', (1.2, 1.3), 2.0, 0.0, call=(3.0, 3.0), growth='drift', adaptive=True,
-              coupled_only=True, geometric=False),
-)
+# What auto may choose: every registered method that states its facts (``Integrator.auto``),
+# in the registry's order (auto breaks ties of cost in it).
+CANDIDATES = tuple(replace(cls.auto, name=cls.name, stages=cls.stages)
+                   for cls in INTEGRATORS.values() if cls.auto is not None)
 # dop853's a-priori model, from 60 runs on 20 generated dissipative scenes (seed 7,
 # ``bench.generated``; 150–2·10⁴ rad turned, rtol 1e-5–1e-9): its attitude error was
 # E/(rtol·ΩT) ≤ 60, median 0.09, growing with ΩT beyond a few hundred rad (energy drift):

@@ -1,6 +1,6 @@
 """Double-double arithmetic: a value is an unevaluated sum hi + lo of two float64 with
 |lo| ≤ ulp(hi)/2, about 106 bits (eps ≈ 1.2e-32), for the secular phases of the exact
-solution (:mod:`.exact_kernel`).
+solution (:mod:`.kernel`).
 
 Why not np.longdouble: numba has no long double, and long double is plain double on MSVC
 and macOS arm64. Error-free transformations (Knuth's TwoSum, Dekker's TwoProd with
@@ -14,7 +14,7 @@ Y. Hida, X. S. Li, D. H. Bailey, "Library for double-double and quad-double arit
 """
 import math
 
-from .kernels import jit
+from ..jit import jit
 
 _SPLITTER = 134217729.0          # 2^27 + 1: Veltkamp's split of a 53-bit significand
 # 2π and 4π as (hi, lo): hi = float64(π)·k exactly, lo = the next 53 bits of π·k.

@@ -1,4 +1,4 @@
-"""One body's row of :mod:`.exact_kernel` constants built by compiled code: the regime
+"""One body's row of :mod:`.kernel` constants built by compiled code: the regime
 classification, working frame, signs and constants of :class:`.exact.TorqueFreeSolution`,
 without its numpy overhead (hundreds of µs per body), so that a one-shot flow — the
 ``exact`` integrator's step with torque or dissipation, a new solution every step —
@@ -14,11 +14,12 @@ import math
 
 import numpy as np
 
-from . import double_double, elliptic_kernel, exact_constants, exact_kernel, kernels
-from .exact_kernel import (CLOSED, E, ELLIPTIC, G, KIND, LH, M0, MX, MY, MZ, NCONST, Q0,
-                           RL_H, S, SEPARATRIX, SIGD, SIGX, W, WC, WS_H, anchor_one,
-                           evaluate_into)
-from .kernels import depends_on, jit
+from .. import jit as jit_settings
+from . import constants as exact_constants, double_double, elliptic_kernel
+from . import kernel as exact_kernel
+from .kernel import (CLOSED, E, ELLIPTIC, G, KIND, LH, M0, MX, MY, MZ, NCONST, Q0, RL_H, S,
+                     SEPARATRIX, SIGD, SIGX, W, WC, WS_H, anchor_one, evaluate_into)
+from ..jit import depends_on, jit
 
 MOMENT_RTOL = 1e-12
 SEPARATRIX_RTOL = 16 * np.finfo(float).eps
@@ -180,12 +181,13 @@ def flow(moments, q, m, t, q_out, m_out):
 
 
 for _kernel in (_rotate, _quat_of_transpose, build, flow):
-    depends_on(_kernel, double_double, elliptic_kernel, exact_constants, exact_kernel, kernels)
+    depends_on(_kernel, double_double, elliptic_kernel, exact_constants, exact_kernel,
+               jit_settings)
 
 
 def pack(sol):
     """(n, NCONST) anchored rows for a TorqueFreeSolution's bodies, each built by compiled
-    code (:func:`.exact_build.build`: the same classification and frames, the rates, K, Π
+    code (:func:`.build.build`: the same classification and frames, the rates, K, Π
     and what follows from them in double-double)."""
     n = len(sol._kind)
     rows = np.empty((n, NCONST))

@@ -11,8 +11,8 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 from scipy.special import ellipj, elliprf, elliprj
 
-from . import rotation
-from .exact_kernel import CLOSED as _CLOSED, SEPARATRIX as _SEPARATRIX
+from .. import rotation
+from .kernel import CLOSED as _CLOSED, SEPARATRIX as _SEPARATRIX
 from .extended import LD, cel, reduce_4pi
 
 @functools.lru_cache(maxsize=8)

@@ -1,0 +1,216 @@
+"""The compiled twin of ``dynamics``: what every method's loop shares — the rates, the
+exact flow about one principal axis, the dissipation flows and the finiteness check.
+
+One body's state is q (4,) = (x, y, z, w), principal → inertial, and m (3,), the body
+angular momentum in the principal frame; both are float64 arrays updated in place. A
+method's loop (``integrators/*_kernel.py``) runs ``n`` steps of size ``h`` with a held
+torque ``tau`` (principal frame) and returns the index of the first step after which the
+state is not finite (-1 if none), so the caller raises IntegrationError with the right
+step and time. Compiled by ``jit`` (see that module); plain Python under
+NUMBA_DISABLE_JIT=1.
+
+Dissipation models: 0 none, 1 double bracket (α), 2 viscous (c); see ``dynamics``. Code 3
+is the double bracket by its exact flow (``splitting2_lstable``).
+"""
+import math
+
+from .jit import inline, jit
+
+MODEL_CODES = {'none': 0, 'double_bracket': 1, 'viscous': 2}
+
+
+@jit
+def _finite(q, m):
+    s = q[0] + q[1] + q[2] + q[3] + m[0] + m[1] + m[2]
+    return s - s == 0.0  # False for NaN and ±Inf
+
+
+@jit
+def _axis_flow(q, m, axis, t, moments):
+    """Exact flow of m_axis²/(2 I_axis) for time t: m turns by −φ, q by +φ about the axis."""
+    _rotate_half(q, m, axis, m[axis] * (0.5 * t / moments[axis]))
+
+
+@inline
+def _rotate_half(q, m, axis, half):
+    """m turns by −2·half, q by +2·half about ``axis`` (in place): the rotation of every
+    axis flow, the body's (_axis_flow) and the gyrostat's (gyrostat_kernel._flow)."""
+    b = (axis + 1) % 3
+    c = (axis + 2) % 3
+    s = math.sin(half)
+    w = math.cos(half)
+    cos_phi = w * w - s * s
+    sin_phi = 2.0 * s * w
+    mb = m[b]
+    mc = m[c]
+    m[b] = cos_phi * mb + sin_phi * mc
+    m[c] = cos_phi * mc - sin_phi * mb
+    qa = q[axis]
+    qb = q[b]
+    qc = q[c]
+    qw = q[3]
+    q[axis] = w * qa + s * qw
+    q[b] = w * qb + s * qc
+    q[c] = w * qc - s * qb
+    q[3] = w * qw - s * qa
+
+
+@jit
+def _rotated(x, y, z, t0, t1, t2):
+    """exp([θ]×) (x, y, z) (Rodrigues), stable for small |θ|; on scalars (no allocation)."""
+    a2 = t0 * t0 + t1 * t1 + t2 * t2
+    half = 0.5 * math.sqrt(a2)
+    sinc_half = math.sin(half) / half if half > 1e-8 else 1.0 - half * half / 6.0
+    s1 = sinc_half * math.cos(half)
+    s2 = 0.5 * sinc_half * sinc_half
+    c = 1.0 - a2 * s2
+    dot = t0 * x + t1 * y + t2 * z
+    tx = t1 * z - t2 * y
+    ty = t2 * x - t0 * z
+    tz = t0 * y - t1 * x
+    return (c * x + s1 * tx + s2 * dot * t0, c * y + s1 * ty + s2 * dot * t1,
+            c * z + s1 * tz + s2 * dot * t2)
+
+
+@jit
+def _bracket_theta(x, y, z, dt, moments, alpha):
+    """θ = dt·w(m), w = −α m×Ω: the rotation the double bracket applies to m."""
+    o0 = x / moments[0]
+    o1 = y / moments[1]
+    o2 = z / moments[2]
+    k = -alpha * dt
+    return k * (y * o2 - z * o1), k * (z * o0 - x * o2), k * (x * o1 - y * o0)
+
+
+@jit
+def _double_bracket(m, t, moments, alpha):
+    """ṁ = α m×(m×Ω) for time t > 0 by the Lie midpoint rule in substeps short enough for
+    the stiffness (α|m|²t(1/I_min − 1/I_max) ≤ 0.5); |m| stays exact. Returns substeps."""
+    x, y, z = m[0], m[1], m[2]
+    norm2 = x * x + y * y + z * z
+    i_min = min(moments[0], min(moments[1], moments[2]))
+    i_max = max(moments[0], max(moments[1], moments[2]))
+    rate = alpha * norm2 * (1.0 / i_min - 1.0 / i_max)
+    n = max(1, int(math.ceil(rate * t / 0.5)))
+    dt = t / n
+    for _ in range(n):
+        t0, t1, t2 = _bracket_theta(x, y, z, 0.5 * dt, moments, alpha)
+        hx, hy, hz = _rotated(x, y, z, t0, t1, t2)
+        t0, t1, t2 = _bracket_theta(hx, hy, hz, dt, moments, alpha)
+        x, y, z = _rotated(x, y, z, t0, t1, t2)
+    m[0] = x
+    m[1] = y
+    m[2] = z
+    return n
+
+
+SYMMETRIC_TOL = 4e-16  # relative change that ends the symmetric double-bracket iteration
+SYMMETRIC_MAX_ITER = 40
+
+
+@jit
+def _double_bracket_symmetric(m, t, moments, alpha):
+    """Time-symmetric order-2 step of the double bracket (t of either sign):
+    m₁ = exp(t·w(m̄)) m₀, m̄ = (m₀ + m₁)/2, by fixed-point iteration from the explicit
+    Lie step; |m| stays exact. Symmetric, so Yoshida compositions of a splitting that
+    contains it keep their order (weak damping: |t|·rate ≤ 0.25). Returns rotations."""
+    a, b, c = m[0], m[1], m[2]
+    t0, t1, t2 = _bracket_theta(a, b, c, t, moments, alpha)
+    x, y, z = _rotated(a, b, c, t0, t1, t2)
+    scale = math.sqrt(a * a + b * b + c * c)
+    count = 1
+    for _ in range(SYMMETRIC_MAX_ITER):
+        t0, t1, t2 = _bracket_theta(0.5 * (a + x), 0.5 * (b + y), 0.5 * (c + z), t, moments,
+                                    alpha)
+        nx, ny, nz = _rotated(a, b, c, t0, t1, t2)
+        change = abs(nx - x) + abs(ny - y) + abs(nz - z)
+        x, y, z = nx, ny, nz
+        count += 1
+        if change <= SYMMETRIC_TOL * scale:
+            break
+    m[0] = x
+    m[1] = y
+    m[2] = z
+    return count
+
+
+@jit
+def double_bracket_exact(m, t, moments, alpha):
+    """The exact flow of ṁ = α m×(m×Ω) for time t ≥ 0, in place. On the sphere |m| = L it
+    is ṁ_i = α m_i (2T − L²/I_i), whose solution is m_i(t) ∝ m_i(0) e^{−αL²t/I_i}, scaled
+    back to |m| = L: every transverse mode decays as e^{−λt}, so at any step the stiff ones
+    vanish (R(z) = e^z, L-stable) at the cost of three exponentials. Exponents are taken
+    relative to the largest I with m_i ≠ 0, so none overflows and that component stays."""
+    norm2 = m[0] * m[0] + m[1] * m[1] + m[2] * m[2]
+    if norm2 == 0.0:
+        return
+    c = alpha * norm2 * t
+    ref = 0.0  # 1/I of the reference component
+    for i in range(3):
+        if m[i] != 0.0 and (ref == 0.0 or 1.0 / moments[i] < ref):
+            ref = 1.0 / moments[i]
+    big = 0.0
+    for i in range(3):
+        if m[i] != 0.0:  # a zero component stays zero (its factor may overflow)
+            m[i] = m[i] * math.exp(c * (ref - 1.0 / moments[i]))
+        big = max(big, abs(m[i]))
+    s = 0.0  # |m|² after the decay, scaled by the largest component (no underflow)
+    for i in range(3):
+        r = m[i] / big
+        s += r * r
+    scale = math.sqrt(norm2) / (big * math.sqrt(s))
+    for i in range(3):
+        m[i] = m[i] * scale
+
+
+@jit
+def _dissipate(m, t, moments, model, coefficient, symmetric):
+    """D(t); ``symmetric``: by a time-symmetric flow (t of either sign). Viscous damping is
+    exact either way; model 3 is the double bracket by its exact flow (t ≥ 0, never inside
+    compositions). Returns the dissipative sub-flows evaluated (for nfev)."""
+    if model == 3:
+        double_bracket_exact(m, t, moments, coefficient)
+        return 0
+    if model == 2:
+        for i in range(3):
+            m[i] = m[i] * math.exp(-coefficient * t / moments[i])
+        return 0
+    if model == 1:
+        if symmetric:
+            return _double_bracket_symmetric(m, t, moments, coefficient)
+        return 2 * _double_bracket(m, t, moments, coefficient)
+    return 0
+
+
+@jit
+def _rates(q, m, moments, tau, model, coefficient, dq, dm):
+    """dq = ½ q ⊗ (Ω, 0); dm = m × Ω + τ + dissipation (principal frame)."""
+    o0 = m[0] / moments[0]
+    o1 = m[1] / moments[1]
+    o2 = m[2] / moments[2]
+    x, y, z, w = q[0], q[1], q[2], q[3]
+    dq[0] = 0.5 * (w * o0 + y * o2 - z * o1)
+    dq[1] = 0.5 * (w * o1 - x * o2 + z * o0)
+    dq[2] = 0.5 * (w * o2 + x * o1 - y * o0)
+    dq[3] = 0.5 * (-x * o0 - y * o1 - z * o2)
+    c0 = m[1] * o2 - m[2] * o1
+    c1 = m[2] * o0 - m[0] * o2
+    c2 = m[0] * o1 - m[1] * o0
+    dm[0] = c0 + tau[0]
+    dm[1] = c1 + tau[1]
+    dm[2] = c2 + tau[2]
+    if model == 1:  # α m × (m × Ω)
+        dm[0] += coefficient * (m[1] * c2 - m[2] * c1)
+        dm[1] += coefficient * (m[2] * c0 - m[0] * c2)
+        dm[2] += coefficient * (m[0] * c1 - m[1] * c0)
+    elif model == 2:  # −c ω
+        dm[0] -= coefficient * o0
+        dm[1] -= coefficient * o1
+        dm[2] -= coefficient * o2
+
+
+@jit
+def _normalise(q):
+    r = 1.0 / math.sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
+    for i in range(4):
+        q[i] *= r

@@ -1,0 +1,86 @@
+"""The explicit Runge–Kutta methods' compiled loops (``explicit.py``'s classes), in the
+conventions of ``dynamics_kernel``.
+"""
+import numpy as np
+
+from .. import dynamics_kernel
+from ..dynamics_kernel import _finite, _normalise, _rates
+from ..jit import COMPILED, depends_on, jit
+
+
+@jit
+def euler_run(q, m, h, n, moments, tau, model, coefficient):
+    """n explicit Euler steps (q renormalised); first non-finite step or -1."""
+    return euler_steps(q, m, h, n, moments, tau, model, coefficient, np.empty((2, 4)))
+
+
+@jit
+def euler_steps(q, m, h, n, moments, tau, model, coefficient, scratch):
+    """euler_run with caller-owned scratch (2, 4): no allocation per call, for callers
+    that run many short stretches (the engine's compiled closed loop)."""
+    dq = scratch[0]
+    dm = scratch[1, :3]
+    for k in range(n):
+        _rates(q, m, moments, tau, model, coefficient, dq, dm)
+        for i in range(4):
+            q[i] += h * dq[i]
+        for i in range(3):
+            m[i] += h * dm[i]
+        _normalise(q)
+        if not _finite(q, m):
+            return k
+    return -1
+
+
+@jit
+def rk4_run(q, m, h, n, moments, tau, model, coefficient):
+    """n classical RK4 steps (q renormalised after each); first non-finite step or -1."""
+    return rk4_steps(q, m, h, n, moments, tau, model, coefficient, np.empty((10, 4)))
+
+
+@jit
+def rk4_steps(q, m, h, n, moments, tau, model, coefficient, scratch):
+    """rk4_run with caller-owned scratch (10, 4): no allocation per call (see euler_steps)."""
+    k1q, k2q, k3q, k4q, qs = scratch[0], scratch[1], scratch[2], scratch[3], scratch[4]
+    k1m, k2m, k3m, k4m = scratch[5, :3], scratch[6, :3], scratch[7, :3], scratch[8, :3]
+    ms = scratch[9, :3]
+    for k in range(n):
+        _rates(q, m, moments, tau, model, coefficient, k1q, k1m)
+        for i in range(4):
+            qs[i] = q[i] + 0.5 * h * k1q[i]
+        for i in range(3):
+            ms[i] = m[i] + 0.5 * h * k1m[i]
+        _rates(qs, ms, moments, tau, model, coefficient, k2q, k2m)
+        for i in range(4):
+            qs[i] = q[i] + 0.5 * h * k2q[i]
+        for i in range(3):
+            ms[i] = m[i] + 0.5 * h * k2m[i]
+        _rates(qs, ms, moments, tau, model, coefficient, k3q, k3m)
+        for i in range(4):
+            qs[i] = q[i] + h * k3q[i]
+        for i in range(3):
+            ms[i] = m[i] + h * k3m[i]
+        _rates(qs, ms, moments, tau, model, coefficient, k4q, k4m)
+        for i in range(4):
+            q[i] += (h / 6.0) * (k1q[i] + 2.0 * k2q[i] + 2.0 * k3q[i] + k4q[i])
+        for i in range(3):
+            m[i] += (h / 6.0) * (k1m[i] + 2.0 * k2m[i] + 2.0 * k3m[i] + k4m[i])
+        _normalise(q)
+        if not _finite(q, m):
+            return k
+    return -1
+
+
+# they call the shared rates of another file (see jit.depends_on)
+for _kernel in (euler_run, euler_steps, rk4_run, rk4_steps):
+    depends_on(_kernel, dynamics_kernel)
+
+
+def warm():
+    """Compile (or load from the cache) the Runge–Kutta loops."""
+    q = np.array([0.0, 0.0, 0.0, 1.0])
+    m = np.array([0.1, 1.0, 0.2])
+    moments = np.array([1.0, 2.0, 3.0])
+    rk4_run(q, m, 1e-3, 1, moments, np.zeros(3), 0, 0.0)
+    euler_run(q, m, 1e-3, 1, moments, np.zeros(3), 0, 0.0)
+    return COMPILED

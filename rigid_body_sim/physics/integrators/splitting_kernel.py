@@ -1,0 +1,98 @@
+"""The splittings' compiled loops (``splitting.py``'s classes, ``lstable.py``'s): one body
+(``splitting_run``) and a range of a batch's bodies (``splitting_bodies``), in the
+conventions of ``dynamics_kernel``.
+"""
+import numpy as np
+
+from .. import dynamics_kernel
+from ..dynamics_kernel import _axis_flow, _dissipate, _finite
+from ..jit import COMPILED, depends_on, jit
+
+
+@jit
+def splitting_run(q, m, h, n, weights, axes, moments, tau, has_tau, model, coefficient, inner):
+    """n steps of D(h/2) · Π_w [K(wh/2) a(wh/2) b(wh/2) c(wh) b(wh/2) a(wh/2) K(wh/2)] · D(h/2).
+
+    ``inner``: dissipation inside every stage instead, by a time-symmetric flow —
+    Π_w [D K a b c b a K D](wh) — which keeps the composition's order (weak damping only:
+    negative stages run it backwards). Returns (first non-finite step or -1, evaluations)."""
+    a = axes[0]
+    b = axes[1]
+    c = axes[2]
+    evals = 0
+    for k in range(n):
+        if not inner:
+            evals += _dissipate(m, 0.5 * h, moments, model, coefficient, False)
+        for j in range(len(weights)):
+            hw = weights[j] * h
+            if inner:
+                evals += _dissipate(m, 0.5 * hw, moments, model, coefficient, True)
+            if has_tau:
+                for i in range(3):
+                    m[i] = m[i] + (0.5 * hw) * tau[i]
+            _axis_flow(q, m, a, 0.5 * hw, moments)
+            _axis_flow(q, m, b, 0.5 * hw, moments)
+            _axis_flow(q, m, c, hw, moments)
+            _axis_flow(q, m, b, 0.5 * hw, moments)
+            _axis_flow(q, m, a, 0.5 * hw, moments)
+            if has_tau:
+                for i in range(3):
+                    m[i] = m[i] + (0.5 * hw) * tau[i]
+            if inner:
+                evals += _dissipate(m, 0.5 * hw, moments, model, coefficient, True)
+        if not inner:
+            evals += _dissipate(m, 0.5 * h, moments, model, coefficient, False)
+        evals += len(weights)
+        if not _finite(q, m):
+            return k, evals
+    return -1, evals
+
+
+@jit
+def splitting_bodies(q, m, lo, hi, h, n, weights, axes, moments, tau, has_tau, model,
+                     coefficient, inner):
+    """splitting_run on bodies lo … hi−1 of q (N, 4), m (N, 3), in place: a batch's bodies
+    with dissipation, or ones re-run unmerged (``splitting_batch_kernel``; here, not there, because
+    numba's disk cache of a function tracks only its own file). tau (1, 3) shared or
+    (N, 3); inner (1,) shared or (N,). Returns (first non-finite step or -1, a body that
+    fails there, the largest evaluation count of one body). After a failure later bodies
+    run only the steps before it: only an earlier failure can change the answer."""
+    qs = np.empty(4)
+    ms = np.empty(3)
+    failed = -1
+    failed_body = -1
+    limit = n
+    evals = 0
+    for i in range(lo, hi):
+        for j in range(4):
+            qs[j] = q[i, j]
+        for j in range(3):
+            ms[j] = m[i, j]
+        bad, used = splitting_run(qs, ms, h, limit, weights, axes, moments,
+                                  tau[i % tau.shape[0]], has_tau, model, coefficient,
+                                  inner[i % inner.shape[0]])
+        for j in range(4):
+            q[i, j] = qs[j]
+        for j in range(3):
+            m[i, j] = ms[j]
+        evals = max(evals, used)
+        if bad >= 0:
+            failed = bad
+            failed_body = i
+            limit = bad
+    return failed, failed_body, evals
+
+
+# they call the shared flows of another file (see jit.depends_on)
+splitting_run = depends_on(splitting_run, dynamics_kernel)
+splitting_bodies = depends_on(splitting_bodies, dynamics_kernel)
+
+
+def warm():
+    """Compile (or load from the cache) the splitting loop, damping outside and inside."""
+    q = np.array([0.0, 0.0, 0.0, 1.0])
+    m = np.array([0.1, 1.0, 0.2])
+    for inner in (False, True):
+        splitting_run(q, m, 1e-3, 1, np.array([1.0]), np.array([0, 2, 1]),
+                      np.array([1.0, 2.0, 3.0]), np.zeros(3), False, 1, 0.1, inner)
+    return COMPILED
