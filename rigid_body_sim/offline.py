@@ -46,6 +46,10 @@ class RunResult:
     # predicted cost, a deterministic measure of what choosing cost), None for a fixed method
     selection: object = None
     kernel_load_cpu_seconds: float = 0.0  # loading the compiled kernels before the run
+    # numba kernel signatures loaded or compiled inside the clock (the CLI loads every one
+    # before it: warm_for); None where nobody counted
+    kernels_loaded_during_run: Optional[int] = None
+    output_cpu_seconds: float = 0.0  # the sinks (bag encoding and writing), not in cpu_seconds
     actuators: object = None  # the scene's ActuatorConfig (wheels / CMGs), or None
     # right-hand-side evaluations or sub-flows (closed-form evaluations for exact), the pilot's
     # not included: comparable across methods where ``steps`` (outputs for dop853) is not
@@ -67,6 +71,8 @@ class RunResult:
                 'selection_planned_cpu_seconds': (self.selection.planned_cost if self.selection
                                                   else None),
                 'kernel_load_cpu_seconds': round(self.kernel_load_cpu_seconds, 6),
+                'kernels_loaded_during_run': self.kernels_loaded_during_run,
+                'output_cpu_seconds': round(self.output_cpu_seconds, 6),
                 'initial': {k: self.initial[k] for k in keep},
                 'final': {k: self.final[k] for k in keep}, 'bag': self.bag, 'plots': self.plots}
 
@@ -193,17 +199,21 @@ def simulate(scene: SceneFile, duration=None, integrator=None, step=None, accura
     bar = _Progress(engine.config.duration, progress)
     first = last = None
     count = 0
+    output = 0.0  # the sinks' CPU (a bag: encoding and writing), reported on its own
     for block in engine.run():
         if first is None:
             first = block.row(0)
         last = block.row(len(block) - 1)
         count += len(block)
-        for sink in sinks:
-            sink(block)
+        if sinks:
+            out0 = time.process_time()
+            for sink in sinks:
+                sink(block)
+            output += time.process_time() - out0
         if kept is not None:
             (kept.append if keep == 'all' else kept.add)(block)
         bar.update(engine.t)
-    cpu = time.process_time() - cpu0
+    cpu = time.process_time() - cpu0 - output
     bar.update(engine.config.duration, force=True)
     samples = SampleBlock.concatenate(kept) if keep == 'all' else \
         kept.block() if kept is not None else SampleBlock.concatenate([])
@@ -213,7 +223,35 @@ def simulate(scene: SceneFile, duration=None, integrator=None, step=None, accura
                      first, last,
                      count, engine.body,
                      selection=engine.selected,
-                     actuators=engine.config.actuators, evaluations=engine.total_evaluations)
+                     actuators=engine.config.actuators, evaluations=engine.total_evaluations,
+                     output_cpu_seconds=output)
+
+
+def warm_for(engine: Engine) -> None:
+    """Load every kernel ``engine``'s run will use, with the argument types it will pass,
+    before its clock starts: :func:`compiled.warm` loads each module's kernels, but some
+    are first called inside a run (the gyrostat loop of wheel scenes: 60 ms of a 64 ms
+    run). A fresh engine of the same configuration (so ``auto`` chooses the same) runs the
+    first few sample periods, past the mission's free phase, where the law's method starts."""
+    c = engine.config
+    span = 3 * c.sample_period_ns
+    if c.control is not None:
+        span += round(c.control.free_time * 1e9) + 3 * c.control.period_ns
+    copy = Engine(c)
+    for _ in copy.run(min(copy.end_ns, copy.t_ns + span)):
+        pass
+
+
+def kernel_signatures() -> int:
+    """Compiled signatures held by the package's numba kernels now (0 without numba's JIT):
+    their growth over a stretch is what that stretch compiled or loaded from the cache."""
+    try:
+        from numba.core.registry import CPUDispatcher
+    except ImportError:  # pragma: no cover - numba is a dependency
+        return 0
+    return sum(len(v.signatures) for name, module in list(sys.modules.items())
+               if name.startswith('rigid_body_sim') and module is not None
+               for v in list(vars(module).values()) if isinstance(v, CPUDispatcher))
 
 
 class BagSink:
@@ -240,6 +278,7 @@ class BagSink:
             self.sensors = SensorMessages(settings, p['frame_id'], p['child_frame_id'])
             for topic, type_name in self.sensors.topic_types():
                 self.writer.add_topic(f'/{topic}', type_name)
+        self.msgs.prepare()  # the encoder's templates now, not in the first sample's time
         self.record = run_record(scene, parameters or scene.simulator, extra)
         self.writer.add_run_configuration(self.record)
 
@@ -390,6 +429,9 @@ def run(args) -> int:
         # refused run leaves the previous one in place
         engine = engine_for(scene, args.duration, args.integrator, args.step, args.accuracy,
                             check_stability=True)
+        load0 = time.process_time()
+        warm_for(engine)
+        kernel_load += time.process_time() - load0
         _replace_previous(out)
         if not args.no_bag:
             bag = BagSink(scene, os.path.join(out, 'bag'), {
@@ -400,8 +442,10 @@ def run(args) -> int:
                     if v}}, effective_parameters(scene, args.duration, args.integrator,
                                                  args.step, args.accuracy))
         try:
+            loaded = kernel_signatures()
             result = simulate(scene, progress=not args.json, sinks=[bag] if bag else [],
                               keep='none' if args.no_plots else 'plot', engine=engine)
+            result.kernels_loaded_during_run = kernel_signatures() - loaded
             if bag is not None:
                 bag.finish(result)
         finally:
@@ -434,7 +478,9 @@ def run(args) -> int:
     print(f'{scene.name}: {result.integrator} (step {result.step:.3g} s), {result.steps} steps, '
           f'{result.cpu_seconds:.3g} CPU s for {result.duration:g} simulated s '
           f'(+ {result.selection_cpu_seconds:.3g} CPU s choosing the method, '
-          f'{result.kernel_load_cpu_seconds:.2g} s loading the compiled kernels)')
+          f'{result.kernel_load_cpu_seconds:.2g} s loading the compiled kernels'
+          + (f', {result.output_cpu_seconds:.3g} s writing the bag' if result.bag else '')
+          + ')')
     print(f'  why: {result.reason}')
     print(f'  final: T = {f["kinetic_energy"]:.9g} J, |L| = '
           f'{np.linalg.norm(f["angular_momentum"]):.9g} kg·m²/s, '

@@ -45,7 +45,7 @@ def test_cli_exposes_the_subcommand():
 
 def test_outputs_written(quick_run):
     for name in ('work_precision.csv', 'stability.csv', 'long_horizon.csv', 'batch.csv',
-                 'targets.csv', 'targets.md', 'stability.png',
+                 'sampling.csv', 'targets.csv', 'targets.md', 'stability.png',
                  'work_precision_intermediate_axis.png'):
         assert os.path.getsize(quick_run / name) > 0, name
 
@@ -101,6 +101,19 @@ def test_splitting_keeps_momentum_in_stability_sweep(quick_run):
     for r in rows:
         assert r['status'] == 'ok', r
         assert float(r['max_momentum_drift']) <= 1e-12, r
+
+
+def test_sampling_and_cli_overhead_rows(quick_run):
+    """The issue's rows: 100 samples/s against 1 sample/s on four scenes, and the CLI's
+    cpu_seconds against the same run in-process, each a measured ratio with a verdict."""
+    rows = _read(quick_run / 'targets.csv')
+    sampling = {r['scene'] for r in rows if r['target'].startswith('sampling overhead')}
+    assert sampling == {'slew', 'detumble', 'explorer1', 'tennis_racket'}
+    cli_rows = [r for r in rows if r['target'].startswith('CLI overhead')]
+    assert {r['scene'] for r in cli_rows} == {'explorer1', 'slew'}
+    for r in rows:
+        if r['target'].startswith(('sampling overhead', 'CLI overhead')):
+            assert float(r['measured']) > 0 and r['verdict'] in ('PASS', 'MISS'), r
 
 
 def test_targets_table_has_ratios_for_every_scene(quick_run):

@@ -3,7 +3,8 @@
     rigid-body-sim bench [--quick] [--out DIR] [--peers]
 
 One process run measures every section, prints tables and writes CSV + PNG files into DIR:
-work_precision.csv, stability.csv, long_horizon.csv, batch.csv, live.json, exact_horizon.csv,
+work_precision.csv, stability.csv, long_horizon.csv, batch.csv, sampling.csv, live.json,
+exact_horizon.csv,
 generated.csv (auto against each generated scene's oracle),
 targets.csv, targets.md, work_precision_<scene>.png, stability.png, long_horizon.png. Times
 are process CPU seconds (``time.process_time``), so they include Python overhead — ours and
@@ -21,8 +22,8 @@ import time
 
 from . import batch as batch_mod
 from . import compile as compile_cost
-from . import (charts, exact_horizon, generated, live, longhorizon, peers, perstep, selection,
-               stability, targets, workprecision)
+from . import (charts, exact_horizon, generated, live, longhorizon, peers, perstep, sampling,
+               selection, stability, targets, workprecision)
 from .common import reference
 from .scenes import SCENES, SCENE_BY_NAME
 
@@ -175,6 +176,11 @@ def _run(args) -> int:
     ps_rows, ps_fig = perstep.run(quick, log)
     _write_csv(os.path.join(out, 'perstep.csv'), perstep.FIELDS, ps_rows)
 
+    # 4c. what samples and the CLI add to a run
+    log('\n== 4c. sampling and CLI overhead (samples kept; the CLI in a fresh process) ==')
+    sm_rows, sm_targets = sampling.run(quick, log)
+    _write_csv(os.path.join(out, 'sampling.csv'), sampling.FIELDS, sm_rows)
+
     # 5. live
     log('\n== 5. live ==')
     live_res = {'simulator': live.simulator(quick, log), 'recorder': live.recorder(quick, log),
@@ -230,6 +236,7 @@ def _run(args) -> int:
         t_rows.append(targets.simple('batch body-steps/s at N = 1e6 (one core)', math.nan, 1e7,
                                      None, 'not measured in --quick (N ≤ 1e4)'))
     t_rows += perstep.targets_from(ps_fig, quick)
+    t_rows += sm_targets
     sim = live_res['simulator']
     for key, req, better in (('real_time_factor', 100.0, 'ge'),
                              ('cpu_share_at_real_time', 0.05, 'le'),

@@ -42,9 +42,10 @@ class Engine:
     ``blocking_selection``: run ``auto``'s pilot to completion when a choice is needed
     (offline; its CPU is counted in ``selection_cpu``). Otherwise the engine runs
     ``splitting2`` meanwhile and the caller feeds the pilot with :meth:`work`.
-    ``compiled_loop``: with an in-process control law and a method with a compiled loop,
-    run the stretches between samples in one compiled kernel (``closed_loop``) instead
-    of event by event from Python; the trajectory is the same.
+    ``compiled_loop``: with a method that has a compiled loop, run the samples and the
+    in-process control law's instants between other events in one compiled kernel
+    (``closed_loop``) that writes the samples into the block, instead of event by event
+    from Python; the samples are the same, bit for bit (test_samples).
     ``check_method``: whenever a fixed method is configured, predict its error against
     the scene's accuracy and check its step's stability (:meth:`_check_method`) into
     ``method_warnings`` for the front end to show or refuse (the CLI and the live node
@@ -72,6 +73,7 @@ class Engine:
             self._law = ControlLaw(config.control, clip=config.max_torque, observer=observer)
             self.sources.append(self._law)
         self._builder = BlockBuilder(config.body, block_size)
+        self._compiled_samples = compiled_loop and self._sensors is None
         self.steps = 0
         self.evaluations = 0   # closed-form evaluations (exact, torque-free)
         self._integ, self._retired_nfev = None, 0  # evaluations of methods replaced since
@@ -390,9 +392,12 @@ class Engine:
         cap = min(b.capacity, max_samples or b.capacity)
         p = self.config.sample_period_ns
         while not (self.finished or self.fault) and b.n < cap:
-            # with sensors the law sees their events: the event path (Python) runs it
-            if self._law is not None and self.compiled_loop and self._sensors is None:
-                closed_loop.advance(self, until_ns)  # to the next sample or end, if it applies
+            # the samples and law instants between other events in one compiled kernel,
+            # written into the block; with sensors the law sees their events and with
+            # actuators the gyrostat steps: the event path (Python) runs those
+            if self._compiled_samples and not self._free_exact() and \
+                    closed_loop.advance(self, until_ns, cap):
+                continue
             t_src = min(s.next_event() for s in self.sources)
             end = self.end_ns
             t_event = min(self._next_sample, t_src, end)

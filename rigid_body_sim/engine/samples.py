@@ -94,7 +94,12 @@ class SampleBlock:
                            self.torque[i].tolist())
 
     def row(self, i):
-        """Sample i as a dict of Python values."""
+        """Sample i as a dict of Python values. On a long block whose fields are not
+        converted yet, only that sample is (an offline run reads the first and last of
+        every block: converting all 1024 rows for two cost more than the physics)."""
+        if len(self) > ROW_PATH_MAX and 'attitude' not in self.__dict__:
+            i = range(len(self))[i]
+            return self.take(slice(i, i + 1)).row(0)
         return {k: getattr(self, k)[i].tolist() for k in FIELDS}
 
     def take(self, index) -> 'SampleBlock':

@@ -153,14 +153,19 @@ class StateMessages:
         self._extra.append((name, msg))
         self._templates = None
 
+    def prepare(self):
+        """Build the CDR templates now (the first build imports and runs rclpy's
+        serialiser, ~30 ms), not on the first sample."""
+        if self._templates is None:
+            self._templates = _Templates(self)
+
     def serialized(self, block, i: int, stamp_ns: int):
         """[(topic, CDR bytes)] of sample ``i``, every topic."""
         return list(self.encoded(block, i, stamp_ns).items())
 
     def encoded(self, block, i: int, stamp_ns: int) -> dict:
         """{topic: CDR bytes} of sample ``i`` (as rclpy's serialize_message writes them)."""
-        if self._templates is None:
-            self._templates = _Templates(self)
+        self.prepare()
         sec, nsec = divmod(int(stamp_ns), 1_000_000_000)
         out = self._templates.encode(block.values(i), sec, nsec)
         if self.actuators is not None:

@@ -1,0 +1,139 @@
+"""Samples written from the compiled loop (engine/closed_loop.py) into the engine's block.
+
+The compiled path must give the very samples of the event-by-event path (bit for bit on
+bodies whose principal frame is the body frame, where both evaluate the same floating-point
+operations), compiled and as plain Python (NUMBA_DISABLE_JIT=1), and it must not go back
+to Python per sample.
+"""
+import json
+
+import numpy as np
+import pytest
+from jit_modes import run_both
+
+from rigid_body_sim.engine import Engine, SampleBlock
+from rigid_body_sim.offline import engine_for
+from rigid_body_sim.scene import load
+
+# (scene, overrides, --set): a law in the loop (slew, detumble), a fixed method on a
+# dissipative scene (rk4, splitting4), auto, and an end off the sample grid
+CASES = [('slew', {'duration': 6.0}, ['publish_rate=100.0']),
+         ('detumble', {'duration': 6.0}, ['publish_rate=100.0']),
+         ('explorer1', {'duration': 3.0, 'integrator': 'rk4', 'step': 1e-3},
+          ['publish_rate=100.0']),
+         ('explorer1', {'duration': 3.37, 'integrator': 'splitting4', 'step': 1e-3},
+          ['publish_rate=7.0']),
+         ('slew', {'duration': 4.37}, ['publish_rate=30.0'])]
+
+
+def _samples(name, overrides, sets, compiled_loop):
+    engine = engine_for(load(name, sets), **overrides)
+    engine._compiled_samples = compiled_loop  # the event-by-event path is the reference
+    block = SampleBlock.concatenate(list(engine.run()))
+    return engine, block
+
+
+@pytest.mark.parametrize('name,overrides,sets', CASES)
+def test_compiled_samples_are_the_event_loop_samples_bit_for_bit(name, overrides, sets):
+    (py, a), (kernel, b) = (_samples(name, overrides, sets, c) for c in (False, True))
+    assert len(a) == len(b) > 20
+    for field in ('t_ns', 'q', 'm', 'torque'):
+        np.testing.assert_array_equal(getattr(b, field), getattr(a, field), err_msg=field)
+    assert py.steps == kernel.steps and py.total_evaluations == kernel.total_evaluations
+    assert a.t_ns[-1] == round(overrides['duration'] * 1e9)  # the run ends at its duration
+    if name in ('slew', 'detumble'):
+        assert np.abs(b.torque).max() > 0.0  # the law acted inside the kernel
+
+
+def test_samples_do_not_go_back_to_python_per_sample(monkeypatch):
+    """At 100 samples/s the engine's Python step (``Engine._integrate``) and the Python
+    control law run a handful of times per run (the first and last events), not once per
+    sample."""
+    from rigid_body_sim.engine.sources import ControlLaw
+    calls = {'integrate': 0, 'law': 0}
+    integrate, on_event = Engine._integrate, ControlLaw.on_event
+
+    def counted_integrate(self, *args):
+        calls['integrate'] += 1
+        return integrate(self, *args)
+
+    def counted_law(self, *args):
+        calls['law'] += 1
+        return on_event(self, *args)
+    monkeypatch.setattr(Engine, '_integrate', counted_integrate)
+    monkeypatch.setattr(ControlLaw, 'on_event', counted_law)
+    for name, overrides in (('explorer1', {'integrator': 'rk4', 'step': 1e-3}),
+                            ('slew', {})):
+        engine = engine_for(load(name, ['publish_rate=100.0']), duration=5.0, **overrides)
+        calls.update(integrate=0, law=0)
+        assert sum(len(b) for b in engine.run()) == 501
+        assert calls['integrate'] + calls['law'] <= 10, (name, calls)
+
+
+_SCRIPT = '''
+import hashlib, json, sys
+import numpy as np
+from rigid_body_sim.engine import SampleBlock
+from rigid_body_sim.offline import engine_for
+from rigid_body_sim.physics import jit as kernels
+from rigid_body_sim.scene import load
+out = {"compiled": kernels.COMPILED}
+for name, overrides, sets in json.loads(sys.argv[1]):
+    for compiled_loop in (False, True):
+        engine = engine_for(load(name, sets), **overrides)
+        engine._compiled_samples = compiled_loop
+        b = SampleBlock.concatenate(list(engine.run()))
+        arrays = [b.t_ns, b.q, b.m, b.torque]
+        out[f"{name}/{overrides}/{compiled_loop}"] = [
+            hashlib.sha256(b"".join(a.tobytes() for a in arrays)).hexdigest(),
+            np.concatenate([b.q[-1], b.m[-1]]).tolist(), engine.steps]
+print(json.dumps(out))
+'''
+
+
+@pytest.mark.slow
+def test_compiled_samples_in_both_jit_modes():
+    """Compiled and as plain Python: in each mode the kernel's samples are the event
+    loop's bit for bit, and the modes agree to round-off."""
+    cases = [CASES[0], CASES[2]]
+    compiled, plain = run_both(_SCRIPT, json.dumps(cases))
+    assert compiled.pop('compiled') is True and plain.pop('compiled') is False
+    for mode in (compiled, plain):
+        for key in [k for k in mode if k.endswith('/True')]:
+            assert mode[key][0] == mode[key[:-4] + 'False'][0], key
+    for key, (_, state, steps) in compiled.items():
+        np.testing.assert_allclose(state, plain[key][1], rtol=0, atol=1e-12, err_msg=key)
+        assert steps == plain[key][2]
+
+
+def test_engine_without_compiled_loop_keeps_the_event_path():
+    """``compiled_loop=False`` (the reference of the tests above) runs no kernel."""
+    from rigid_body_sim.engine import EngineConfig
+    engine = Engine(EngineConfig.from_parameters(
+        {'integrator': 'rk4', 'duration': 1.0, 'publish_rate': 10.0}), compiled_loop=False)
+    assert not engine._compiled_samples
+    assert sum(len(b) for b in engine.run()) == 11
+
+
+def _cli_json(*args):
+    import subprocess
+    import sys
+    proc = subprocess.run([sys.executable, '-c', 'import sys; from rigid_body_sim import cli; '
+                           'sys.exit(cli.main(sys.argv[1:]))', 'run', *args, '--json'],
+                          capture_output=True, text=True, timeout=600)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    return json.loads(proc.stdout.strip().splitlines()[-1])
+
+
+@pytest.mark.parametrize('scene', ['wheel_slew', 'detumble'])
+def test_cli_loads_every_kernel_before_its_clock(scene, tmp_path):
+    """A fresh process: every numba kernel the run calls (the gyrostat loop of a wheel
+    scene, which compiled.warm() leaves to the first call) is loaded before the clock,
+    reported as the warm-up; the bag's encoding and writing are reported on their own."""
+    summary = _cli_json(scene, '--duration', '2', '--no-plots', '--out', str(tmp_path))
+    assert summary['kernels_loaded_during_run'] == 0
+    assert summary['kernel_load_cpu_seconds'] > 0.0
+    assert summary['output_cpu_seconds'] > 0.0 and summary['cpu_seconds'] > 0.0
+    summary = _cli_json(scene, '--duration', '2', '--no-plots', '--no-bag', '--out',
+                        str(tmp_path / 'b'))
+    assert summary['output_cpu_seconds'] == 0.0 and summary['bag'] is None
