@@ -243,6 +243,13 @@ def advance(engine, until_ns: int, cap: int) -> int:
         tau = np.zeros(3) if engine._tau_body is None else np.array(engine._tau_body, float)
         tau_p = np.zeros(3) if engine._tau_p is None else np.array(engine._tau_p, float)
         law_args, period = _NO_LAW, 1
+    if law is not None and control_ns < limit:
+        # the stretch's last law instant goes through the event loop, so that law.last
+        # holds the law's latest evaluation (saturation, error angle) as without the
+        # kernel; one Python evaluation per call, not per instant
+        limit = control_ns + (limit - 1 - control_ns) // period * period
+        if min(control_ns, engine._next_sample) >= limit:
+            return 0
     h = closed_loop_run(
         q, m, engine.t_ns, limit, control_ns, period, engine._next_sample,
         c.sample_period_ns, engine.step_max, code, spec[0], spec[1],
