@@ -13,7 +13,11 @@ from rigid_body_sim import bench
 from rigid_body_sim.bench.scenes import SCENES
 from rigid_body_sim.physics import INTEGRATORS
 
+# one xdist worker runs this module, so its module-scoped fixture runs once (make test)
+pytestmark = pytest.mark.xdist_group('bench')
+
 RK4_REAL_AXIS_LIMIT = 2.7853
+GENERATED = 4
 NUMERIC = ('cpu_s', 'attitude_error', 'omega_error', 'energy_drift', 'momentum_drift')
 
 
@@ -27,7 +31,9 @@ def quick_run(tmp_path_factory, pytestconfig):
     out = tmp_path_factory.mktemp('bench')
     parser = argparse.ArgumentParser()
     bench.add_arguments(parser)
-    args = parser.parse_args(['--quick', '--out', str(out)])
+    # four generated scenes, not --quick's twenty: the section's rows and targets are the
+    # same, at a fifth of its minutes (this fixture is the suite's longest test)
+    args = parser.parse_args(['--quick', '--generated', str(GENERATED), '--out', str(out)])
     # The run takes a minute or more: show its progress lines live, not captured.
     capture = pytestconfig.pluginmanager.getplugin('capturemanager')
     with capture.global_and_fixture_disabled():
@@ -121,3 +127,14 @@ def test_targets_table_has_ratios_for_every_scene(quick_run):
     scenes = {r['scene'] for r in rows if r['target'].startswith('cpu ratio')}
     assert scenes == {s.name for s in SCENES}
     assert all(r['verdict'] in ('PASS', 'MISS', 'n/a') for r in rows)
+
+
+def test_generalisation_section_has_a_row_per_generated_scene(quick_run):
+    """One row a scene (judged, unjudged or failed with its reason), and its three targets."""
+    rows = _read(quick_run / 'generated.csv')
+    assert len(rows) == GENERATED and len({r['scene'] for r in rows}) == GENERATED
+    assert all(r['status'] for r in rows), rows
+    # a scene where auto or the reference failed says why, instead of stopping the bench
+    assert all(r['reason'] for r in rows if r['status'] in ('auto failed', 'no reference'))
+    names = [r['target'] for r in _read(quick_run / 'targets.csv')]
+    assert sum(n.startswith('generated: auto') for n in names) == 3, names

@@ -38,6 +38,10 @@ def add_arguments(parser):
     parser.add_argument('--peers', action='store_true',
                         help='also measure MuJoCo and Basilisk if installed '
                              f'({peers.INSTALL_HINT})')
+    parser.add_argument('--generated', type=int, default=None, metavar='N',
+                        help='generated scenes in the generalisation section (default '
+                             f'{generated.COUNTS[True]} with --quick, {generated.COUNTS[False]} '
+                             'without)')
     parser.add_argument('--scenes', default='', metavar='A,B',
                         help='comma-separated subset of scenes for the work-precision section: '
                              + ', '.join(SCENE_BY_NAME))
@@ -198,7 +202,7 @@ def _run(args) -> int:
 
     # 6b. auto on seeded generated scenes against each scene's oracle
     log(f'\n== 6b. generalisation: auto on generated scenes (seed {generated.SEED}) ==')
-    gen_rows, gen_targets, _ = generated.run(quick, log)
+    gen_rows, gen_targets, _ = generated.run(quick, log, count=args.generated)
     _write_csv(os.path.join(out, 'generated.csv'), generated.FIELDS, gen_rows)
     sel_targets = sel_targets + gen_targets
 
