@@ -13,7 +13,7 @@ Topics (relative names, remappable):
         through ``sensors.estimator.AttitudeEstimator``; the estimate is the state (its
         age is the last gyro reading's; no state before the first fix).
     pub ``torque_command`` (geometry_msgs/Vector3Stamped, body frame ``child_frame_id``,
-        stamped with the node clock), ``/diagnostics``.
+        stamped with the node clock; in lockstep with the answered state's), ``/diagnostics``.
 
 Time. The age of the state is the node clock minus the older of the two state stamps (a
 zero stamp counts as received now), so it works with ``use_sim_time`` as well. State
@@ -133,6 +133,9 @@ class Controller(Node):
         self.create_subscription(QuaternionStamped, 'attitude_target', self._on_target, qos)
         self._timer = None if self._p['lockstep'] else \
             self.create_timer(1.0 / self._p['control_rate'], self._tick)
+        if self._timer is None:  # load the law's kernel now, not at the first answer
+            from ..control_kernel import warm
+            warm()
         self.create_timer(DIAGNOSTICS_PERIOD_S, self._publish_diagnostics,
                           clock=Clock(clock_type=ClockType.STEADY_TIME))
         self.add_on_set_parameters_callback(self._validate_parameters)

@@ -460,8 +460,8 @@ class Simulator(Node):
             if self._paused_reported:
                 self._log.info(f'lockstep: command for t = {self._held / NS:.9g} s arrived '
                                f'after {time.monotonic() - self._held_since:.3g} s; resuming')
+                self._anchor()  # real time: pace on from here, not catching up on the pause
             self._held, self._instant = None, self._instant + self._lockstep
-            self._anchor()  # real time: pace on from here, not catching up on the wait
             return
         last = self.stamp_ns(self._instant - self._lockstep)
         reason = 'lockstep_stale' if stamp <= last else 'lockstep_unexpected'
