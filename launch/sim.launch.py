@@ -11,6 +11,8 @@ Arguments:
               control the body, so a free-tumble scene receives no torque
   viewer      true/false: start the Foxglove viewer (default false; it opens a port)
   viewer_port its WebSocket port on 127.0.0.1 (default 8765)
+  lockstep    true/false: the simulator holds each control instant until the controller's
+              command for it (default false; docs/live-nodes.md, Lockstep)
 
 The launch ends when the simulator exits (at the scene's ``duration``): every other node
 is then stopped with SIGINT, and the recorder finalises its bag. What starts is decided by
@@ -32,7 +34,7 @@ def _nodes(context):
         return LaunchConfiguration(name).perform(context)
     # SceneError/ValueError here aborts the launch with its message (no node started)
     planned, summary = plan(arg('scene'), arg('record'), arg('output'), arg('controller'),
-                            arg('viewer'), arg('viewer_port'))
+                            arg('viewer'), arg('viewer_port'), arg('lockstep'))
     actions = [LogInfo(msg=summary)]
     nodes = {}
     for p in planned:
@@ -60,5 +62,7 @@ def generate_launch_description():
                               description='start the Foxglove viewer (ws://127.0.0.1:PORT)'),
         DeclareLaunchArgument('viewer_port', default_value='8765',
                               description='Foxglove viewer port'),
+        DeclareLaunchArgument('lockstep', default_value='false',
+                              description='hold each control instant until its command'),
         OpaqueFunction(function=_nodes),
     ])

@@ -384,6 +384,9 @@ def add_arguments(parser):
                         help='do not start the Foxglove viewer node')
     parser.add_argument('--viewer-port', type=int, default=8765,
                         help='port of the Foxglove viewer (default 8765)')
+    parser.add_argument('--lockstep', action='store_true',
+                        help='the simulator holds each control instant until the '
+                             'controller\'s command for it (docs/live-nodes.md, Lockstep)')
 
 
 def run(args) -> int:
@@ -400,6 +403,17 @@ def run(args) -> int:
     if not args.duration > 0:
         print('error: --duration must be > 0 simulated seconds', file=sys.stderr)
         return 2
+    if getattr(args, 'lockstep', False):  # both nodes' parameters, as --set gives them
+        from .launch_plan import lockstep_parameters
+        try:
+            if not scene.controlled:
+                raise ValueError(f'scene {scene.name} runs no controller')
+            extra, _ = lockstep_parameters(scene)
+        except ValueError as exc:
+            print(f'error: --lockstep: {exc}', file=sys.stderr)
+            return 2
+        args.set = list(args.set or []) + [f'{k}={str(v).lower()}' for k, v in extra.items()]
+        scene = load(args.scene, args.set)
     # a demo stays on this machine
     os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
     out = os.path.abspath(args.out)

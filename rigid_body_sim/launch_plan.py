@@ -40,27 +40,49 @@ def _flag(value: str, name: str, choices=('true', 'false')) -> str:
     return v
 
 
+def lockstep_parameters(loaded) -> Tuple[Dict[str, object], Dict[str, object]]:
+    """(simulator's, controller's) extra parameters of a lockstep run of a loaded scene:
+    the simulator holds the controller's control instants and stamps with sim time
+    (docs/live-nodes.md, Lockstep). ValueError naming the reason if the scene cannot."""
+    from .engine import lockstep, specs
+    from .param_spec import coerce_all
+    sim = {'lockstep': True, 'publish_clock': True,
+           'control_rate': float(loaded.controller.get('control_rate', 50.0))}
+    try:
+        lockstep.period_ns(coerce_all(specs.SIMULATOR, {**loaded.simulator, **sim}))
+    except ValueError as exc:
+        raise ValueError(f'scene {loaded.name}: {exc}') from None
+    return sim, {'lockstep': True}
+
+
 def plan(scene: str = 'default', record: str = 'true', output: str = '',
          controller: str = 'auto', viewer: str = 'false',
-         viewer_port: str = '8765') -> Tuple[List[PlannedNode], str]:
+         viewer_port: str = '8765', lockstep: str = 'false') -> Tuple[List[PlannedNode], str]:
     """(nodes, summary line). The scene is resolved and validated first, so an unknown
     name or a bad file fails at once (SceneError listing the built-in scenes) instead of
     starting nodes on defaults. ``controller``: auto = only for scenes that control the
     body (a free-tumble scene gets no controller, hence no torque); true/false force it.
     The simulator is the node whose exit ends the launch (the scene's ``duration``).
     ``viewer``: also start the Foxglove viewer (nodes/viewer.py) on 127.0.0.1:``viewer_port``
-    (off by default: it opens a port)."""
+    (off by default: it opens a port). ``lockstep``: the simulator holds each control
+    instant until the controller's command for it (:func:`lockstep_parameters`)."""
     path = os.path.abspath(resolve(scene))
     loaded = load(path)
     use_controller = _flag(controller, 'controller', CONTROLLER_CHOICES)
     with_controller = loaded.controlled if use_controller == 'auto' else use_controller == 'true'
     record = _flag(record, 'record') == 'true'
+    sim_extra, ctl_extra = {}, {}
+    if _flag(lockstep, 'lockstep') == 'true':
+        if not with_controller:
+            raise ValueError(f'launch argument lockstep:=true: scene {loaded.name} runs no '
+                             'controller (controller:=true starts one)')
+        sim_extra, ctl_extra = lockstep_parameters(loaded)
     # recording: the simulator holds its t = 0 until the recorder (which subscribes at its
     # start) is matched on every state topic, so the bag begins with the first sample
     nodes = [PlannedNode('simulator', 'attitude_simulator', (path,),
-                         {'wait_for_subscribers': 1} if record else {})]
+                         {**({'wait_for_subscribers': 1} if record else {}), **sim_extra})]
     if with_controller:
-        nodes.append(PlannedNode('controller', 'attitude_controller', (path,)))
+        nodes.append(PlannedNode('controller', 'attitude_controller', (path,), ctl_extra))
     if _flag(viewer, 'viewer') == 'true':
         try:
             port = int(viewer_port)
@@ -77,5 +99,5 @@ def plan(scene: str = 'default', record: str = 'true', output: str = '',
     ends = f'ends after {duration:g} s of sim time' if duration > 0 else \
         'runs until stopped (duration 0)'
     summary = (f'scene {loaded.name}: ' + ', '.join(n.executable for n in nodes)
-               + f'; {ends}, when the simulator exits')
+               + (' in lockstep' if sim_extra else '') + f'; {ends}, when the simulator exits')
     return nodes, summary

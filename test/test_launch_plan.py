@@ -11,7 +11,7 @@ import pytest
 from ros_helpers import spin_until, venv_exe
 from stamp_checks import gaps_from_t0
 
-from rigid_body_sim.launch_plan import plan
+from rigid_body_sim.launch_plan import lockstep_parameters, plan
 from rigid_body_sim.scene import SceneError, list_scenes, load
 
 
@@ -81,3 +81,37 @@ def test_free_tumble_scene_gets_no_torque_and_ends(ros_process, namespace, rclpy
     assert info.message_count > 0
     # every sample from t = 0: the scene's 10 s at 100 Hz, stamps 10 ms / 5 apart
     assert gaps_from_t0(tmp_path / 'bag', 2_000_000, count=1001) == []
+
+
+def test_lockstep_argument_runs_the_scene_in_lockstep(ros_process, namespace, tmp_path):
+    """lockstep:=true: the simulator holds the controller's instants (its control_rate, sim
+    time stamps) and the controller answers each; the planned nodes run for real, as fast
+    as possible: every instant is exchanged once and the bag has every sample from t = 0.
+    A scene without a controller, or whose rates cannot lock, is refused at once."""
+    nodes, summary = plan('slew', output=str(tmp_path / 'bag'), lockstep='true')
+    assert 'in lockstep' in summary
+    params = {n.executable: n.parameters for n in nodes}
+    assert params['simulator'] == {'wait_for_subscribers': 1, 'lockstep': True,
+                                   'publish_clock': True, 'control_rate': 50.0}
+    assert params['controller'] == {'lockstep': True}
+    with pytest.raises(ValueError, match='lockstep:=true: scene tennis_racket runs no controller'):
+        plan('tennis_racket', lockstep='true')
+    with pytest.raises(ValueError, match='scene slew: lockstep: control_rate 50 Hz must divide'):
+        lockstep_parameters(load('slew', ['publish_rate=40.0']))
+    with pytest.raises(ValueError, match='lockstep:=maybe'):
+        plan('slew', lockstep='maybe')
+    procs = {}
+    for n in reversed(nodes):  # recorder first
+        cmd = [venv_exe(n.executable), *n.ros_arguments(namespace)]
+        if n.executable == 'simulator':
+            faster = tmp_path / 'faster.yaml'
+            faster.write_text('/**/attitude_simulator:\n  ros__parameters:\n'
+                              '    real_time_factor: 0.0\n    duration: 1.0\n')
+            cmd += ['--params-file', str(faster)]
+        procs[n.executable] = ros_process(*cmd, env={'PYTHONUNBUFFERED': '1'})
+    sim = procs['simulator']
+    assert sim.wait(180) == 0, sim.output()[-3000:]
+    assert 'lockstep: 50 exchanges' in sim.output(), sim.output()[-3000:]
+    assert 'paused' not in sim.output(), sim.output()[-3000:]
+    assert procs['recorder'].stop() == 0
+    assert gaps_from_t0(tmp_path / 'bag', 20_000_000, count=51) == []

@@ -133,6 +133,10 @@ def closed_loop_run(q, m, t_ns, limit_ns, control_ns, period_ns, sample_ns, samp
             qb[1] = q[3] * cy - q[0] * cz + q[1] * cw + q[2] * cx
             qb[2] = q[3] * cz + q[0] * cy - q[1] * cx + q[2] * cw
             qb[3] = q[3] * cw - q[0] * cx - q[1] * cy - q[2] * cz
+            # as published (sources.published_attitude): what the controller node sees
+            n = math.sqrt(qb[0] * qb[0] + qb[1] * qb[1] + qb[2] * qb[2] + qb[3] * qb[3])
+            for i in range(4):
+                qb[i] /= n
             for i in range(3):
                 wb[i] = (axes[i, 0] * (m[0] / moments[0]) + axes[i, 1] * (m[1] / moments[1])
                          + axes[i, 2] * (m[2] / moments[2]))

@@ -124,8 +124,20 @@ class ControlLaw(TorqueSource):
                 self.torque, self.next_t = None, t_ns + self.settings.period_ns
                 return
             attitude, angular_velocity = estimate
+        else:
+            attitude = published_attitude(attitude)
         tau, _, _ = self.evaluate(t_ns / 1e9, attitude, angular_velocity)
         if self.clip < math.inf:
             tau = np.clip(tau, -self.clip, self.clip)
         self.torque = tau if tau.any() else None
         self.next_t = t_ns + self.settings.period_ns
+
+
+def published_attitude(attitude) -> np.ndarray:
+    """The attitude as the simulator publishes it (``samples._row_values``: divided by its
+    norm, summed in this order). The in-process law sees it, as the controller node does
+    (which uses a quaternion unit to round-off as sent), so a lockstep run's commands are
+    the offline run's bit for bit; ``closed_loop`` normalises alike."""
+    x, y, z, w = (float(v) for v in attitude)
+    n = math.sqrt(x * x + y * y + z * z + w * w)
+    return np.array((x / n, y / n, z / n, w / n))

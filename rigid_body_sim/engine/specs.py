@@ -73,6 +73,17 @@ SIMULATOR = (
     ParamSpec('wait_for_subscribers_timeout', 10.0, 'longest wait for those subscribers (wall '
               'time); then the run starts anyway, with a warning naming the topics without '
               'them', kind='float', unit='s', low=0.0, high=1e6, read_only=True),
+    ParamSpec('lockstep', False, 'hold every control instant until the command stamped with '
+              'that instant\'s state stamp arrives (engine/lockstep.py; needs publish_clock)',
+              kind='bool', read_only=True),
+    ParamSpec('control_rate', 50.0, 'with lockstep: the controller\'s control_rate; its '
+              'instants are the multiples of its period in sim time', kind='float', unit='Hz',
+              low=0.0, high=10000.0, low_open=True, read_only=True,
+              note='the publish rate must be a whole multiple of it'),
+    ParamSpec('lockstep_timeout', 1.0, 'with lockstep: wall time without the held instant\'s '
+              'command after which the simulator reports that it is paused (it keeps '
+              'waiting, never guesses)', kind='float', unit='s', low=0.0, high=1e6,
+              low_open=True),
 ) + ACTUATORS + sensor_specs.SIMULATOR  # wheels and CMGs (actuator_specs); seed, sensors.*
 
 D = control.PARAMETER_DEFAULTS
@@ -127,6 +138,10 @@ CONTROLLER = (
               kind='string'),
     ParamSpec('qos', 'reliable', 'QoS of state subscriptions and torque_command',
               kind='string', choices=QOS_CHOICES, read_only=True),
+    ParamSpec('lockstep', False, 'answer each state at a control instant (stamp a multiple of '
+              'the control period) at once, with a command stamped with that state\'s stamp, '
+              'instead of on a timer (the simulator\'s lockstep)', kind='bool', read_only=True,
+              note='needs feedback truth and the simulator\'s publish_clock'),
 ) + sensor_specs.CONTROLLER  # feedback, estimator.*
 
 

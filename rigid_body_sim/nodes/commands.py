@@ -7,7 +7,9 @@ diagnostics) and warned about (throttled per reason); it is never applied.
 import math
 import time
 
-REJECT_REASONS = ('non_finite', 'wrong_frame', 'future_stamp', 'stale_stamp')
+# lockstep_*: with lockstep, a command whose stamp is not the held control instant's
+REJECT_REASONS = ('non_finite', 'wrong_frame', 'future_stamp', 'stale_stamp', 'lockstep_stale',
+                  'lockstep_unexpected')
 WARN_THROTTLE_S = 2.0
 
 
@@ -23,7 +25,8 @@ class CommandFilter:
     def counts(self) -> dict:
         return {f'commands_rejected.{r}': n for r, n in self.rejected.items()}
 
-    def _reject(self, reason: str, source: str, detail: str) -> bool:
+    def reject(self, reason: str, source: str, detail: str) -> bool:
+        """Count ``reason`` (one of REJECT_REASONS) and warn (throttled); returns False."""
         self.rejected[reason] += 1
         now = time.monotonic()
         if now >= self._next_warn.get(reason, 0.0):
@@ -37,10 +40,10 @@ class CommandFilter:
         p = self.params
         x, y, z = vector.x, vector.y, vector.z
         if not (math.isfinite(x) and math.isfinite(y) and math.isfinite(z)):
-            return self._reject('non_finite', source, f'torque ({x}, {y}, {z}) is not finite')
+            return self.reject('non_finite', source, f'torque ({x}, {y}, {z}) is not finite')
         frame = header.frame_id.lstrip('/')
         if frame not in ('', p['child_frame_id']):
-            return self._reject('wrong_frame', source, f'frame_id {header.frame_id!r}: torque '
+            return self.reject('wrong_frame', source, f'frame_id {header.frame_id!r}: torque '
                                 f'must be in the body frame {p["child_frame_id"]!r} (or frame_id '
                                 'empty)')
         stamp = header.stamp.sec + 1e-9 * header.stamp.nanosec
@@ -49,9 +52,9 @@ class CommandFilter:
             if stamp - now > p['command_stamp_tolerance']:
                 hint = ' (does the sender use_sim_time? this node publishes /clock)' \
                     if p['publish_clock'] else ''
-                return self._reject('future_stamp', source, f'stamp {stamp:.6f} is '
+                return self.reject('future_stamp', source, f'stamp {stamp:.6f} is '
                                     f'{stamp - now:.3g} s ahead of this node\'s stamps{hint}')
             if now - stamp > p['command_timeout']:
-                return self._reject('stale_stamp', source, f'stamp {stamp:.6f} is '
+                return self.reject('stale_stamp', source, f'stamp {stamp:.6f} is '
                                     f'{now - stamp:.3g} s old, more than command_timeout')
         return True

@@ -13,12 +13,17 @@ Topics (relative names, remappable):
         through ``sensors.estimator.AttitudeEstimator``; the estimate is the state (its
         age is the last gyro reading's; no state before the first fix).
     pub ``torque_command`` (geometry_msgs/Vector3Stamped, body frame ``child_frame_id``,
-        stamped with the node clock), ``/diagnostics``.
+        stamped with the node clock; in lockstep with the answered state's), ``/diagnostics``.
 
 Time. The age of the state is the node clock minus the older of the two state stamps (a
 zero stamp counts as received now), so it works with ``use_sim_time`` as well. State
 older than ``state_timeout`` (or none yet) gives explicit zero torque and a throttled
 warning; so does mode ``off``.
+
+Lockstep (``lockstep: true``, for the simulator's lockstep: docs/live-nodes.md). No timer:
+each state whose attitude and angular velocity share a stamp that is a multiple of the
+control period (the simulator stamps with sim time) is answered at once with a command
+stamped with that stamp; the law's time is the stamp, so no state is ever stale.
 
 Target. ``target_attitude`` (parameter) sets the target at start and whenever it is set;
 an ``attitude_target`` message replaces it until the parameter is set again (latest wins).
@@ -49,6 +54,9 @@ from .process import run_node
 NODE_NAME = 'attitude_controller'
 DIAGNOSTICS_PERIOD_S = 1.0  # wall clock
 WARN_THROTTLE_S = 2.0       # wall clock
+# an attitude unit to this is used as sent: the law sees exactly what the simulator published
+# (renormalising a normalised quaternion can move its last bit), as the offline law does
+UNIT_TOLERANCE = 1e-12
 
 
 SPECS = specs.CONTROLLER  # ROS-free specs, shared with scene files and offline runs
@@ -68,6 +76,9 @@ def check_parameters(p):
         target = control.validated_target(p['target_attitude'])
     except ValueError as exc:
         raise ValueError(f'target_attitude: {exc}') from None
+    if p['lockstep'] and p['feedback'] != 'truth':
+        raise ValueError('lockstep answers the simulator\'s state: it needs feedback truth, '
+                         f'not {p["feedback"]!r}')
     return build_config(p), target
 
 
@@ -92,6 +103,7 @@ class Controller(Node):
         self._w = None
         self._q_stamp = None
         self._w_stamp = None
+        self._q_ns = self._w_ns = self._answered_ns = None  # lockstep: stamps in ns
         self._attitude_frame = None
         self._last = None           # last ControlOutput (None while stale / off / no state)
         self._age = math.inf
@@ -119,7 +131,11 @@ class Controller(Node):
             self.create_subscription(Vector3Stamped, 'angular_velocity',
                                      self._on_angular_velocity, qos)
         self.create_subscription(QuaternionStamped, 'attitude_target', self._on_target, qos)
-        self._timer = self.create_timer(1.0 / self._p['control_rate'], self._tick)
+        self._timer = None if self._p['lockstep'] else \
+            self.create_timer(1.0 / self._p['control_rate'], self._tick)
+        if self._timer is None:  # load the law's kernel now, not at the first answer
+            from ..control_kernel import warm
+            warm()
         self.create_timer(DIAGNOSTICS_PERIOD_S, self._publish_diagnostics,
                           clock=Clock(clock_type=ClockType.STEADY_TIME))
         self.add_on_set_parameters_callback(self._validate_parameters)
@@ -160,9 +176,12 @@ class Controller(Node):
             self._rejected_states += 1
             return self._warn('bad_attitude', f'attitude {q.tolist()} ignored: '
                                               'not a rotation (NaN/Inf or zero)')
-        self._q = q / n
+        self._q = q if abs(n - 1.0) <= UNIT_TOLERANCE else q / n
         self._q_stamp = self._stamp_or_now(msg.header)
         self._attitude_frame = msg.header.frame_id.lstrip('/')
+        if self._timer is None:
+            self._q_ns = msg.header.stamp.sec * 10**9 + msg.header.stamp.nanosec
+            self._answer(msg.header.stamp)
 
     def _on_angular_velocity(self, msg: Vector3Stamped):
         v = msg.vector
@@ -172,6 +191,20 @@ class Controller(Node):
             return self._warn('bad_rate', f'angular_velocity {w.tolist()} ignored: not finite')
         self._w = w
         self._w_stamp = self._stamp_or_now(msg.header)
+        if self._timer is None:
+            self._w_ns = msg.header.stamp.sec * 10**9 + msg.header.stamp.nanosec
+            self._answer(msg.header.stamp)
+
+    def _answer(self, stamp):
+        """Lockstep: the state at a control instant, once both halves of it are in, is
+        answered now with a command stamped like it (its law time: the stamp)."""
+        t_ns = self._q_ns
+        period = round(1e9 / self._p['control_rate'])
+        if t_ns is None or t_ns != self._w_ns or t_ns % period or t_ns == self._answered_ns:
+            return
+        self._answered_ns = t_ns
+        self._age, self._stale_reason = 0.0, ''
+        self._command(t_ns / 1e9, stamp)
 
     def _on_gyro(self, msg: Imu):
         """A gyro reading (body frame): propagate the estimate; it becomes the state."""
@@ -218,8 +251,6 @@ class Controller(Node):
     # ------------------------------------------------------------------ control tick
     def _tick(self):
         now = self._now()
-        torque = (0.0, 0.0, 0.0)
-        self._last = None
         if self._q is None or self._w is None:
             self._age = math.inf
             self._stale_reason = 'no state received yet' if self._estimator is None else \
@@ -235,8 +266,15 @@ class Controller(Node):
             if self._ctl.mode != 'off':
                 self._warn('no_state' if self._q is None or self._w is None else 'stale',
                            f'{self._stale_reason}: commanding zero torque')
-        elif self._ctl.mode != 'off' or self._law.mission.active:
-            tau, free, switched = self._law.evaluate(self._w_stamp, self._q, self._w)
+        self._command(self._w_stamp, self.get_clock().now().to_msg())
+
+    def _command(self, t: float, stamp):
+        """Publish the law's torque for the current state at state time ``t`` (zero when
+        stale, off or free), stamped ``stamp``."""
+        torque = (0.0, 0.0, 0.0)
+        self._last = None
+        if not self._stale_reason and (self._ctl.mode != 'off' or self._law.mission.active):
+            tau, free, switched = self._law.evaluate(t, self._q, self._w)
             if switched:
                 self._log.info(f'|w| = {np.linalg.norm(self._w):.3g} rad/s < '
                                f'mission.detumble_exit_rate: switching to {switched}')
@@ -248,7 +286,7 @@ class Controller(Node):
                 self._rate_limited_ticks += self._last.rate_limited
         self._ticks += 1
         msg = Vector3Stamped()
-        msg.header.stamp = self.get_clock().now().to_msg()
+        msg.header.stamp = stamp
         msg.header.frame_id = self._p['child_frame_id']
         msg.vector.x, msg.vector.y, msg.vector.z = torque
         self._pub.publish(msg)
@@ -277,7 +315,7 @@ class Controller(Node):
             self._law.mission = control.Mission(self._p['mission.free_time'],
                                                 self._p['mission.detumble_exit_rate'])
             self._law.mission.start = start
-        if 'control_rate' in changed:
+        if 'control_rate' in changed and self._timer is not None:
             self.destroy_timer(self._timer)
             self._timer = self.create_timer(1.0 / self._p['control_rate'], self._tick)
         self._log.info(f'{", ".join(sorted(changed))} changed: {self._summary()}')

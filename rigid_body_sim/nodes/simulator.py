@@ -18,6 +18,12 @@ Pacing. The engine processes its events (samples, command expiry) up to the sim 
 wall clock allows; between those, the executor serves callbacks and the ``auto`` pilot
 runs in small slices. With ``real_time_factor: 0`` the engine runs in chunks of at most
 ``CHUNK_WALL_S`` wall seconds between executor turns.
+
+Lockstep (``lockstep: true``, ``engine/lockstep.py``). The engine never advances past a
+control instant (a multiple of the ``control_rate`` period in sim time) until the command
+stamped with that instant's state stamp has been applied there; it reports a pause after
+``lockstep_timeout`` and keeps waiting. Whatever the pacing and the load, the run is then
+the offline run's.
 """
 import sys
 import time
@@ -31,7 +37,7 @@ from rosgraph_msgs.msg import Clock
 from std_msgs.msg import Float64MultiArray
 from std_srvs.srv import Trigger
 
-from ..engine import NS, Engine, EngineConfig, specs
+from ..engine import NS, Engine, EngineConfig, lockstep, specs
 from ..physics import IntegrationError
 from ..scene import SceneError
 from .commands import CommandFilter
@@ -69,6 +75,8 @@ ACK_TIMEOUT = Duration(seconds=1.0)  # then go on (a subscriber that hangs stall
 
 def check_parameters(p):
     """Validate a full set of coerced values (frames, inertia, ...); ValueError(reason)."""
+    if p['lockstep']:
+        lockstep.period_ns(p)
     return EngineConfig.from_parameters(p)
 
 
@@ -113,10 +121,11 @@ class Simulator(Node):
         self._diag_pub = pub(DiagnosticArray, '/diagnostics', qos_profile('reliable'))
         self._active = []
         self._commands = CommandFilter(self, self._p)
-        self.create_subscription(Vector3Stamped, 'torque_command', lambda m: self._on_command(
-            m.header, m.vector, 'torque_command'), qos)
-        self.create_subscription(WrenchStamped, 'wrench_command', lambda m: self._on_command(
-            m.header, m.wrench.torque, 'wrench_command'), qos)
+        self._command_subs = [
+            self.create_subscription(Vector3Stamped, 'torque_command', lambda m: self._on_command(
+                m.header, m.vector, 'torque_command'), qos),
+            self.create_subscription(WrenchStamped, 'wrench_command', lambda m: self._on_command(
+                m.header, m.wrench.torque, 'wrench_command'), qos)]
         if actuators is not None:  # ros2_control forward-command convention
             self._actuator_warn = 0.0
             self.create_subscription(Float64MultiArray, 'actuator_command',
@@ -131,6 +140,12 @@ class Simulator(Node):
         self._worst_late = 0.0
         self._unacked, self._ack_warn = 0, 0.0  # samples since the last wait for acks
         self._method = self._engine.method
+        # lockstep: the next control instant to hold (ns), the instant held (None: free to
+        # advance), when its hold began (wall), whether its pause was reported
+        self._lockstep = lockstep.period_ns(self._p) if self._p['lockstep'] else 0
+        self._instant, self._held, self._held_since, self._paused_reported = 0, None, 0.0, False
+        self._lockstep_pauses = 0
+        self._round_trips = lockstep.RoundTrips()
         self._base_stamp(self.get_clock().now().nanoseconds)
         self._anchor()
         self._last_diag = (time.monotonic(), 0)
@@ -172,6 +187,10 @@ class Simulator(Node):
         """Engine events up to ``until_ns`` (or the deadline), publishing every sample
         (``late``: count lateness against the wall clock; not when stepping)."""
         engine = self._engine
+        if self._lockstep:  # never past the next control instant, and not while one is held
+            if self._held is not None:
+                return
+            until_ns = min(until_ns, self._instant)
         while not (self._fault or engine.finished):
             try:
                 block = engine.advance(until_ns, deadline, max_samples=LIVE_BLOCK)
@@ -180,6 +199,9 @@ class Simulator(Node):
             except Exception as exc:  # noqa: BLE001 - never die with a traceback on bad input
                 return self._set_fault(f'physics error: {type(exc).__name__}: {exc}')
             self._publish(block, late)
+            if self._lockstep and engine.t_ns == self._instant and not engine.finished:
+                self._hold()
+                break
             if engine.method != self._method:
                 self._method = engine.method
                 self._log.info(f'integrator {engine.method}, step {engine.step_max:.6g} s '
@@ -189,6 +211,8 @@ class Simulator(Node):
         if engine.finished and not self._fault:
             self._log.info(f'duration {self._p["duration"]:g} s reached at t = {engine.t:.6g} s;'
                            ' stopping')
+            if self._lockstep:
+                self._log.info(self._round_trips.summary())
             self._publish_diagnostics()
 
     def _publish(self, block, late=True):
@@ -239,6 +263,8 @@ class Simulator(Node):
             return
         now = time.monotonic() if now is None else now
         target = self._sim_anchor + int((now - self._wall_anchor) * rtf * NS)
+        if self._lockstep and self._engine.selection_pending:
+            return
         self._advance(target, now + CHUNK_WALL_S * 5)
         if (target - self._engine.t_ns) / (rtf * NS) > MAX_LAG_S:  # cannot keep up
             self._anchor()
@@ -251,9 +277,14 @@ class Simulator(Node):
             self._next_refresh_wall = now + SUBSCRIBER_REFRESH_S
         engine, rtf = self._engine, self._p['real_time_factor']
         wait = 0.1
-        if not (self._fault or engine.finished or self.paused):
+        if self._lockstep and self._held is not None:
+            wait = self._check_held(now)
+        elif self._lockstep and engine.selection_pending:
+            wait = 0.0  # auto's pilot first: its choice may not depend on the wall clock
+        elif not (self._fault or engine.finished or self.paused):
             if rtf == 0:
-                self._advance(sys.maxsize, now + CHUNK_WALL_S)
+                self._advance(self._instant if self._lockstep else sys.maxsize,
+                              now + CHUNK_WALL_S)
                 wait = 0.0
             else:
                 self._catch_up(now)
@@ -294,18 +325,25 @@ class Simulator(Node):
         from the first), or ``wait_for_subscribers_timeout`` has passed: then start anyway,
         with a warning naming the topics still without them."""
         n = self._p['wait_for_subscribers']
-        if n <= 0:
+        if n <= 0 and not self._lockstep:
             return
         pubs = [p for p, _ in self._pubs] + list(self._sensor_pubs.values())
 
         def missing():
             """Topics with fewer than n matched subscriptions, or with one discovered but
-            not matched yet (discovery delivers a node's subscriptions one by one)."""
+            not matched yet (discovery delivers a node's subscriptions one by one); with
+            lockstep, also a command topic without a matched publisher (the controller must
+            get the state of t = 0)."""
+            commands = [s.topic_name for s in self._command_subs]
             return [p.topic_name for p in pubs if p.get_subscription_count() < max(
-                n, len(self.get_subscriptions_info_by_topic(p.topic_name)))]
+                n, len(self.get_subscriptions_info_by_topic(p.topic_name)))] + (
+                commands[:1] if self._lockstep and not any(
+                    s.get_publisher_count() for s in self._command_subs) else [])
         timeout = self._p['wait_for_subscribers_timeout']
         self._log.info(f'waiting up to {timeout:g} s for {n} matched subscription(s) on each '
-                       f'of {len(pubs)} state topics before t = 0 (wait_for_subscribers)')
+                       f'of {len(pubs)} state topics before t = 0 (wait_for_subscribers)'
+                       + (' and a controller on torque_command (lockstep)'
+                          if self._lockstep else ''))
         now = time.monotonic()
         deadline, settled = now + timeout, now + SUBSCRIBER_SETTLE_S
         paused, self.paused = self.paused, True  # commands arriving meanwhile advance nothing
@@ -381,9 +419,58 @@ class Simulator(Node):
     def _on_command(self, header, vector, source):
         if self._fault or self._engine.finished:
             return
-        if self._commands.accept(header, vector, source, self.stamp_ns(self._engine.t_ns)):
-            self._catch_up()  # what was due before the arrival runs with the previous command
+        if not self._commands.accept(header, vector, source, self.stamp_ns(self._engine.t_ns)):
+            return
+        if self._lockstep:
+            return self._on_lockstep_command(header, vector, source)
+        self._catch_up()  # what was due before the arrival runs with the previous command
+        self._engine.apply_command((vector.x, vector.y, vector.z))
+
+    # ------------------------------------------------------------------ lockstep
+    def _hold(self):
+        """The state of control instant ``_instant`` is out: hold until its command."""
+        self._held, self._held_since = self._instant, time.monotonic()
+        self._paused_reported = False
+        self._round_trips.sent()
+
+    def _check_held(self, now) -> float:
+        """Held: after ``lockstep_timeout`` report the pause once (log and diagnostics);
+        never guess a command. Returns the executor's wait."""
+        late = now - self._held_since - self._p['lockstep_timeout']
+        if late < 0:
+            return -late
+        if not self._paused_reported:
+            self._paused_reported = True
+            self._lockstep_pauses += 1
+            self._log.warning(f'lockstep: paused at t = {self._held / NS:.9g} s: no command '
+                              f'stamped {self._held_stamp()} for {self._p["lockstep_timeout"]:g}'
+                              ' s (lockstep_timeout); waiting for it, nothing is extrapolated')
+            self._publish_diagnostics()
+        return 0.1
+
+    def _held_stamp(self) -> str:
+        sec, nsec = divmod(self.stamp_ns(self._held), NS)
+        return f'{sec}.{nsec:09d}'
+
+    def _on_lockstep_command(self, header, vector, source):
+        """Apply the command for the held instant; any other is counted and rejected
+        (stale: an instant already answered; unexpected: no instant held with that stamp)."""
+        stamp = header.stamp.sec * NS + header.stamp.nanosec
+        if self._held is not None and stamp == self.stamp_ns(self._held):
             self._engine.apply_command((vector.x, vector.y, vector.z))
+            self._round_trips.applied()
+            if self._paused_reported:
+                self._log.info(f'lockstep: command for t = {self._held / NS:.9g} s arrived '
+                               f'after {time.monotonic() - self._held_since:.3g} s; resuming')
+                self._anchor()  # real time: pace on from here, not catching up on the pause
+            self._held, self._instant = None, self._instant + self._lockstep
+            return
+        last = self.stamp_ns(self._instant - self._lockstep)
+        reason = 'lockstep_stale' if stamp <= last else 'lockstep_unexpected'
+        held = f'the held instant\'s stamp is {self._held_stamp()}' if self._held is not None \
+            else 'no control instant is held'
+        self._commands.reject(reason, source, f'stamp {header.stamp.sec}.'
+                              f'{header.stamp.nanosec:09d}: {held}')
 
     def _on_actuator_command(self, msg):
         """Wheel torques then gimbal rates; a bad one is counted by the engine's actuators
@@ -470,6 +557,7 @@ class Simulator(Node):
         self._last_diag = (now, e.t_ns)
         self._next_diag_wall = now + DIAGNOSTICS_PERIOD_S
         values = {**e.diagnostics(), 'real_time_factor_target': self._p['real_time_factor'],
+                  **(self._lockstep_values() if self._lockstep else {}),
                   'real_time_factor_achieved': achieved, **self._commands.counts(),
                   'missed_deadlines': self._missed,
                   'missed_deadlines_in_period': self._missed - self._missed_at_last_diag,
@@ -479,6 +567,9 @@ class Simulator(Node):
         missed = self._missed - self._missed_at_last_diag
         if self._fault:
             level, message = 'ERROR', f'stopped: {self._fault}'
+        elif self._lockstep and self._held is not None and self._paused_reported:
+            level, message = 'WARN', (f'lockstep: paused at t = {self._held / NS:.9g} s, '
+                                      f'waiting for the command stamped {self._held_stamp()}')
         elif e.finished:
             level, message = 'OK', f'duration reached at t = {e.t:.6g} s'
         elif missed:
@@ -495,6 +586,13 @@ class Simulator(Node):
             values)])
         array.header.stamp.sec, array.header.stamp.nanosec = divmod(self.stamp_ns(e.t_ns), NS)
         self._diag_pub.publish(array)
+
+
+    def _lockstep_values(self) -> dict:
+        held = self._held is not None
+        return {'lockstep_paused': held and self._paused_reported,
+                'lockstep_held_since_s': time.monotonic() - self._held_since if held else 0.0,
+                'lockstep_pauses': self._lockstep_pauses, **self._round_trips.values()}
 
 
 def main(args=None):

@@ -1,0 +1,79 @@
+"""Lockstep: the live simulator holds every control instant until it has that instant's command.
+
+The contract (docs/live-nodes.md, "Lockstep"): control instants are the multiples of the
+control period on the sim-time axis (``control_rate``, the controller's). At each one the
+simulator publishes the state and holds; a controller answers with a command stamped with
+that state's stamp; the simulator applies it from that instant and goes on to the next.
+It never advances past an instant without its command and never guesses one: after
+``lockstep_timeout`` (wall time) it reports that it is paused and keeps waiting.
+
+This module is the ROS-free part: the checks on the parameters, and the round-trip
+statistics (sim-side wall and CPU per exchange) that the node reports.
+"""
+import time
+
+from .config import NS, seconds_to_ns
+
+
+def period_ns(p) -> int:
+    """The control period (ns) of coerced simulator parameters ``p`` with ``lockstep`` on;
+    ValueError naming the parameter if lockstep cannot hold: stamps must be sim time
+    (``publish_clock``, so that a controller can tell the instants), every control instant
+    must be a sample instant (the state published there is the one answered), and a held
+    command must last until the next instant (as the in-process law's torque does)."""
+    period = seconds_to_ns(1.0 / p['control_rate'], 'control period')
+    sample = seconds_to_ns(1.0 / p['publish_rate'], 'sample period')
+    if not p['publish_clock']:
+        raise ValueError('lockstep needs publish_clock: true (stamps are then sim time, so '
+                         'a controller can tell the control instants)')
+    if period % sample:
+        raise ValueError(f'lockstep: control_rate {p["control_rate"]:g} Hz must divide '
+                         f'publish_rate {p["publish_rate"]:g} Hz (every control instant is a '
+                         f'sample instant: periods {period} ns and {sample} ns)')
+    if p['command_timeout'] * NS < period:
+        raise ValueError(f'lockstep: command_timeout {p["command_timeout"]:g} s is shorter '
+                         f'than the control period {period / NS:g} s (the command would '
+                         'expire before the next instant)')
+    return period
+
+
+class RoundTrips:
+    """Sim-side cost of the exchanges: wall time from publishing a control instant's state
+    to applying its command, and the simulator's CPU per control period (stepping,
+    publishing and receiving included)."""
+
+    def __init__(self):
+        self.count = 0
+        self.wall_total = self.wall_max = 0.0
+        self.cpu_total = 0.0
+        self._sent = None      # (wall, cpu) when the held instant's state went out
+        self._applied = None   # (wall, cpu) of the previous command applied
+
+    def sent(self):
+        self._sent = (time.monotonic(), time.process_time())
+
+    def applied(self):
+        wall, cpu = time.monotonic(), time.process_time()
+        if self._sent is not None:
+            rt = wall - self._sent[0]
+            self.count += 1
+            self.wall_total += rt
+            self.wall_max = max(self.wall_max, rt)
+            if self._applied is not None:
+                self.cpu_total += cpu - self._applied[1]
+        self._applied, self._sent = (wall, cpu), None
+
+    def values(self) -> dict:
+        """Means in µs (CPU over the periods between two commands applied)."""
+        n = self.count
+        return {'lockstep_exchanges': n,
+                'lockstep_round_trip_wall_us': 1e6 * self.wall_total / n if n else 0.0,
+                'lockstep_round_trip_wall_max_us': 1e6 * self.wall_max,
+                'lockstep_cpu_per_period_us': 1e6 * self.cpu_total / (n - 1) if n > 1 else 0.0}
+
+    def summary(self) -> str:
+        v = self.values()
+        return (f'lockstep: {v["lockstep_exchanges"]} exchanges, round trip '
+                f'{v["lockstep_round_trip_wall_us"]:.0f} µs wall on average (max '
+                f'{v["lockstep_round_trip_wall_max_us"]:.0f} µs), simulator CPU '
+                f'{v["lockstep_cpu_per_period_us"]:.0f} µs per control period')

@@ -1,0 +1,165 @@
+"""Lockstep: the simulator holds every control instant until it has that instant's command.
+
+Real processes (simulator, controller, recorder) and real messages. A lockstep run gives
+the messages of another lockstep run and of the offline run of the same scene, as fast as
+possible, at real time and beside a process that keeps both cores busy; a controller that
+does not answer pauses the simulator, which reports it and resumes on the answer.
+"""
+import os
+import sys
+import time
+
+import pytest
+from rclpy.serialization import deserialize_message
+
+from ros_helpers import spin_until, venv_exe
+from stamp_checks import STATE_TOPICS
+
+from rigid_body_sim import offline
+from rigid_body_sim.bag.reader import iter_messages
+from rigid_body_sim.bag.schema import message_class
+from rigid_body_sim.scene import load
+
+REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+SCENE = os.path.join(REPO, 'config', 'slew.yaml')
+# a fixed method: with auto the simulator, which does not know the controller's gains,
+# may choose another method than the offline run's in-process law (docs/live-nodes.md)
+OVERRIDES = ['integrator=splitting4', 'duration=3.0']
+
+
+def _wait_output(proc, text, timeout=60.0):
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline and text not in proc.output():
+        assert proc.poll() is None, proc.output()[-3000:]
+        time.sleep(0.05)
+    return text in proc.output()
+
+
+def _state_messages(bag, topics=STATE_TOPICS):
+    """{topic name: [decoded message, ...]} of the state topics (rclpy leaves CDR padding
+    uninitialised, so messages are compared decoded, every field, stamps included)."""
+    out = {}
+    for m in iter_messages(str(bag)):
+        name = m.topic.rsplit('/', 1)[-1]
+        if name in topics:
+            out.setdefault(name, []).append(deserialize_message(m.data, message_class(m.type)))
+    return out
+
+
+def _offline_bag(tmp_path):
+    scene = load(SCENE, OVERRIDES)
+    sink = offline.BagSink(scene, str(tmp_path / 'offline'), {}, scene.simulator)
+    result = offline.simulate(scene, sinks=[sink], keep='none')
+    sink.finish(result)
+    sink.close()
+    return tmp_path / 'offline'
+
+
+def _live_bag(ros_process, namespace, tmp_path, label, rtf):
+    """Recorder, controller and simulator in lockstep on the scene; the bag."""
+    over = tmp_path / f'{label}.yaml'
+    over.write_text('/**/attitude_simulator:\n  ros__parameters:\n'
+                    f'    real_time_factor: {rtf}\n    publish_clock: true\n'
+                    '    integrator: splitting4\n    duration: 3.0\n'
+                    '    wait_for_subscribers: 1\n    wait_for_subscribers_timeout: 60.0\n'
+                    '    lockstep: true\n    control_rate: 50.0\n    lockstep_timeout: 30.0\n'
+                    '/**/attitude_controller:\n  ros__parameters:\n    lockstep: true\n')
+    ns = f'{namespace}_{label}'
+    bag = tmp_path / label
+    env = {'PYTHONUNBUFFERED': '1'}
+    rec = ros_process(venv_exe('recorder'), '--ros-args', '-r', f'__ns:={ns}',
+                      '-p', f'output:={bag}', env=env)
+    assert _wait_output(rec, 'recording to'), rec.output()
+    ctl = ros_process(venv_exe('controller'), '--ros-args', '-r', f'__ns:={ns}',
+                      '--params-file', SCENE, '--params-file', str(over), env=env)
+    sim = ros_process(venv_exe('simulator'), '--ros-args', '-r', f'__ns:={ns}',
+                      '--params-file', SCENE, '--params-file', str(over), env=env)
+    assert sim.wait(240) == 0, sim.output()[-3000:]
+    out = sim.output()
+    assert 'every state topic has its subscribers; starting at t = 0' in out, out[-3000:]
+    assert 'lockstep: 150 exchanges' in out, out[-3000:]  # 3 s at 50 Hz: t = 0 … 2.98 s
+    assert 'paused' not in out, out[-3000:]
+    assert ctl.stop() == 0, ctl.output()[-3000:]
+    assert rec.stop() == 0, rec.output()[-3000:]
+    return bag, _state_messages(bag, STATE_TOPICS + ('torque_command',))
+
+
+def test_lockstep_runs_equal_each_other_and_the_offline_run(ros_process, namespace, tmp_path):
+    """As fast as possible, then at real time beside two busy-looping processes: both
+    lockstep runs give the offline run's state messages (every field, stamps included),
+    and the same commands as each other. Before lockstep, the controller's commands landed
+    wherever the wall clock put them, and the runs differed from the first command on."""
+    expected = _state_messages(_offline_bag(tmp_path))
+    assert len(expected['attitude']) == 151  # t = 0 … 3 s at 50 Hz
+    fast_bag, fast = _live_bag(ros_process, namespace, tmp_path, 'fast', 0.0)
+    for _ in range(2):  # keep both cores busy meanwhile (stopped at teardown)
+        ros_process(sys.executable, '-c', 'while True: pass')
+    slow_bag, slow = _live_bag(ros_process, namespace, tmp_path, 'loaded', 1.0)
+    for topic, messages in expected.items():
+        assert fast[topic] == messages, topic
+        assert slow[topic] == messages, topic
+    # the controller answered every control instant (the end's too, which the simulator
+    # does not wait for), stamped with the state's stamp
+    assert fast['torque_command'] == slow['torque_command']
+    stamps = [(m.header.stamp.sec, m.header.stamp.nanosec) for m in fast['torque_command']]
+    assert stamps == [(m.header.stamp.sec, m.header.stamp.nanosec)
+                      for m in expected['attitude']]
+
+
+def test_a_controller_that_does_not_answer_pauses_the_simulator(ros_process, namespace,
+                                                                 rclpy_node):
+    """No controller: the simulator publishes t = 0, holds, and after lockstep_timeout
+    says it is paused (log and diagnostics) without advancing. A command stamped with the
+    held state's stamp resumes it up to the next instant only (two samples at 100 Hz); the
+    same command again is rejected as stale and moves nothing."""
+    from diagnostic_msgs.msg import DiagnosticArray
+    from geometry_msgs.msg import QuaternionStamped, Vector3Stamped
+    sim = ros_process(venv_exe('simulator'), '--ros-args', '-r', f'__ns:={namespace}',
+                      '-p', 'lockstep:=true', '-p', 'publish_clock:=true',
+                      '-p', 'control_rate:=50.0', '-p', 'lockstep_timeout:=0.5',
+                      '-p', 'real_time_factor:=0.0', '-p', 'wait_for_subscribers:=0',
+                      '-p', 'wait_for_subscribers_timeout:=60.0',
+                      env={'PYTHONUNBUFFERED': '1'})
+    stamps, status = [], {}
+    rclpy_node.create_subscription(QuaternionStamped, f'{namespace}/attitude', lambda m: (
+        stamps.append(m.header.stamp.sec * 10**9 + m.header.stamp.nanosec)), 100)
+
+    def on_diag(msg):
+        for s in msg.status:
+            if s.name.startswith('attitude_simulator') and s.hardware_id.startswith(namespace):
+                status.update({kv.key: kv.value for kv in s.values}, message=s.message)
+    rclpy_node.create_subscription(DiagnosticArray, '/diagnostics', on_diag, 100)
+    pub = rclpy_node.create_publisher(Vector3Stamped, f'{namespace}/torque_command', 10)
+    assert spin_until(rclpy_node, lambda: 'lockstep: paused at t = 0 s' in sim.output(), 90), \
+        sim.output()[-3000:]
+    assert spin_until(rclpy_node, lambda: status.get('lockstep_paused') == 'true', 30), status
+    assert 'paused at t = 0 s' in status['message']
+    assert stamps == [0]  # nothing past the held instant
+
+    def command(stamp_ns):
+        msg = Vector3Stamped()
+        msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(stamp_ns, 10**9)
+        msg.vector.z = 0.1
+        pub.publish(msg)
+    command(0)
+    assert spin_until(rclpy_node, lambda: stamps == [0, 10_000_000, 20_000_000], 30), stamps
+    assert spin_until(rclpy_node, lambda: 'resuming' in sim.output(), 30), sim.output()[-3000:]
+    command(0)  # a duplicate: the instant was answered
+    assert spin_until(rclpy_node, lambda: status.get('commands_rejected.lockstep_stale') == '1',
+                      30), status
+    assert spin_until(rclpy_node, lambda: 'paused at t = 0.02 s' in status.get('message', ''),
+                      30), status
+    assert stamps == [0, 10_000_000, 20_000_000] and status['lockstep_exchanges'] == '1'
+
+
+@pytest.mark.parametrize('change, reason', [
+    ({'publish_clock': False}, 'publish_clock'),
+    ({'control_rate': 30.0}, 'must divide publish_rate'),
+    ({'command_timeout': 0.01}, 'shorter than the control period')])
+def test_lockstep_refuses_what_it_cannot_hold(change, reason):
+    """The checks name the parameter and why (the node refuses to start with them)."""
+    from rigid_body_sim.engine import lockstep, specs
+    from rigid_body_sim.param_spec import coerce_all
+    p = coerce_all(specs.SIMULATOR, {'lockstep': True, 'publish_clock': True, **change})
+    with pytest.raises(ValueError, match=reason):
+        lockstep.period_ns(p)
