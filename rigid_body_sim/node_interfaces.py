@@ -185,5 +185,6 @@ RECORDER_PARAMETERS = (
               'bag\'s run configuration', kind='string'),
     ParamSpec('config_timeout', 10.0, 'how long to wait for them', kind='float', unit='s',
               low=0.0),
-    ParamSpec('scene', '', 'scene name stored in the run configuration', kind='string'),
+    ParamSpec('scene', '', 'scene name stored in the run configuration; empty = the '
+              'simulator\'s scene.name', kind='string'),
 )

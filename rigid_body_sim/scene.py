@@ -48,6 +48,22 @@ def content_sha256(paths) -> str:
     return digest.hexdigest()
 
 
+def params_files_record(paths) -> Dict[str, str]:
+    """The simulator node's ``scene.name`` and ``scene.sha256`` (``engine.specs.SCENE_RECORD``)
+    as its ``--params-file`` s give them, where the node is not given them: the first file's
+    name without its extension (a built-in scene is config/<name>.yaml; a file's own
+    ``scene.name`` reaches the node through rcl and wins) and the files' content hash.
+    Empty without files; SceneError if a file cannot be read."""
+    if not paths:
+        return {}
+    try:
+        digest = content_sha256(paths)
+    except OSError as exc:
+        raise SceneError(f'{exc.filename}: cannot read the params file: {exc.strerror}') from None
+    return {'scene.name': os.path.splitext(os.path.basename(paths[0]))[0],
+            'scene.sha256': digest}
+
+
 def config_dir() -> str:
     """The installed share/rigid_body_sim/config, or the source tree's config/."""
     try:

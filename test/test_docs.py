@@ -39,7 +39,8 @@ def test_reference_pages_hold_every_spec_and_table_entry():
     from rigid_body_sim.engine import specs
     from rigid_body_sim.viewer.specs import VIEWER
     pages = node_reference.pages()
-    for node, params in ((ni.SIMULATOR, specs.SIMULATOR), (ni.CONTROLLER, specs.CONTROLLER),
+    for node, params in ((ni.SIMULATOR, specs.SIMULATOR_DECLARED),
+                         (ni.CONTROLLER, specs.CONTROLLER),
                          (ni.VIEWER, VIEWER), (ni.RECORDER, ni.RECORDER_PARAMETERS)):
         page = pages[f'{node.name}.md']
         for spec in params:

@@ -14,7 +14,7 @@ from rigid_body_sim.viewer.specs import VIEWER
 
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 BIN = os.path.dirname(sys.executable)
-NODE_SPECS = {'simulator': specs.SIMULATOR, 'controller': specs.CONTROLLER,
+NODE_SPECS = {'simulator': specs.SIMULATOR_DECLARED, 'controller': specs.CONTROLLER,
               'recorder': RECORDER, 'viewer': VIEWER}
 
 

@@ -237,7 +237,8 @@ def test_all_follows_discovery_and_run_configuration(ros_process, namespace, tmp
     fake_sim = ros_process(sys.executable, '-c', (
         'import rclpy; from rclpy.node import Node; rclpy.init(); '
         f'n = Node("attitude_simulator", namespace="{namespace}"); '
-        'n.declare_parameter("scene", "tumbling_box"); n.declare_parameter("integrator", "rk4");'
+        'n.declare_parameter("scene.name", "tumbling_box"); '
+        'n.declare_parameter("integrator", "rk4");'
         'n.declare_parameter("dt", 0.005); rclpy.spin(n)'))
     rec = start_recorder(ros_process, namespace, bag, 'all:=true')
     wait_output(rec, 'stored the run configuration')
@@ -253,26 +254,29 @@ def test_all_follows_discovery_and_run_configuration(ros_process, namespace, tmp
     assert config['simulator_parameters']['dt'] == 0.005 and config['mode'] == 'live'
 
 
-def test_records_simulator_if_available(ros_process, namespace, tmp_path):
-    """The real simulator node, when it exists in this checkout."""
-    import importlib.util
-
-    import pytest
-    if importlib.util.find_spec('rigid_body_sim.nodes.simulator') is None:
-        pytest.skip('rigid_body_sim.nodes.simulator not written yet')
+def test_records_the_simulators_scene_and_its_hash(ros_process, namespace, tmp_path):
+    """The real simulator started with a scene file, outside the demo: the bag's run record
+    names the scene and holds the file's SHA-256, as an offline run's record does."""
+    from rigid_body_sim.scene import content_sha256, resolve
+    scene = resolve('tennis_racket')
     bag = tmp_path / 'sim'
-    rec = start_recorder(ros_process, namespace, bag)
+    rec = start_recorder(ros_process, namespace, bag, 'config_timeout:=120.0')
     wait_output(rec, f'subscribed to {namespace}/attitude', timeout=30)  # at its start
     sim = ros_process(venv_exe('simulator'), '--ros-args', '-r', f'__ns:={namespace}',
-                      '-p', 'wait_for_subscribers:=1', env={'PYTHONUNBUFFERED': '1'})
+                      '--params-file', scene, '-p', 'wait_for_subscribers:=1',
+                      env={'PYTHONUNBUFFERED': '1'})
     # matched before t = 0, so whatever it publishes from then on reaches the recorder
     wait_output(sim, 'starting at t = 0', timeout=60)
+    wait_output(rec, 'stored the run configuration', timeout=120)
     time.sleep(1.0)
     sim.stop()
     assert rec.stop() == 0, rec.output()
     info = read_info(str(bag))
     assert info.topics[f'{namespace}/attitude'].count > 0
-    assert info.run_configuration.get('simulator_parameters')
+    config = info.run_configuration
+    assert config['simulator_parameters']['duration'] == 10.0  # the file's
+    assert config['scene'] == 'tennis_racket'
+    assert config['scene_sha256'] == content_sha256([scene])
 
 
 LIMITED = ('import os, resource, sys; n = int(sys.argv[1]); '

@@ -85,7 +85,7 @@ def pages() -> dict:
     from rigid_body_sim import node_interfaces as ni
     from rigid_body_sim.engine import specs
     from rigid_body_sim.viewer.specs import VIEWER
-    params = {ni.SIMULATOR.name: specs.SIMULATOR, ni.CONTROLLER.name: specs.CONTROLLER,
+    params = {ni.SIMULATOR.name: specs.SIMULATOR_DECLARED, ni.CONTROLLER.name: specs.CONTROLLER,
               ni.VIEWER.name: VIEWER, ni.RECORDER.name: ni.RECORDER_PARAMETERS}
     out = {}
     index = ['# Reference', '',

@@ -86,6 +86,19 @@ SIMULATOR = (
               low_open=True),
 ) + ACTUATORS + sensor_specs.SIMULATOR  # wheels and CMGs (actuator_specs); seed, sensors.*
 
+# What the simulator node declares besides SIMULATOR: the scene it runs, for a recording's
+# run record (nodes/recorder.py stores them, with the keys of the offline run's record).
+# Not physics: scene files and offline runs never set them, the engine never reads them.
+SCENE_RECORD = (
+    ParamSpec('scene.name', '', 'name of the scene run: the params file\'s scene.name, else '
+              'the first params file\'s name without .yaml; empty without a params file',
+              kind='string', read_only=True),
+    ParamSpec('scene.sha256', '', 'SHA-256 (hex) of the bytes of the --params-file(s), in '
+              'order (one file: that file\'s hash, as rigid-body-sim run records it); empty '
+              'without a params file', kind='string', read_only=True),
+)
+SIMULATOR_DECLARED = SIMULATOR + SCENE_RECORD  # every parameter the simulator node declares
+
 D = control.PARAMETER_DEFAULTS
 CONTROLLER = (
     ParamSpec('mode', D['mode'], 'detumble: tau = -K_w w; slew: go to the target and hold; '

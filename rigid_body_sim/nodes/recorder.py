@@ -278,7 +278,10 @@ class Recorder(Node):
                       for n, v in zip(names, future.result().values)}
             self._config.update({'integrator': params.get('integrator'),
                                  'simulator_parameters': params})
-            self._config['scene'] = self._config['scene'] or params.get('scene')
+            # the simulator's scene record (engine.specs.SCENE_RECORD), under the offline
+            # record's keys; this node's own `scene` parameter, if given, names it
+            self._config['scene'] = self._config['scene'] or params.get('scene.name') or None
+            self._config['scene_sha256'] = params.get('scene.sha256') or None
             self.writer.add_run_configuration(self._config)
             self.get_logger().info(f'stored the run configuration of {base} '
                                    f'({len(params)} parameters)')

@@ -27,6 +27,7 @@ the offline run's.
 """
 import sys
 import time
+from dataclasses import replace
 
 from rclpy.duration import Duration
 from rclpy.node import Node
@@ -39,11 +40,12 @@ from std_srvs.srv import Trigger
 
 from ..engine import NS, Engine, EngineConfig, lockstep, specs
 from ..physics import IntegrationError
-from ..scene import SceneError
+from ..scene import SceneError, params_files_record
 from .commands import CommandFilter
 from .common import (changed_values, declare_parameters, diagnostic_status, qos_profile,
                      validate_update)
 from .process import events_executor, run_node
+from .usage import ros_arguments
 from .sim_services import AVAILABLE as SIM_SERVICES, SimulationServices
 from .sensor_messages import SensorMessages, sensors_summary
 from .state_messages import StateMessages
@@ -90,7 +92,12 @@ class Simulator(Node):
         # undeclared names reach our on-set check, which refuses them with a reason
         super().__init__(NODE_NAME, allow_undeclared_parameters=True, **kwargs)
         try:
-            self._p = declare_parameters(self, SPECS)
+            # the scene it runs (SCENE_RECORD), for a recorder's run record: by default
+            # from the params files; not physics, so kept out of the engine's values
+            record = params_files_record(ros_arguments()[0])
+            self._p = declare_parameters(self, [replace(s, default=record.get(s.name, s.default))
+                                                for s in specs.SIMULATOR_DECLARED])
+            self.scene_record = {s.name: self._p.pop(s.name) for s in specs.SCENE_RECORD}
             self._engine = Engine(check_parameters(self._p), blocking_selection=False,
                                   check_method=True)
         except ValueError as exc:
@@ -154,6 +161,9 @@ class Simulator(Node):
         self.add_on_set_parameters_callback(
             lambda params: validate_update(SPECS, self._p, params, check_parameters))
         self.add_post_set_parameters_callback(self._apply_parameters)
+        if self.scene_record['scene.name']:
+            self._log.info(f"scene {self.scene_record['scene.name']} (params files' sha256 "
+                           f"{self.scene_record['scene.sha256'][:12]}...)")
         self._log.info(self._summary())
         self._warn_method()
 

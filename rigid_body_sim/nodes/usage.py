@@ -31,7 +31,7 @@ class Executable:
 
 def _simulator_specs():
     from ..engine import specs
-    return specs.SIMULATOR
+    return specs.SIMULATOR_DECLARED
 
 
 def _controller_specs():
