@@ -148,3 +148,22 @@ def test_demo_lockstep_answers_every_control_instant(tmp_path):
     states, commands = stamps['/attitude'], stamps['/torque_command']
     assert states[0] == 0 and len(commands) > 50, stamps  # sim time from t = 0
     assert commands == states[:len(commands)]
+
+
+def test_a_node_that_fails_at_start_has_its_last_log_line_in_the_summary(tmp_path):
+    """`--set lockstep=true` without publish_clock: the scene check lets it through (only
+    the simulator's start-up validates lockstep, engine/lockstep.py), the simulator exits
+    2. The summary quotes its last log line, the reason, and does not blame the duration
+    ("try a longer --duration" would send the user the wrong way)."""
+    cli = os.path.join(os.path.dirname(sys.executable), 'rigid-body-sim')
+    out = subprocess.run([cli, 'demo', '--scene', 'slew', '--duration', '5', '--no-viewer',
+                          '--out', str(tmp_path), '--set', 'lockstep=true'],
+                         capture_output=True, text=True, timeout=240)
+    text = out.stdout + out.stderr
+    assert out.returncode == 1, text[-3000:]
+    summary = out.stdout[out.stdout.index('demo: summary'):]
+    log = (tmp_path / 'simulator.log').read_text()
+    last = [line.strip() for line in log.splitlines() if line.strip()][-1]
+    assert 'lockstep needs publish_clock' in last, log[-3000:]
+    assert f'simulator: exited with 2: {last}' in summary, summary
+    assert 'try a longer --duration' not in text, summary
