@@ -2,6 +2,7 @@
 written, read and keyed; auto's cost model uses its ratios (clamped); without one it uses
 the classes' constants and says so. No timing is asserted: calibrations are injected."""
 import json
+import os
 
 import numpy as np
 import pytest
@@ -14,7 +15,8 @@ from rigid_body_sim.physics.dynamics import Dissipation, Dynamics
 
 pytestmark = pytest.mark.fast
 
-EXPLORER_I = np.diag([0.04, 0.2, 0.2])
+MOMENTS = [0.04, 0.2, 0.2]
+EXPLORER_I = np.diag(MOMENTS)
 EXPLORER_W = [62.83, 1.1, 0.0]  # rad/s, body frame
 Q_ID = [0.0, 0.0, 0.0, 1.0]
 OWN = {c.name: c.cost for c in CANDIDATES}
@@ -37,10 +39,12 @@ def record(ratios=None, **changes):
 
 @pytest.fixture
 def cache(tmp_path, monkeypatch):
-    """The cache at a temporary path, auto's env override off, nothing read yet."""
+    """The cache at a temporary path, auto's env override off, nothing read yet; compiled
+    mode (under NUMBA_DISABLE_JIT too: an injected calibration stands for a compiled one)."""
     path = tmp_path / 'numba_cache' / calibration.FILE_NAME
     monkeypatch.setattr(calibration, 'cache_path', lambda: str(path))
     monkeypatch.delenv(calibration.ENV, raising=False)
+    monkeypatch.setattr(jit, 'COMPILED', True)
     calibration.current.cache_clear()
     yield path
     calibration.current.cache_clear()
@@ -54,7 +58,8 @@ def explorer_choice():
                   max_step=1.0, prior_only=True)
 
 
-def test_calibration_times_every_compiled_candidate_and_round_trips(cache):
+def test_calibration_times_every_compiled_candidate_and_round_trips(tmp_path):
+    cache = tmp_path / calibration.FILE_NAME
     rec = calibration.calibrate(steps=200, repeats=1)
     if not jit.COMPILED:
         assert rec is None  # Python loops say nothing of the compiled cost
@@ -68,12 +73,16 @@ def test_calibration_times_every_compiled_candidate_and_round_trips(cache):
     assert calibration.load(str(cache)) == (rec, '')
 
 
-def test_the_cache_sits_beside_numbas_cache_of_the_kernels(monkeypatch, tmp_path):
-    monkeypatch.setenv('NUMBA_CACHE_DIR', str(tmp_path))
+def test_the_cache_sits_beside_numbas_cache_of_the_kernels():
+    """In the directory where numba keeps the reference method's compiled loop (its index
+    files), so that clearing numba's cache clears the calibration with it."""
+    from rigid_body_sim.physics.integrators import create
+    create('splitting2', Dynamics(np.array(MOMENTS))).run(Q_ID, [1.0, 0.0, 0.0], 0.1, 2)
     where = calibration.cache_dir()
-    if jit.COMPILED:  # numba's own locator: in-tree __pycache__ if writable, else ours
-        assert where.endswith('__pycache__') or where.startswith(str(tmp_path)), where
-    assert calibration.cache_path() == f'{where}/{calibration.FILE_NAME}'
+    assert calibration.cache_path() == os.path.join(where, calibration.FILE_NAME)
+    if jit.COMPILED:
+        assert any(f.startswith('splitting_kernel.') and f.endswith('.nbi')
+                   for f in os.listdir(where)), where
 
 
 def test_a_changed_kernel_source_or_cpu_changes_the_key(tmp_path, monkeypatch):
