@@ -7,6 +7,9 @@ never lands in the middle of a run::
 Each registered method names its kernel modules (``Integrator.kernel_modules``), each of
 which warms its own kernels; the engine's closed loop is warmed through a short controlled
 run, so it sees the argument types the engine passes (read-only model arrays).
+
+Run as a module it then calibrates ``auto``'s per-step costs on this machine (once per
+machine and kernel sources: ``physics.auto.calibration``), cached beside the kernels.
 """
 
 
@@ -21,6 +24,8 @@ def warm() -> bool:
     for module in dict.fromkeys(modules + [control_kernel, gyrostat_kernel, noise]):
         module.warm()
     compiled = jit.COMPILED
+    from .physics.auto import calibration
+    calibration.current()  # auto's costs read now, not inside the first run's selection
     for method in ('splitting2', 'rk4'):
         config = EngineConfig.from_parameters(
             {'integrator': method, 'duration': 0.1, 'publish_rate': 20.0},
@@ -35,3 +40,5 @@ if __name__ == '__main__':
     argparse.ArgumentParser(prog='python3 -m rigid_body_sim.compiled', description=__doc__.split(
         '::')[0].replace('\n', ' ')).parse_args()  # -h/--help answered without compiling
     warm()
+    from .physics.auto import calibration
+    calibration.ensure()  # after warm: the loops timed are the ones runs will load

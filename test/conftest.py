@@ -21,6 +21,9 @@ _WORKER = os.environ.get('PYTEST_XDIST_WORKER', '')
 _OFFSET = int(_WORKER[2:]) if _WORKER.startswith('gw') and _WORKER[2:].isdigit() else 0
 os.environ['ROS_DOMAIN_ID'] = str(int(os.environ['RBS_TEST_DOMAIN_ID']) + _OFFSET)
 os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
+# auto's costs: the classes' constants, not this machine's calibration (the tests' choices
+# must not depend on the machine; test_auto_costs.py covers the calibration)
+os.environ.setdefault('RIGID_BODY_SIM_AUTO_COSTS', 'constants')
 
 sys.path.insert(0, os.path.dirname(__file__))
 from ros_helpers import NodeProcess, unique_namespace  # noqa: E402

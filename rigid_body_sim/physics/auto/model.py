@@ -12,6 +12,7 @@ from dataclasses import replace
 import numpy as np
 
 from ..integrators import INTEGRATORS, create, get_integrator
+from . import calibration
 
 # What auto may choose: every registered method that states its facts (``Integrator.auto``),
 # in the registry's order (auto breaks ties of cost in it).
@@ -45,8 +46,10 @@ def is_symmetric(moments, rtol=1e-12):
 class RunModel:
     """The time scales of a run, and the cost and a-priori error of a method on it."""
 
-    def __init__(self, dyn, q, m, accuracy, horizon, max_step, torque_rate):
+    def __init__(self, dyn, q, m, accuracy, horizon, max_step, torque_rate, costs=None):
         self.dyn, self.q, self.m = dyn, q, m
+        # per-step costs: measured on this machine if calibrated, else the classes' own
+        self.costs = costs or calibration.current()
         self.accuracy, self.horizon, self.max_step = accuracy, horizon, max_step
         self.G = math.sqrt(sum(x * x for x in m.tolist()))  # floats: numpy's per-call cost
         self.stiffness = dyn.dissipation_stiffness(self.G)
@@ -85,17 +88,19 @@ class RunModel:
         return self.memo[key]
 
     def _step_cost(self, c, h):
+        cost = self.costs.cost(c)
         if self.damping is None:
-            return c.cost[0] * 1e-6
+            return cost[0] * 1e-6
         if not c.name.startswith('splitting') or c.name == 'splitting2_lstable':
-            return c.cost[1] * 1e-6
+            return cost[1] * 1e-6
         composed = c.name != 'splitting2'
         if composed and self.order(c, h) > 2:  # the damping goes inside the composition
-            return c.cost[1] * 1e-6
+            return cost[1] * 1e-6
         if self.damping == 'viscous':
-            return c.cost[0] * 1.3e-6
+            return cost[0] * self.costs.viscous_factor * 1e-6
         substeps = max(1, math.ceil(self.stiffness * h))  # two half-steps of ≤ 0.5 each
-        return (c.cost[0] + 2 * DAMP_SUBSTEP * substeps) * 1e-6
+        substep = self.costs.damp_substep or DAMP_SUBSTEP
+        return (cost[0] + 2 * substep * substeps) * 1e-6
 
     def run_cost(self, c, h):
         steps = self.events * round(self.max_step / h)
@@ -109,7 +114,7 @@ class RunModel:
                 self.max_step)
         call = c.call[0 if self.damping is None else 1] * 1e-6
         return (RUN_COST + self.events * (EVENT_COST + call)
-                + self.horizon / h * min(c.cost) * 1e-6)
+                + self.horizon / h * min(self.costs.cost(c)) * 1e-6)
 
     def tolerance(self, c):
         """(rtol, run cost s, a-priori error rad) of an adaptive candidate: the loosest rtol
@@ -123,7 +128,7 @@ class RunModel:
             room = self.accuracy - ROUNDOFF * steps * turned
             rtol = min(max(room / scale, RTOL_RANGE[0]), RTOL_RANGE[1])
         call = c.call[0 if self.damping is None else 1] * 1e-6
-        per_step = c.cost[0 if self.damping is None else 1] * 1e-6
+        per_step = self.costs.cost(c)[0 if self.damping is None else 1] * 1e-6
         cost = RUN_COST + self.events * (EVENT_COST + call) + steps * per_step
         return rtol, cost, scale * rtol + ROUNDOFF * steps * turned
 

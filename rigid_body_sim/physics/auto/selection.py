@@ -225,7 +225,7 @@ def selecting(body: RigidBody, dissipation: Dissipation, attitude, angular_veloc
     effects = [e for e, on in (('commanded torque', torque), (f'{dissipation.model} dissipation',
                                                                 dissipation.active)) if on]
     head = (f'{" + ".join(effects)} → cheapest method meeting {accuracy:g} rad over '
-            f'{horizon:g} s; Ω = {s.omega:.3g} rad/s')
+            f'{horizon:g} s; Ω = {s.omega:.3g} rad/s; {s.costs.source}')
     prior = 'a priori (k·(hΩ)^p·ΩT): ' + ', '.join(why)
     if torque or prior_only:
         c, h, cost, err = best

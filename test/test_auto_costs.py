@@ -1,0 +1,174 @@
+"""auto's per-step costs calibrated on the machine (physics/auto/calibration.py): the cache is
+written, read and keyed; auto's cost model uses its ratios (clamped); without one it uses
+the classes' constants and says so. No timing is asserted: calibrations are injected."""
+import json
+import os
+
+import numpy as np
+import pytest
+
+from rigid_body_sim.physics import jit
+from rigid_body_sim.physics.auto import CANDIDATES, calibration, select
+from rigid_body_sim.physics.auto.model import RunModel
+from rigid_body_sim.physics.body import RigidBody
+from rigid_body_sim.physics.dynamics import Dissipation, Dynamics
+
+pytestmark = pytest.mark.fast
+
+MOMENTS = [0.04, 0.2, 0.2]
+EXPLORER_I = np.diag(MOMENTS)
+EXPLORER_W = [62.83, 1.1, 0.0]  # rad/s, body frame
+Q_ID = [0.0, 0.0, 0.0, 1.0]
+OWN = {c.name: c.cost for c in CANDIDATES}
+
+
+def record(ratios=None, **changes):
+    """A calibration record with every candidate at its class constant's ratio (a machine
+    exactly like the one the constants were measured on), ``ratios`` overriding."""
+    unit = OWN['splitting2'][0]
+    rows = {n: {'free': c[0] / unit, 'double_bracket': c[1] / unit,
+                'viscous': c[0] * calibration.VISCOUS_FACTOR / unit if n == 'splitting2'
+                else c[1] / unit} for n, c in OWN.items() if n != 'exact'}
+    for name, value in (ratios or {}).items():
+        rows[name].update(value)
+    rec = {'key': calibration.key(), 'cpu': 'Test CPU 9000', 'reference': 'splitting2',
+           'ratios': rows}
+    rec.update(changes)
+    return rec
+
+
+@pytest.fixture
+def cache(tmp_path, monkeypatch):
+    """The cache at a temporary path, auto's env override off, nothing read yet; compiled
+    mode (under NUMBA_DISABLE_JIT too: an injected calibration stands for a compiled one)."""
+    path = tmp_path / 'numba_cache' / calibration.FILE_NAME
+    monkeypatch.setattr(calibration, 'cache_path', lambda: str(path))
+    monkeypatch.delenv(calibration.ENV, raising=False)
+    monkeypatch.setattr(jit, 'COMPILED', True)
+    calibration.current.cache_clear()
+    yield path
+    calibration.current.cache_clear()
+
+
+def explorer_choice():
+    """Explorer 1 damped, 1e-3 rad over 10 s (rk4 with the class constants; 4× dearer, it
+    loses to dop853)."""
+    return select(RigidBody.from_inertia(EXPLORER_I), Dissipation('double_bracket', 1e-3),
+                  Q_ID, EXPLORER_W, torque=False, accuracy=1e-3, duration=10.0,
+                  max_step=1.0, prior_only=True)
+
+
+def test_calibration_times_every_compiled_candidate_and_round_trips(tmp_path):
+    cache = tmp_path / calibration.FILE_NAME
+    rec = calibration.calibrate(steps=200, repeats=1)
+    if not jit.COMPILED:
+        assert rec is None  # Python loops say nothing of the compiled cost
+        return
+    assert set(rec['ratios']) == set(OWN) - {'exact'}
+    assert all(set(r) == set(calibration.KINDS) and min(r.values()) > 0
+               for r in rec['ratios'].values())
+    assert rec['ratios']['splitting2']['free'] == 1.0 and rec['key'] == calibration.key()
+    calibration.save(rec, str(cache))
+    assert json.loads(cache.read_text()) == rec
+    assert calibration.load(str(cache)) == (rec, '')
+
+
+def test_the_cache_sits_beside_numbas_cache_of_the_kernels():
+    """In the directory where numba keeps the reference method's compiled loop (its index
+    files), so that clearing numba's cache clears the calibration with it."""
+    from rigid_body_sim.physics.integrators import create
+    create('splitting2', Dynamics(np.array(MOMENTS))).run(Q_ID, [1.0, 0.0, 0.0], 0.1, 2)
+    where = calibration.cache_dir()
+    assert calibration.cache_path() == os.path.join(where, calibration.FILE_NAME)
+    if jit.COMPILED:
+        assert any(f.startswith('splitting_kernel.') and f.endswith('.nbi')
+                   for f in os.listdir(where)), where
+
+
+def test_a_changed_kernel_source_or_cpu_changes_the_key(tmp_path, monkeypatch):
+    kernel = tmp_path / 'some_kernel.py'
+    kernel.write_text('x = 1\n')
+    monkeypatch.setattr(calibration, 'kernel_files', lambda: [str(kernel)])
+    keys = []
+    for change in (lambda: None, lambda: kernel.write_text('x = 2\n'),
+                   lambda: monkeypatch.setattr(calibration, 'cpu_model', lambda: 'Other CPU')):
+        change()
+        calibration.key.cache_clear()
+        keys.append(calibration.key())
+    calibration.key.cache_clear()
+    assert len(set(keys)) == 3
+
+
+def test_a_stale_cache_is_not_used_and_ensure_recalibrates(cache, monkeypatch):
+    calibration.save(record(key='kernels of another day'), str(cache))
+    assert calibration.load() == (None, 'calibration stale (kernels or CPU changed)')
+    assert 'calibration stale' in calibration.current().source
+    fresh = record(cpu='Fresh CPU')
+    calls = []
+    monkeypatch.setattr(calibration, 'calibrate', lambda: calls.append(1) or fresh)
+    assert calibration.ensure(log=lambda *_: None) == fresh and calls == [1]
+    assert json.loads(cache.read_text()) == fresh
+    assert calibration.ensure(log=lambda *_: None) == fresh and calls == [1]  # current: kept
+    assert calibration.current().source == 'costs calibrated on Fresh CPU'
+
+
+def test_auto_costs_a_run_with_the_calibrated_ratios(cache):
+    """rk4 measured at half splitting2's free cost: the model's step cost is that ratio times
+    splitting2's constant; splitting2's damping substep comes from its damped ratio."""
+    unit = OWN['splitting2'][0]
+    calibration.save(record({'rk4': {'free': 0.5, 'double_bracket': 0.55},
+                             'splitting2': {'double_bracket': 2.0}}), str(cache))
+    costs = calibration.current()
+    assert costs.source == 'costs calibrated on Test CPU 9000'
+    rk4 = next(c for c in CANDIDATES if c.name == 'rk4')
+    free = RunModel(Dynamics(np.array([0.04, 0.2, 0.2])), None, np.array([2.5, 0.04, 0.0]),
+                    1e-6, 10.0, 0.1, 1.0)
+    assert free.step_cost(rk4, 0.01) == pytest.approx(0.5 * unit * 1e-6)
+    assert costs.damp_substep == pytest.approx((2.0 - 1.0) * unit / 2)
+
+
+def test_calibrated_costs_are_clamped_to_within_4x_of_the_class_constant(cache):
+    """A calibration under load (one method preempted through all its repeats) moves a cost
+    at most CLAMP from its class constant."""
+    calibration.save(record({'rk4': {'free': 1000.0, 'double_bracket': 1e-6},
+                             'splitting2': {'viscous': 50.0}}), str(cache))
+    costs = calibration.current()
+    rk4 = next(c for c in CANDIDATES if c.name == 'rk4')
+    assert costs.cost(rk4) == pytest.approx((4 * OWN['rk4'][0], 0.25 * OWN['rk4'][1]))
+    assert costs.viscous_factor == pytest.approx(4 * calibration.VISCOUS_FACTOR)
+
+
+def test_auto_choice_follows_a_calibration_that_makes_its_method_dear(cache):
+    """The method chosen with the class constants, measured 4× dearer than its constant on
+    this machine, is no longer chosen; the reason names the calibration."""
+    with_constants = explorer_choice()
+    assert 'class-constant costs (not calibrated' in with_constants.reason
+    unit = OWN['splitting2'][0]
+    name = with_constants.name
+    dear = {'free': 4 * OWN[name][0] / unit, 'double_bracket': 4 * OWN[name][1] / unit}
+    if name == 'splitting2':  # the reference: every other method 4× cheaper instead
+        calibration.save(record({n: {'free': c[0] / 4 / unit, 'double_bracket': c[1] / 4 / unit}
+                                 for n, c in OWN.items() if n not in ('exact', name)}),
+                         str(cache))
+    else:
+        calibration.save(record({name: dear}), str(cache))
+    calibration.current.cache_clear()
+    calibrated = explorer_choice()
+    assert 'costs calibrated on Test CPU 9000' in calibrated.reason
+    assert calibrated.name != name, (with_constants.reason, calibrated.reason)
+
+
+def test_without_a_calibration_auto_says_it_uses_the_class_constants(cache, monkeypatch):
+    costs = calibration.current()
+    assert costs.per_step == {} and costs.damp_substep is None and 'not calibrated' in \
+        costs.source
+    assert 'class-constant costs (not calibrated' in explorer_choice().reason
+    monkeypatch.setattr(jit, 'COMPILED', False)  # NUMBA_DISABLE_JIT: nothing to calibrate
+    calibration.current.cache_clear()
+    calibration.save(record(), str(cache))       # even with a cache: uncompiled runs differ
+    assert calibration.current().source == 'class-constant costs (kernels not compiled)'
+    assert calibration.calibrate(steps=10, repeats=1) is None
+    monkeypatch.setenv(calibration.ENV, 'constants')
+    calibration.current.cache_clear()
+    assert 'RIGID_BODY_SIM_AUTO_COSTS=constants' in calibration.current().source
+
