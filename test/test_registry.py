@@ -62,3 +62,29 @@ def test_every_compiled_loop_module_is_warmed_through_a_registered_method():
     assert loops - {'gyrostat_kernel'} <= warmed
     for cls in INTEGRATORS.values():
         assert all(callable(m.warm) for m in cls.kernel_modules), cls.name
+
+
+def test_the_closed_loop_and_the_splittings_share_one_inner_damping_rule():
+    """Damping goes inside a composition's stages by one rule (splitting_kernel), which the
+    classes and the engine's compiled closed loop both call: no copy of it, or of its limit,
+    lives in the closed loop, and the compiled rule answers as the class does."""
+    from rigid_body_sim.engine import closed_loop
+    from rigid_body_sim.physics.integrators import splitting_kernel
+    src = open(closed_loop.__file__).read()
+    assert 'INNER_LIMIT' not in src and 'def _inner' not in src
+    assert 'splitting_kernel.inner_dissipation' in src
+    rng = np.random.default_rng(3)
+    for model, coefficient in (('double_bracket', 0.4), ('viscous', 0.7)):
+        dyn = Dynamics(np.array([1.0, 2.0, 3.0]), Dissipation(model, coefficient))
+        for name in ('splitting2', 'splitting4', 'splitting6'):
+            integ = INTEGRATORS[name](dyn)
+            weights, _ = integ.loop_spec()
+            seen = set()
+            for h in np.geomspace(1e-3, 3.0, 40):
+                m = rng.normal(size=3)
+                ours = integ.inner_dissipation(m, h)
+                seen.add(ours)
+                assert ours == bool(splitting_kernel.inner_dissipation(
+                    m, h, weights, dyn.moments, 1 if model == 'double_bracket' else 2,
+                    coefficient)), (name, model, h)
+            assert seen == ({False} if name == 'splitting2' else {True, False}), (name, model)

@@ -35,25 +35,6 @@ from .sources import NEVER
 NEVER_NS = NEVER  # numba reads module globals as compile-time constants
 
 MODEL_CODES = dynamics_kernel.MODEL_CODES
-INNER_LIMIT = 0.5  # = splitting.INNER_LIMIT: damping inside the compositions when weak
-
-
-@jit
-def _inner(m, h, weights, moments, model, coefficient):
-    """Splitting2.inner_dissipation: damping inside the compositions when weak at h."""
-    if model == 0 or len(weights) == 1:
-        return False
-    norm = math.sqrt(m[0] * m[0] + m[1] * m[1] + m[2] * m[2])
-    i_min = min(moments[0], min(moments[1], moments[2]))
-    i_max = max(moments[0], max(moments[1], moments[2]))
-    if model == 1:
-        stiffness = coefficient * norm ** 2 * (1.0 / i_min - 1.0 / i_max)
-    else:
-        stiffness = coefficient / i_min
-    w_max = 0.0
-    for w in weights:
-        w_max = max(w_max, abs(w))
-    return stiffness * h * w_max <= INNER_LIMIT
 
 
 @jit
@@ -107,7 +88,8 @@ def closed_loop_run(q, m, t_ns, limit_ns, control_ns, period_ns, sample_ns, samp
         if method == 0:
             failed, e = splitting_kernel.splitting_run(
                 q, m, h, n, weights, split_axes, moments, tau_p, has_tau, model, coefficient,
-                _inner(m, h, weights, moments, model, coefficient))
+                splitting_kernel.inner_dissipation(m, h, weights, moments, model,
+                                                   coefficient))
             evals += e
         elif method == 1:
             failed = explicit_kernel.rk4_steps(q, m, h, n, moments, tau_p, model, coefficient,
