@@ -21,7 +21,7 @@ from typing import Iterator, Optional
 
 import numpy as np
 
-from ..physics import Dynamics, IntegrationError, create, rotation
+from ..physics import INTEGRATORS, Dynamics, IntegrationError, create, rotation
 from ..physics.exact import TorqueFreeSolution
 from ..physics.auto import select, selecting
 from . import closed_loop, health, sensing
@@ -33,7 +33,8 @@ from .specs import AUTO
 
 __all__ = ['Engine', 'IntegrationError', 'NEVER']
 
-GYROSTAT = 'gyrostat_strang'  # the method of scenes with wheels or CMGs
+# the method of scenes with wheels or CMGs: the registered one that advances them
+ACTUATED = next(name for name, cls in INTEGRATORS.items() if cls.requires_actuators)
 
 
 class Engine:
@@ -194,13 +195,10 @@ class Engine:
         """Pick the method for the current state (``auto``) or take the configured one."""
         c = self.config
         self._selection = None
-        if self.actuators is not None:
-            self._retired_nfev += self._integ.nfev if self._integ else 0
-            self._integ = None
-            self.method, self._anchor = GYROSTAT, None
-            self.step_max = min(c.step, c.event_spacing())
-            self.reason = ('actuators (wheels/CMGs): gyrostat Strang splitting, |H| kept to '
-                           'round-off; at the scene\'s step')
+        if self.actuators is not None:  # wheels / CMGs: the method that carries them
+            self._use(ACTUATED, min(c.step, c.event_spacing()),
+                      f'actuators (wheels/CMGs): {ACTUATED}, |H| kept to round-off; at the '
+                      'scene\'s step', actuators=self.actuators)
             return
         if c.integrator != AUTO:
             self._use(c.integrator, c.event_spacing(),
@@ -356,9 +354,6 @@ class Engine:
             t0, solution = self._anchored()
             self._q, self._m = solution.at((t_end - t0) / NS)
             self.evaluations += 1
-            return
-        if self.actuators is not None:
-            self.actuators.integrate(self, span)
             return
         # equal steps no longer than step_max (to 1 ppb: a step given as span/n stays n steps)
         n = max(1, math.ceil(span / (self.step_max * NS) - 1e-9))
