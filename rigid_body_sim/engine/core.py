@@ -29,6 +29,7 @@ from .actuators import Actuators
 from .config import NS, EngineConfig
 from .samples import BlockBuilder, SampleBlock
 from .sources import NEVER, CommandHold, ControlLaw
+from .state import State
 from .specs import AUTO
 
 __all__ = ['Engine', 'IntegrationError', 'NEVER']
@@ -361,6 +362,30 @@ class Engine:
         self._q, self._m = self._integ.run(self._q, self._m, h, n, self._tau_p, self.t_ns / NS)
         self.steps += n
 
+    def _state(self) -> State:
+        """The state record handed to the engine's other modules (arrays not copied)."""
+        return State(self._q, self._m, self.t_ns, self._next_sample, self._tau_body,
+                     self._tau_p, self._torque_seen)
+
+    def _advance_compiled(self, until_ns: int, cap: int) -> int:
+        """``closed_loop.advance`` from the state; take back what it returns (state, counts,
+        rows in the block) and the law's new torque. Rows added; 0 where it does not apply.
+        IntegrationError (``fault`` set) if the method failed."""
+        done = closed_loop.advance(self, self._state(), self._law, self._builder, until_ns, cap)
+        if done is None:
+            return 0
+        self.steps += done.steps
+        self._integ.nfev += done.evaluations
+        self._builder.n += done.rows
+        if done.error is not None:
+            self.fault = done.error.reason
+            raise done.error
+        s = done.state
+        self._q, self._m, self.t_ns, self._next_sample = s.q, s.m, s.t_ns, s.next_sample
+        if self._law is not None:
+            self._update_torque()
+        return done.rows
+
     def _free_samples(self, limit: int, room: int) -> int:
         """Exact flow at many sample instants < ``limit`` at once (vectorised); count added."""
         p = self.config.sample_period_ns
@@ -391,7 +416,7 @@ class Engine:
             # written into the block; with sensors the law sees their events and with
             # actuators the gyrostat steps: the event path (Python) runs those
             if self._compiled_samples and not self._free_exact() and \
-                    closed_loop.advance(self, until_ns, cap):
+                    self._advance_compiled(until_ns, cap):
                 continue
             t_src = min(s.next_event() for s in self.sources)
             end = self.end_ns
@@ -452,4 +477,4 @@ class Engine:
         """The physics' health (``engine.health.diagnostics``): method, step, invariants and
         their drift over the current torque-free stretch, quaternion norm error, dissipated
         energy, command counters."""
-        return health.diagnostics(self)
+        return health.diagnostics(self, self._state(), self._base)
