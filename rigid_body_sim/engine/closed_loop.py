@@ -287,7 +287,7 @@ def advance(engine, state: State, law, builder, until_ns: int, cap: int) -> Opti
     h = closed_loop_run(
         (q, m, tau, tau_p), ticks, reals, (spec[0], spec[1]),
         (engine.dynamics.moments, body.principal_axes, body.principal_to_body), law_arrays,
-        (builder._t[:cap], builder._q[:cap], builder._m[:cap], builder._tau[:cap]), out)
+        builder.columns(cap), out)
     next_control, mode, free, steps, evals, failed, rows, t_end, next_sample = \
         (int(v) for v in out)
     error = None
