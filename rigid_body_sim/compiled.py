@@ -18,10 +18,9 @@ def warm() -> bool:
     from . import control_kernel
     from .engine import Engine, EngineConfig
     from .physics import INTEGRATORS, jit
-    from .physics.integrators import gyrostat_kernel
     from .sensors import noise
     modules = [m for cls in INTEGRATORS.values() for m in cls.kernel_modules]
-    for module in dict.fromkeys(modules + [control_kernel, gyrostat_kernel, noise]):
+    for module in dict.fromkeys(modules + [control_kernel, noise]):
         module.warm()
     compiled = jit.COMPILED
     from .physics.auto import calibration

@@ -367,12 +367,12 @@ def scene_from_record(config: dict) -> SceneFile:
 def add_arguments(parser):
     from .cli import number
     from .engine import specs
-    from .physics import INTEGRATORS
+    from .physics.integrators import BODY_ONLY
     spec = {s.name: s for s in specs.SIMULATOR}
     parser.add_argument('scene', help='built-in scene name (listed below) or a params file')
     parser.add_argument('--duration', type=number(0.0, 1e12, low_open=True),
                         help='simulated seconds, s (default: the scene\'s)')
-    parser.add_argument('--integrator', choices=('auto',) + tuple(INTEGRATORS),
+    parser.add_argument('--integrator', choices=('auto',) + BODY_ONLY,
                         help='integrator (default: the scene\'s): %(choices)s')
     parser.add_argument('--step', type=number(spec['step'].low, spec['step'].high),
                         help='largest physics step, s')
@@ -400,13 +400,16 @@ def add_set_argument(parser):
 
 def choices_epilog() -> str:
     from .physics import DISSIPATION_MODELS, INTEGRATORS
+    from .physics.integrators import BODY_ONLY
+    carried = ', '.join(n for n in INTEGRATORS if n not in BODY_ONLY)
     from .scene import list_scenes
     try:
         scenes = ', '.join(name for name, _, _ in list_scenes())
     except (OSError, SceneError):
         scenes = '(config/ not found)'
     return (f'scenes: {scenes}. integrators (--set integrator=NAME): auto, '
-            f'{", ".join(INTEGRATORS)}. dissipation models (--set dissipation.model=NAME, '
+            f'{", ".join(BODY_ONLY)} (with wheels or CMGs: {carried}). dissipation models '
+            f'(--set dissipation.model=NAME, '
             f'dissipation.coefficient in s/(kg·m²) for double_bracket, N·m·s for viscous): '
             f'{", ".join(DISSIPATION_MODELS)}. Units are SI: s, rad, rad/s, kg·m², N·m, J; '
             'quaternions (x, y, z, w).')

@@ -290,3 +290,24 @@ def test_row_values_equal_the_vectorised_fields_for_a_rotated_body():
                               whole.angular_momentum_body, whole.kinetic_energy, whole.torque])
     assert np.allclose(np.array(rows), fields, rtol=1e-15, atol=1e-15)
     assert whole.values(1) == fields[1].tolist()         # fields path once they exist
+
+
+def test_only_the_engine_writes_its_state():
+    """The engine's other modules get a State record and give one back: none of them
+    touches the Engine's private attributes or writes its time, counters or fault, and the
+    compiled closed loop takes a few typed groups, not dozens of positional parameters."""
+    import inspect
+    import re
+    from rigid_body_sim import engine as package
+    from rigid_body_sim.engine import closed_loop
+    folder = os.path.dirname(package.__file__)
+    for name in sorted(os.listdir(folder)):
+        if not name.endswith('.py') or name == 'core.py':
+            continue
+        with open(os.path.join(folder, name)) as f:
+            src = f.read()
+        assert not re.search(r'\bengine\._\w', src), name
+        assert not re.search(r'\bengine\.(t_ns|steps|fault|finished)\s*[+-]?=(?!=)', src), name
+    kernel = closed_loop.closed_loop_run
+    params = inspect.signature(getattr(kernel, 'py_func', kernel)).parameters
+    assert len(params) <= 8, list(params)

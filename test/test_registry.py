@@ -59,6 +59,54 @@ def test_every_compiled_loop_module_is_warmed_through_a_registered_method():
               for m in c.kernel_modules}
     loops = {m.name for m in pkgutil.iter_modules(integrators.__path__)
              if m.name.endswith(('_kernel', '_dense'))}
-    assert loops - {'gyrostat_kernel'} <= warmed
+    assert loops <= warmed
     for cls in INTEGRATORS.values():
         assert all(callable(m.warm) for m in cls.kernel_modules), cls.name
+
+
+def test_the_closed_loop_and_the_splittings_share_one_inner_damping_rule():
+    """Damping goes inside a composition's stages by one rule (splitting_kernel), which the
+    classes and the engine's compiled closed loop both call: no copy of it, or of its limit,
+    lives in the closed loop, and the compiled rule answers as the class does."""
+    from rigid_body_sim.engine import closed_loop
+    from rigid_body_sim.physics.integrators import splitting_kernel
+    src = open(closed_loop.__file__).read()
+    assert 'INNER_LIMIT' not in src and 'def _inner' not in src
+    assert 'splitting_kernel.inner_dissipation' in src
+    rng = np.random.default_rng(3)
+    for model, coefficient in (('double_bracket', 0.4), ('viscous', 0.7)):
+        dyn = Dynamics(np.array([1.0, 2.0, 3.0]), Dissipation(model, coefficient))
+        for name in ('splitting2', 'splitting4', 'splitting6'):
+            integ = INTEGRATORS[name](dyn)
+            weights, _ = integ.loop_spec()
+            seen = set()
+            for h in np.geomspace(1e-3, 3.0, 40):
+                m = rng.normal(size=3)
+                ours = integ.inner_dissipation(m, h)
+                seen.add(ours)
+                assert ours == bool(splitting_kernel.inner_dissipation(
+                    m, h, weights, dyn.moments, 1 if model == 'double_bracket' else 2,
+                    coefficient)), (name, model, h)
+            assert seen == ({False} if name == 'splitting2' else {True, False}), (name, model)
+
+
+def test_the_gyrostat_is_a_registered_method_that_needs_actuators():
+    """The method of scenes with wheels/CMGs is in the registry, warmed through it, and
+    states that it needs actuators; the engine uses it by that fact and steps it as any
+    other method (its integrator, its evaluations), and it refuses to run without them."""
+    from rigid_body_sim.engine import Engine, EngineConfig
+    from rigid_body_sim.physics.integrators import BODY_ONLY
+    carried = [n for n, c in INTEGRATORS.items() if c.requires_actuators]
+    assert carried == ['gyrostat_strang'] and 'gyrostat_strang' not in BODY_ONLY
+    assert integrators.gyrostat_kernel in INTEGRATORS['gyrostat_strang'].kernel_modules
+    with pytest.raises(ValueError, match='gyrostat_strang needs the scene.s actuators'):
+        INTEGRATORS['gyrostat_strang'](Dynamics(np.array([1.0, 2.0, 3.0])))
+    config = EngineConfig.from_parameters({
+        'duration': 0.5, 'publish_rate': 10.0, 'integrator': 'rk4', 'step': 0.01,
+        'actuators.wheels.axes': [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0]})
+    engine = Engine(config)
+    for _ in engine.run():
+        pass
+    assert type(engine.integrator) is INTEGRATORS['gyrostat_strang']
+    assert engine.method == 'gyrostat_strang' and engine.steps == 50
+    assert engine.integrator.nfev == 50 and engine.total_evaluations == 50

@@ -22,7 +22,7 @@ LIMIT = 0.01  # 1 % drift marks a method as failed
 
 
 def _methods():
-    return [n for n, c in INTEGRATORS.items() if not c.adaptive]
+    return [n for n, c in INTEGRATORS.items() if not (c.adaptive or c.requires_actuators)]
 
 
 def _sweep(scene, x_name, rate, steps, grid, budget, ref_fn, log):

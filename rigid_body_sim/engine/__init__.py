@@ -6,6 +6,7 @@
 * :mod:`.sources` — torque sources held between their events (commands, control law).
 * :mod:`.samples` — blocks of samples in the user's frames, stamped with sim time (ns).
 * :mod:`.core` — :class:`Engine`: state, sim time, integrator and ``auto``, events.
+* :mod:`.state` — the State record the engine hands to its other modules and takes back.
 * :mod:`.lockstep` — the live simulator's lockstep: its checks and round-trip figures.
 """
 from .config import NS, ControlSettings, EngineConfig

@@ -3,8 +3,9 @@
 :class:`ActuatorConfig` is built from the ``actuators.*`` parameters (validated, with
 notes such as a normalised axis); :class:`Actuators` holds their state and commands and
 advances body + actuators by the compiled gyrostat kernel
-(``physics.integrators.gyrostat_kernel``). Frames: axes and torques in the body frame at this
-interface; the kernel works in the principal frame.
+(``physics.integrators.gyrostat_kernel``) for the registered method that carries them
+(``physics.integrators.gyrostat.GyrostatStrang``). Frames: axes and torques in the body
+frame at this interface; the kernel works in the principal frame.
 
 Body torque → actuators (``actuators.command`` = torque): CMGs if the scene has any
 (singularity-robust inverse at the current gimbal angles), else wheels (pseudo-inverse of
@@ -17,11 +18,9 @@ from typing import Optional, Tuple
 
 import numpy as np
 
-from ..physics import IntegrationError
 from ..physics.integrators import gyrostat_kernel as gk
 from .actuator_specs import PYRAMID_SKEW
 
-NS = 1_000_000_000  # = config.NS (config imports this module)
 SPAN_TOL = 1e-6  # smallest singular value of the gimbal-axis matrix that counts as spanning
 
 
@@ -244,19 +243,6 @@ class Actuators:
             self.g, self.s0, c.momentum, c.max_rate, c.angle_limit, self.rate_cmd,
             self.allocate, self.tau_des, self.pinv, c.sr_gain, c.sr_scale, self.u, self.rate,
             self.status)
-
-    def integrate(self, engine, span_ns: int) -> None:
-        """The engine's state over ``span_ns`` in equal steps no longer than its step_max
-        (split as ``Engine._integrate`` splits); IntegrationError if it turns non-finite."""
-        n = max(1, math.ceil(span_ns / (engine.step_max * NS) - 1e-9))
-        h = span_ns / (n * NS)
-        failed = self.run(engine._q, engine._m, h, n, engine.dynamics.moments,
-                          self.split_axes, engine._tau_p)
-        if failed >= 0:
-            engine.steps += failed + 1
-            raise IntegrationError(engine.method, h, (engine.t_ns + (failed + 1) * h * NS) / NS,
-                                   'state became non-finite')
-        engine.steps += n
 
     # ------------------------------------------------------------------ observables
     def momentum_principal(self) -> np.ndarray:

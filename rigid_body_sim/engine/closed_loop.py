@@ -18,7 +18,9 @@ integrators advance); the law sees the body frame (attitude body → inertial, �
 everywhere else. ``p2b`` is the principal → body rotation (x, y, z, w), ``axes`` its
 matrix (v_body = axes @ v_principal).
 """
+from dataclasses import replace
 import math
+from typing import Optional
 
 import numpy as np
 
@@ -31,52 +33,65 @@ from ..physics.jit import depends_on, jit
 from . import specs
 from .config import NS
 from .sources import NEVER
+from .state import State, Stretch
 
 NEVER_NS = NEVER  # numba reads module globals as compile-time constants
 
 MODEL_CODES = dynamics_kernel.MODEL_CODES
-INNER_LIMIT = 0.5  # = splitting.INNER_LIMIT: damping inside the compositions when weak
+
+
+# closed_loop_run's integer arguments (int64 array ``ticks``): instants and periods in ns,
+# codes and the block's first free row
+T_NS, LIMIT_NS, CONTROL_NS, PERIOD_NS, SAMPLE_NS, SAMPLE_PERIOD_NS, METHOD, MODEL, MODE, \
+    GYROSCOPIC, FREE, ROW, N_TICKS = range(13)
+# and its real ones (float64 array ``reals``)
+H_MAX, COEFFICIENT, RATE_LIMIT, TORQUE_LIMIT, CLIP, MISSION_START, FREE_TIME, EXIT_RATE, \
+    N_REALS = range(9)
 
 
 @jit
-def _inner(m, h, weights, moments, model, coefficient):
-    """Splitting2.inner_dissipation: damping inside the compositions when weak at h."""
-    if model == 0 or len(weights) == 1:
-        return False
-    norm = math.sqrt(m[0] * m[0] + m[1] * m[1] + m[2] * m[2])
-    i_min = min(moments[0], min(moments[1], moments[2]))
-    i_max = max(moments[0], max(moments[1], moments[2]))
-    if model == 1:
-        stiffness = coefficient * norm ** 2 * (1.0 / i_min - 1.0 / i_max)
-    else:
-        stiffness = coefficient / i_min
-    w_max = 0.0
-    for w in weights:
-        w_max = max(w_max, abs(w))
-    return stiffness * h * w_max <= INNER_LIMIT
-
-
-@jit
-def closed_loop_run(q, m, t_ns, limit_ns, control_ns, period_ns, sample_ns, sample_period_ns,
-                    h_max, method, weights, split_axes, moments, model, coefficient, axes, p2b,
-                    mode, target, law_axes, law_moments, kp, kd, kw, rate_limit, torque_limit,
-                    gyroscopic, inertia, clip, mission_start, free_time, exit_rate, tau_body,
-                    tau_p, t_out, q_out, m_out, tau_out, row, out):
-    """Advance (q, m) in place from ``t_ns`` through every event instant before
-    ``limit_ns``: the law at each control instant ``control_ns + k·period_ns`` (``NEVER``:
-    no law; ``tau_p`` is then the held principal-frame torque), and a sample at each
-    instant ``sample_ns + k·sample_period_ns``, written to rows ``row, row + 1, …`` of
-    ``t_out``, ``q_out``, ``m_out``, ``tau_out`` (body-frame torque) until they are full.
-    Every event at ``t_ns`` has been processed by the caller; the state ends at the last
+def closed_loop_run(state, ticks, reals, spec, body, law, block, out):
+    """Advance ``state`` = (q, m, tau_body, tau_p) in place from ``ticks[T_NS]`` through
+    every event instant before ``ticks[LIMIT_NS]``: the law at each control instant
+    ``ticks[CONTROL_NS] + k·ticks[PERIOD_NS]`` (``NEVER``: no law; ``tau_p`` is then the
+    held principal-frame torque), and a sample at each instant ``ticks[SAMPLE_NS] +
+    k·ticks[SAMPLE_PERIOD_NS]``, written to rows ``ticks[ROW], ticks[ROW] + 1, …`` of
+    ``block`` = (t_out, q_out, m_out, tau_out (body-frame torque)) until they are full.
+    Every event at ``T_NS`` has been processed by the caller; the state ends at the last
     event processed (a law instant and a sample at one instant: the law first, as the
-    engine's event loop does). ``moments``, ``axes``, ``p2b``: the simulated body;
-    ``law_*``, ``inertia``: the controller's model of it (its own ``inertia`` parameter),
-    as :class:`control.AttitudeController` uses.
+    engine's event loop does). ``spec`` = (weights, split_axes) of the method
+    (``ticks[METHOD]``: its ``loop_code``); ``body`` = (moments, axes, p2b): the simulated
+    body; ``law`` = (target, axes, moments, kp, kd, kw, inertia) and ``reals``' law
+    entries: the controller's model of it (its own ``inertia`` parameter), as
+    :class:`control.AttitudeController` uses.
 
     ``tau_body`` (in/out): the held body-frame torque (zeros = none). ``out`` (int64, 9):
     [next control instant, mode, free (1/0), steps, evaluations, failed step or -1, rows
     written, time reached (ns), next sample instant]; on a failure, ``out[0]`` is the start
     (ns) of the failing segment and the return value its step h. Returns the last step h."""
+    q, m, tau_body, tau_p = state
+    t_out, q_out, m_out, tau_out = block
+    weights, split_axes = spec
+    moments, axes, p2b = body
+    target, law_axes, law_moments, kp, kd, kw, inertia = law
+    limit_ns = ticks[LIMIT_NS]
+    control_ns = ticks[CONTROL_NS]
+    period_ns = ticks[PERIOD_NS]
+    sample_ns = ticks[SAMPLE_NS]
+    sample_period_ns = ticks[SAMPLE_PERIOD_NS]
+    method = ticks[METHOD]
+    model = ticks[MODEL]
+    mode = ticks[MODE]
+    gyroscopic = ticks[GYROSCOPIC] != 0
+    row = ticks[ROW]
+    h_max = reals[H_MAX]
+    coefficient = reals[COEFFICIENT]
+    rate_limit = reals[RATE_LIMIT]
+    torque_limit = reals[TORQUE_LIMIT]
+    clip = reals[CLIP]
+    mission_start = reals[MISSION_START]
+    free_time = reals[FREE_TIME]
+    exit_rate = reals[EXIT_RATE]
     tau_unsat = np.empty(3)
     scratch = np.empty((10, 4))  # the Runge–Kutta loops' stages, allocated once
     qb = np.empty(4)
@@ -89,11 +104,11 @@ def closed_loop_run(q, m, t_ns, limit_ns, control_ns, period_ns, sample_ns, samp
         for j in range(3):
             tau_p[j] = (tau_body[0] * axes[0, j] + tau_body[1] * axes[1, j]
                         + tau_body[2] * axes[2, j])
-    free = out[2]
+    free = ticks[FREE]
     steps = 0
     evals = 0
     h = 0.0
-    t = t_ns
+    t = ticks[T_NS]
     rows = 0
     capacity = len(t_out)
     while row + rows < capacity:
@@ -107,7 +122,8 @@ def closed_loop_run(q, m, t_ns, limit_ns, control_ns, period_ns, sample_ns, samp
         if method == 0:
             failed, e = splitting_kernel.splitting_run(
                 q, m, h, n, weights, split_axes, moments, tau_p, has_tau, model, coefficient,
-                _inner(m, h, weights, moments, model, coefficient))
+                splitting_kernel.inner_dissipation(m, h, weights, moments, model,
+                                                   coefficient))
             evals += e
         elif method == 1:
             failed = explicit_kernel.rk4_steps(q, m, h, n, moments, tau_p, model, coefficient,
@@ -199,36 +215,40 @@ closed_loop_run = depends_on(closed_loop_run, splitting_kernel, explicit_kernel,
                              dynamics_kernel, control_kernel)
 
 
-def advance(engine, until_ns: int, cap: int) -> int:
+def advance(engine, state: State, law, builder, until_ns: int, cap: int) -> Optional[Stretch]:
     """Every sample and control instant up to ``until_ns`` (before the run's end and any
-    other source's event) in one compiled kernel, the samples written straight into the
-    engine's block builder (at most up to ``cap`` rows); returns the rows written. It
-    applies when the method has a compiled loop and only the law (no held command) or
-    only a held command acts; otherwise it returns 0 and ``Engine.advance`` goes event
-    by event."""
-    c, law = engine.config, engine._law
-    code = None if engine._integ is None else engine._integ.loop_code  # the method's own
-    if engine._selection is not None or code is None:
-        return 0
-    b = engine._builder
+    other source's event) in one compiled kernel, from ``state``, the samples written
+    straight into ``builder`` (the engine's block, rows from ``builder.n`` up to ``cap``;
+    the engine counts them in); ``law``: the in-process ControlLaw or None. Returns the
+    :class:`Stretch` (new state, rows, steps, evaluations, error) for the engine to take,
+    or None where it does not apply: it needs a method with a compiled loop and only the
+    law (no held command) or only a held command acting; otherwise ``Engine.advance`` goes
+    event by event. ``engine`` is read, never written."""
+    c = engine.config
+    integ = engine.integrator
+    code = None if integ is None else integ.loop_code  # the method's own
+    if engine.selection_pending or code is None:
+        return None
     limit = min(engine.end_ns, engine.command.next_event(), until_ns + 1)
     if law is not None:
         if (engine.command.torque is not None or engine.command.expiry != NEVER
-                or not (engine._torque_seen or c.integrator != specs.AUTO)):
-            return 0
+                or not (state.torque_seen or c.integrator != specs.AUTO)):
+            return None
         control_ns = law.next_t
     else:
         control_ns = NEVER
     # the events at the current instant (t = 0's sample and law) are the event loop's
-    if min(control_ns, engine._next_sample) >= limit or b.n >= cap or \
-            min(control_ns, engine._next_sample) <= engine.t_ns:
-        return 0
-    spec = engine._integ.loop_spec()
+    first = min(control_ns, state.next_sample)
+    if first >= limit or builder.n >= cap or first <= state.t_ns:
+        return None
+    spec = integ.loop_spec()
     if spec is None:
-        return 0
+        return None
     d = engine.dynamics.dissipation
-    q, m = engine._q.copy(), engine._m.copy()
+    q, m = state.q.copy(), state.m.copy()
     out = np.zeros(9, dtype=np.int64)
+    ticks = np.zeros(N_TICKS, dtype=np.int64)
+    reals = np.zeros(N_REALS)
     if law is not None:
         settings, ctl, mission = law.settings, law.controller, law.mission
         cfg, model_body = ctl.config, ctl.config.body
@@ -236,51 +256,56 @@ def advance(engine, until_ns: int, cap: int) -> int:
             mission.start = law.next_t / NS
         tau = np.zeros(3) if law.torque is None else np.array(law.torque, float)
         tau_p = np.zeros(3)
-        out[2] = law.free
-        law_args = (MODE_CODES[ctl.mode], ctl.target, model_body.principal_axes,
-                    model_body.principal_moments, cfg.kp_principal, cfg.kd_principal,
-                    cfg.rate_gain_principal, cfg.rate_limit, cfg.torque_limit,
-                    cfg.gyroscopic_compensation, model_body.inertia, law.clip, mission.start,
-                    mission.free_time, mission.detumble_exit_rate)
+        ticks[FREE] = law.free
+        ticks[MODE], ticks[GYROSCOPIC] = MODE_CODES[ctl.mode], cfg.gyroscopic_compensation
+        reals[RATE_LIMIT], reals[TORQUE_LIMIT], reals[CLIP] = \
+            cfg.rate_limit, cfg.torque_limit, law.clip
+        reals[MISSION_START], reals[FREE_TIME], reals[EXIT_RATE] = \
+            mission.start, mission.free_time, mission.detumble_exit_rate
+        law_arrays = (ctl.target, model_body.principal_axes, model_body.principal_moments,
+                      cfg.kp_principal, cfg.kd_principal, cfg.rate_gain_principal,
+                      model_body.inertia)
         period = settings.period_ns
     else:  # the held command (or nothing): constant over the whole stretch
-        tau = np.zeros(3) if engine._tau_body is None else np.array(engine._tau_body, float)
-        tau_p = np.zeros(3) if engine._tau_p is None else np.array(engine._tau_p, float)
-        law_args, period = _NO_LAW, 1
+        tau = np.zeros(3) if state.tau_body is None else np.array(state.tau_body, float)
+        tau_p = np.zeros(3) if state.tau_p is None else np.array(state.tau_p, float)
+        law_arrays, period = _NO_LAW, 1
     if law is not None and control_ns < limit:
         # the stretch's last law instant goes through the event loop, so that law.last
         # holds the law's latest evaluation (saturation, error angle) as without the
         # kernel; one Python evaluation per call, not per instant
         limit = control_ns + (limit - 1 - control_ns) // period * period
-        if min(control_ns, engine._next_sample) >= limit:
-            return 0
+        if min(control_ns, state.next_sample) >= limit:
+            return None
+    ticks[T_NS], ticks[LIMIT_NS], ticks[CONTROL_NS], ticks[PERIOD_NS] = \
+        state.t_ns, limit, control_ns, period
+    ticks[SAMPLE_NS], ticks[SAMPLE_PERIOD_NS] = state.next_sample, c.sample_period_ns
+    ticks[METHOD], ticks[MODEL], ticks[ROW] = \
+        code, MODEL_CODES[d.model] if d.active else 0, builder.n
+    reals[H_MAX], reals[COEFFICIENT] = engine.step_max, d.coefficient
+    body = engine.body
     h = closed_loop_run(
-        q, m, engine.t_ns, limit, control_ns, period, engine._next_sample,
-        c.sample_period_ns, engine.step_max, code, spec[0], spec[1],
-        engine.dynamics.moments, MODEL_CODES[d.model] if d.active else 0, d.coefficient,
-        engine.body.principal_axes, engine.body.principal_to_body, *law_args, tau, tau_p,
-        b._t[:cap], b._q[:cap], b._m[:cap], b._tau[:cap], b.n, out)
+        (q, m, tau, tau_p), ticks, reals, (spec[0], spec[1]),
+        (engine.dynamics.moments, body.principal_axes, body.principal_to_body), law_arrays,
+        builder.columns(cap), out)
     next_control, mode, free, steps, evals, failed, rows, t_end, next_sample = \
         (int(v) for v in out)
-    engine.steps += steps
-    engine._integ.nfev += evals
-    b.n += rows
+    error = None
     if failed >= 0:
-        engine.fault = 'state became non-finite (the method diverged)'
-        raise IntegrationError(engine.method, h, (next_control + (failed + 1) * h * NS) / NS,
-                               engine.fault)
-    if failed == -2:
-        engine.fault = f'state became non-finite at t = {next_control / NS:.9g} s'
-        raise IntegrationError(engine.method, engine.step_max, next_control / NS,
-                               engine.fault)
-    engine._q, engine._m, engine.t_ns, engine._next_sample = q, m, t_end, next_sample
+        error = IntegrationError(engine.method, h, (next_control + (failed + 1) * h * NS) / NS,
+                                 'state became non-finite (the method diverged)')
+    elif failed == -2:
+        error = IntegrationError(engine.method, engine.step_max, next_control / NS,
+                                 f'state became non-finite at t = {next_control / NS:.9g} s')
+    if error is not None:
+        return Stretch(state, rows, steps, evals, error)
     if law is not None:
         law.next_t, law.free, law.last = next_control, bool(free), None
         if mode != MODE_CODES[ctl.mode]:
             ctl.set_mode(next(k for k, v in MODE_CODES.items() if v == mode))
         law.torque = tau if tau.any() else None
-        engine._update_torque()
-    return rows
+    return Stretch(replace(state, q=q, m=m, t_ns=t_end, next_sample=next_sample), rows, steps,
+                   evals)
 
 
 def _frozen(a):
@@ -288,8 +313,8 @@ def _frozen(a):
     return a
 
 
-# the law's arguments when no law runs (never read: its instant is NEVER), typed as the
+# the law's arrays when no law runs (never read: its instant is NEVER), typed as the
 # law's own (read-only model arrays), so that both share one compiled kernel
-_NO_LAW = (0, np.array([0.0, 0.0, 0.0, 1.0]), _frozen(np.eye(3)), _frozen(np.ones(3)),
-           _frozen(np.zeros(3)), _frozen(np.zeros(3)), _frozen(np.zeros(3)), 0.0, 0.0, False,
-           _frozen(np.eye(3)), 0.0, 0.0, 0.0, 0.0)
+_NO_LAW = (np.array([0.0, 0.0, 0.0, 1.0]), _frozen(np.eye(3)), _frozen(np.ones(3)),
+           _frozen(np.zeros(3)), _frozen(np.zeros(3)), _frozen(np.zeros(3)),
+           _frozen(np.eye(3)))

@@ -21,7 +21,7 @@ from typing import Iterator, Optional
 
 import numpy as np
 
-from ..physics import Dynamics, IntegrationError, create, rotation
+from ..physics import INTEGRATORS, Dynamics, IntegrationError, create, rotation
 from ..physics.exact import TorqueFreeSolution
 from ..physics.auto import select, selecting
 from . import closed_loop, health, sensing
@@ -29,11 +29,13 @@ from .actuators import Actuators
 from .config import NS, EngineConfig
 from .samples import BlockBuilder, SampleBlock
 from .sources import NEVER, CommandHold, ControlLaw
+from .state import State
 from .specs import AUTO
 
 __all__ = ['Engine', 'IntegrationError', 'NEVER']
 
-GYROSTAT = 'gyrostat_strang'  # the method of scenes with wheels or CMGs
+# the method of scenes with wheels or CMGs: the registered one that advances them
+ACTUATED = next(name for name, cls in INTEGRATORS.items() if cls.requires_actuators)
 
 
 class Engine:
@@ -194,13 +196,10 @@ class Engine:
         """Pick the method for the current state (``auto``) or take the configured one."""
         c = self.config
         self._selection = None
-        if self.actuators is not None:
-            self._retired_nfev += self._integ.nfev if self._integ else 0
-            self._integ = None
-            self.method, self._anchor = GYROSTAT, None
-            self.step_max = min(c.step, c.event_spacing())
-            self.reason = ('actuators (wheels/CMGs): gyrostat Strang splitting, |H| kept to '
-                           'round-off; at the scene\'s step')
+        if self.actuators is not None:  # wheels / CMGs: the method that carries them
+            self._use(ACTUATED, min(c.step, c.event_spacing()),
+                      f'actuators (wheels/CMGs): {ACTUATED}, |H| kept to round-off; at the '
+                      'scene\'s step', actuators=self.actuators)
             return
         if c.integrator != AUTO:
             self._use(c.integrator, c.event_spacing(),
@@ -357,14 +356,35 @@ class Engine:
             self._q, self._m = solution.at((t_end - t0) / NS)
             self.evaluations += 1
             return
-        if self.actuators is not None:
-            self.actuators.integrate(self, span)
-            return
         # equal steps no longer than step_max (to 1 ppb: a step given as span/n stays n steps)
         n = max(1, math.ceil(span / (self.step_max * NS) - 1e-9))
         h = span / (n * NS)
         self._q, self._m = self._integ.run(self._q, self._m, h, n, self._tau_p, self.t_ns / NS)
         self.steps += n
+
+    def _state(self) -> State:
+        """The state record handed to the engine's other modules (arrays not copied)."""
+        return State(self._q, self._m, self.t_ns, self._next_sample, self._tau_body,
+                     self._tau_p, self._torque_seen)
+
+    def _advance_compiled(self, until_ns: int, cap: int) -> int:
+        """``closed_loop.advance`` from the state; take back what it returns (state, counts,
+        rows in the block) and the law's new torque. Rows added; 0 where it does not apply.
+        IntegrationError (``fault`` set) if the method failed."""
+        done = closed_loop.advance(self, self._state(), self._law, self._builder, until_ns, cap)
+        if done is None:
+            return 0
+        self.steps += done.steps
+        self._integ.nfev += done.evaluations
+        self._builder.n += done.rows
+        if done.error is not None:
+            self.fault = done.error.reason
+            raise done.error
+        s = done.state
+        self._q, self._m, self.t_ns, self._next_sample = s.q, s.m, s.t_ns, s.next_sample
+        if self._law is not None:
+            self._update_torque()
+        return done.rows
 
     def _free_samples(self, limit: int, room: int) -> int:
         """Exact flow at many sample instants < ``limit`` at once (vectorised); count added."""
@@ -396,7 +416,7 @@ class Engine:
             # written into the block; with sensors the law sees their events and with
             # actuators the gyrostat steps: the event path (Python) runs those
             if self._compiled_samples and not self._free_exact() and \
-                    closed_loop.advance(self, until_ns, cap):
+                    self._advance_compiled(until_ns, cap):
                 continue
             t_src = min(s.next_event() for s in self.sources)
             end = self.end_ns
@@ -457,4 +477,4 @@ class Engine:
         """The physics' health (``engine.health.diagnostics``): method, step, invariants and
         their drift over the current torque-free stretch, quaternion norm error, dissipated
         energy, command counters."""
-        return health.diagnostics(self)
+        return health.diagnostics(self, self._state(), self._base)

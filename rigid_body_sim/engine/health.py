@@ -6,18 +6,19 @@ import numpy as np
 from .config import NS
 
 
-def diagnostics(engine) -> dict:
-    """The physics' health of ``engine`` (an Engine; this module is part of it and reads
-    its state): method, step, invariants and their drift over the current torque-free
-    stretch, quaternion norm error, dissipated energy, command counters. T in J, |L| in
-    kg·m²/s, drifts relative; L's drift is of the inertial vector."""
+def diagnostics(engine, state, baseline) -> dict:
+    """The physics' health of ``engine`` (an Engine, read through its public face) in
+    ``state`` (its State record): method, step, invariants and their drift over the
+    current torque-free stretch since ``baseline`` = (T0, L0 inertial, t0 ns), quaternion
+    norm error, dissipated energy, command counters. T in J, |L| in kg·m²/s, drifts
+    relative; L's drift is of the inertial vector."""
     T, L = engine.kinetic_energy, engine.angular_momentum
-    T0, L0, t0 = engine._base
+    T0, L0, t0 = baseline
     n0, n = float(np.linalg.norm(L0)), float(np.linalg.norm(L))
-    applied = torque_on = engine._tau_body is not None
+    applied = torque_on = state.tau_body is not None
     na = 'n/a (torque applied)'
     if engine.actuators is not None:  # allocated torque is internal: H is still kept
-        torque_on = engine._tau_p is not None
+        torque_on = state.tau_p is not None
 
     def rel(a, b):
         return (a - b) / b if b > 0 else 0.0
@@ -33,7 +34,7 @@ def diagnostics(engine) -> dict:
         'angular_momentum_norm_drift': na if torque_on else rel(n, n0),
         'angular_momentum_inertial_drift': na if torque_on else
         (float(np.linalg.norm(L - L0)) / n0 if n0 > 0 else 0.0),
-        'quaternion_norm_error': abs(float(np.linalg.norm(engine._q)) - 1.0),
+        'quaternion_norm_error': abs(float(np.linalg.norm(state.q)) - 1.0),
         'energy_dissipated': max(0.0, T0 - T)
         if engine.dynamics.dissipation.active and not torque_on else 0.0,
         'torque_applied': applied,
@@ -41,5 +42,5 @@ def diagnostics(engine) -> dict:
         'commands_timed_out': c.timed_out,
         'selection_pending': engine.selection_pending,
         **({} if engine.actuators is None else
-           engine.actuators.diagnostics(engine._m, engine.dynamics.moments)),
+           engine.actuators.diagnostics(state.m, engine.dynamics.moments)),
     }

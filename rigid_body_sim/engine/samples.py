@@ -187,6 +187,11 @@ class BlockBuilder:
         self._t[s], self._q[s], self._m[s], self._tau[s] = t_ns, q, m, 0.0
         self.n += k
 
+    def columns(self, cap: int):
+        """(t ns, q, m, τ body) of rows [0, cap), views that a compiled loop fills from row
+        ``n`` on (the caller then counts the rows it wrote into ``n``)."""
+        return self._t[:cap], self._q[:cap], self._m[:cap], self._tau[:cap]
+
     def block(self) -> SampleBlock:
         n = self.n
         out = SampleBlock(self._t[:n].copy(), self._q[:n].copy(), self._m[:n].copy(),

@@ -6,7 +6,8 @@ here; the node declares it from this line and the engine reads it from the typed
 from typing import Optional
 
 from .. import control
-from ..physics import DISSIPATION_MODELS, INTEGRATORS
+from ..physics import DISSIPATION_MODELS
+from ..physics.integrators import BODY_ONLY
 from .actuator_specs import ACTUATORS
 from ..sensors import specs as sensor_specs
 from ..param_spec import ParamSpec
@@ -32,8 +33,9 @@ SIMULATOR = (
               kind='float', low=0.0, note='applies at once, state continuous'),
     ParamSpec('integrator', AUTO,
               'integration method, or auto (chosen from the scene and accuracy)',
-              kind='string', choices=(AUTO,) + tuple(INTEGRATORS),
-              note='may change while running'),
+              kind='string', choices=(AUTO,) + BODY_ONLY,
+              note='may change while running; with wheels or CMGs the method that '
+              'carries them (gyrostat_strang), always'),
     ParamSpec('step', 0.001, 'physics step of a fixed integrator (each interval between events '
               'is split into equal steps no longer than this); auto picks its own, up to '
               'the sample and control period',

@@ -10,14 +10,18 @@ from .explicit import Euler, RK4
 from .exact_flow import Exact
 from .implicit import ImplicitMidpoint
 from .dop853 import DOP853
+from .gyrostat import GyrostatStrang
 from .lstable import Splitting2LStable
 from .splitting import Splitting2, Splitting4, Splitting6
 
 # auto asks its candidates in this order where their costs tie
 _METHODS = (Splitting2, Splitting4, Splitting6, RK4, ImplicitMidpoint, Splitting2LStable, Exact,
-            DOP853, Euler)
+            DOP853, Euler, GyrostatStrang)
 
 INTEGRATORS = {cls.name: cls for cls in _METHODS}
+
+# the methods a scene without actuators can run (the others carry wheels/CMGs)
+BODY_ONLY = tuple(name for name, cls in INTEGRATORS.items() if not cls.requires_actuators)
 
 
 def get_integrator(name: str):
@@ -34,5 +38,5 @@ def create(name: str, dynamics, **options) -> Integrator:
     return get_integrator(name)(dynamics, **options)
 
 
-__all__ = ['INTEGRATORS', 'Candidate', 'Integrator', 'IntegrationError', 'KINDS', 'PRESERVES',
-           'create', 'get_integrator']
+__all__ = ['BODY_ONLY', 'INTEGRATORS', 'Candidate', 'Integrator', 'IntegrationError', 'KINDS',
+           'PRESERVES', 'create', 'get_integrator']

@@ -112,6 +112,9 @@ class Integrator:
             (``engine/closed_loop.py``), None if it runs event by event there.
         auto: its :class:`Candidate` facts for ``integrator: auto`` (cost per step, error
             constant, …), None if auto never picks it.
+        requires_actuators: it advances a body's wheels/CMGs with it (``gyrostat.py``), so
+            it runs only in a scene with actuators, given as the ``actuators`` option;
+            sites iterating the registry skip it elsewhere.
         kernel_modules: modules of its compiled loops, each with ``warm()``
             (``rigid_body_sim.compiled.warm`` warms the registry's).
         nfev: right-hand-side evaluations (or equivalent sub-flows) so far.
@@ -127,6 +130,7 @@ class Integrator:
     amplification: ClassVar[Optional[Callable]] = None
     loop_code: ClassVar[Optional[int]] = None
     auto: ClassVar[Optional[Candidate]] = None
+    requires_actuators: ClassVar[bool] = False
     kernel_modules: ClassVar[tuple] = ()
 
     def __init__(self, dynamics: Dynamics, **options):

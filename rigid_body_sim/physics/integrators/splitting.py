@@ -39,7 +39,7 @@ from .base import Candidate, IntegrationError, Integrator, same_order
 # as ranks of the principal moments (0 = smallest, 1 = intermediate, 2 = largest).
 _ORDER = (0, 2, 1)
 _BLOCK = 4096  # bodies per block in batch mode (fits temporaries in L2 cache)
-INNER_LIMIT = 0.5  # |w|·h·λ up to which damping goes inside the compositions (weak damping)
+INNER_LIMIT = splitting_kernel.INNER_LIMIT  # the rule is splitting_kernel.weak_damping
 
 
 def _axis_flow(q, m, axis, t, moments, xp):
@@ -147,7 +147,8 @@ class Splitting2(Integrator):
         """Whether damping goes inside every stage of the composition (symmetric flow): for
         compositions (order 4, 6) when damping is weak at step h, |w|·h·λ ≤ INNER_LIMIT with
         λ the dissipation stiffness; the composition then keeps its order. Otherwise it
-        stays outside (no stage runs damping backwards) and the coupling is order 2."""
+        stays outside (no stage runs damping backwards) and the coupling is order 2.
+        The rule is ``splitting_kernel.weak_damping``, which the closed loop uses too."""
         if self._model == 0 or len(self.weights) == 1:
             return False
         if np.ndim(m) == 1:  # one body, asked per step size by auto: plain floats
@@ -155,14 +156,25 @@ class Splitting2(Integrator):
             return bool(self._weak_damping(math.sqrt(x * x + y * y + z * z), h))
         return bool(self._weak_damping(float(np.max(np.linalg.norm(m, axis=-1))), h))
 
-    def _weak_damping(self, norms, h):
-        """|w|·h·λ(|m|) ≤ INNER_LIMIT for a momentum norm or an array of them."""
-        return self._weak(self.dynamics, norms, h)
+    def _weak_damping(self, norm, h):
+        """|w|·h·λ(|m|) ≤ INNER_LIMIT for one momentum norm."""
+        return self._weak(self.dynamics, norm, h)
+
+    def _weak_bodies(self, norms, h):
+        """The same for each of a batch's momentum norms (an array of bools)."""
+        out = np.empty(len(norms), dtype=bool)
+        splitting_kernel.weak_damping_bodies(np.ascontiguousarray(norms, dtype=float), float(h),
+                                             float(max(map(abs, self.weights))),
+                                             self._kernel_args[2], self._model,
+                                             float(self._coefficient), out)
+        return out
 
     @classmethod
-    def _weak(cls, dynamics, norms, h):
-        stiffness = dynamics.dissipation_stiffness(norms)
-        return stiffness * h * max(map(abs, cls.weights)) <= INNER_LIMIT
+    def _weak(cls, dynamics, norm, h):
+        d = dynamics.dissipation
+        return splitting_kernel.weak_damping(
+            float(norm), float(h), float(max(map(abs, cls.weights))), dynamics.moments,
+            dynamics_kernel.MODEL_CODES[d.model], float(d.coefficient))
 
     @classmethod
     def order_on(cls, dynamics, momentum_norm, h) -> int:
@@ -207,7 +219,7 @@ class Splitting2(Integrator):
         else:
             tau = np.array(np.broadcast_to(torque, shape + (3,)).reshape(-1, 3), float, order='C')
         if self._model != 0 and len(self.weights) > 1:  # each body's own inner/outer choice
-            inner = np.asarray(self._weak_damping(np.linalg.norm(m, axis=-1), h)).reshape(-1)
+            inner = self._weak_bodies(np.linalg.norm(m, axis=-1), h)
         else:
             inner = np.zeros(1, dtype=bool)
         weights, axes, moments = self._kernel_args

@@ -2,11 +2,50 @@
 (``splitting_run``) and a range of a batch's bodies (``splitting_bodies``), in the
 conventions of ``dynamics_kernel``.
 """
+import math
+
 import numpy as np
 
 from .. import dynamics_kernel
 from ..dynamics_kernel import _axis_flow, _dissipate, _finite
 from ..jit import COMPILED, depends_on, jit
+
+INNER_LIMIT = 0.5  # |w|·h·λ up to which damping goes inside the compositions (weak damping)
+
+
+@jit
+def weak_damping(norm, h, w_max, moments, model, coefficient):
+    """|w|·h·λ(|m|) ≤ INNER_LIMIT, λ the dissipation's stiffness at |m| = ``norm``
+    (``Dynamics.dissipation_stiffness`` in the same operations; ``model`` ≠ 0): whether a
+    composition with largest |weight| ``w_max`` runs the damping inside its stages at step
+    h. The one rule of ``Splitting2`` and of the engine's compiled closed loop."""
+    i_min = min(moments[0], min(moments[1], moments[2]))
+    i_max = max(moments[0], max(moments[1], moments[2]))
+    if model == 1:  # double bracket: α|L|²(1/I_min − 1/I_max)
+        stiffness = coefficient * norm ** 2 * (1.0 / i_min - 1.0 / i_max)
+    else:           # viscous: c/I_min
+        stiffness = coefficient * (1.0 / i_min)
+    return stiffness * h * w_max <= INNER_LIMIT
+
+
+@jit
+def weak_damping_bodies(norms, h, w_max, moments, model, coefficient, out):
+    """:func:`weak_damping` for each of a batch's momentum norms, into ``out`` (bool)."""
+    for i in range(len(norms)):
+        out[i] = weak_damping(norms[i], h, w_max, moments, model, coefficient)
+
+
+@jit
+def inner_dissipation(m, h, weights, moments, model, coefficient):
+    """Whether one body's damping goes inside the composition ``weights`` at step h
+    (``Splitting2.inner_dissipation``): never without damping or for Strang itself."""
+    if model == 0 or len(weights) == 1:
+        return False
+    w_max = 0.0
+    for w in weights:
+        w_max = max(w_max, abs(w))
+    norm = math.sqrt(m[0] * m[0] + m[1] * m[1] + m[2] * m[2])
+    return weak_damping(norm, h, w_max, moments, model, coefficient)
 
 
 @jit
