@@ -17,7 +17,7 @@ SEP = '=' * 80
 def _serialize(topic, i, t):
     from rclpy.serialization import serialize_message
 
-    from rigid_body_sim.bench.recorder_load import make_message
+    from rigid_body_sim.tools.recorder_load import make_message
     return serialize_message(make_message(topic, i, t))
 
 

@@ -138,3 +138,26 @@ def test_generalisation_section_has_a_row_per_generated_scene(quick_run):
     assert all(r['reason'] for r in rows if r['status'] in ('auto failed', 'no reference'))
     names = [r['target'] for r in _read(quick_run / 'targets.csv')]
     assert sum(n.startswith('generated: auto') for n in names) == 3, names
+
+
+def test_the_suite_is_a_list_of_sections_each_writing_its_file():
+    """``_run`` drives ``sections.SECTIONS``; the targets table lists each section's rows."""
+    names = [s.name for s in bench.sections.SECTIONS]
+    assert len(set(names)) == len(names) and len(names) >= 10
+    assert len(set(bench.sections.TARGET_ORDER)) == len(bench.sections.TARGET_ORDER)
+    assert set(bench.sections.TARGET_ORDER) <= set(names)
+    # a section whose targets are left out of TARGET_ORDER would drop rows silently
+    with_targets = {s.name for s in bench.sections.SECTIONS
+                    if s.targets is not bench.sections.Section.targets}
+    assert with_targets <= set(bench.sections.TARGET_ORDER)
+
+
+def test_targets_keep_their_order_across_sections(quick_run):
+    """The table's order (docs/bench/targets.md is read in it): work precision first, the
+    live simulator after the sampling rows, the kernels' warm start last."""
+    names = [r['target'] for r in _read(quick_run / 'targets.csv')]
+    assert names[0].startswith('cpu ratio'), names
+    assert names[-1] == 'kernels ready from the cache (warm start, s)', names
+    first_live = names.index('live simulator real_time_factor')
+    assert names.index('batch body-steps/s at N = 1e6 (one core)') < first_live
+    assert first_live < names.index('recorder messages/s with zero loss')

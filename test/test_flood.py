@@ -29,7 +29,7 @@ def test_flood_of_commands_and_garbage(ros_process, namespace, rclpy_node):
     rclpy_node.create_subscription(QuaternionStamped, f'{namespace}/attitude', att.append, 100)
     assert spin_until(rclpy_node, lambda: len(att) > 20 and diags, 60.0), sim.output()[-2000:]
     rss0 = _rss_kb(sim.pid)
-    flood = ros_process(sys.executable, '-m', 'rigid_body_sim.bench.flood', namespace,
+    flood = ros_process(sys.executable, '-m', 'rigid_body_sim.tools.flood', namespace,
                         '--rate', '10000', '--duration', '8')
     n_diag, n_att = len(diags), len(att)
     assert spin_until(rclpy_node, lambda: flood.poll() is not None, 120.0)

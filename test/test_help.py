@@ -205,3 +205,41 @@ def test_every_module_the_readme_runs_answers_help_and_writes_nothing(tmp_path, 
     assert res.returncode == 0, res.stderr[-2000:]
     assert res.stdout.startswith('usage:'), res.stdout[:500]
     assert os.listdir(tmp_path) == []
+
+
+def _tool_names():
+    import pkgutil
+
+    import rigid_body_sim.tools
+    return sorted(m.name for m in pkgutil.iter_modules(rigid_body_sim.tools.__path__))
+
+
+@pytest.mark.parametrize('name', _tool_names())
+def test_every_tool_has_a_one_line_docstring_and_help_that_writes_nothing(tmp_path, name):
+    import importlib
+    module = f'rigid_body_sim.tools.{name}'
+    doc = importlib.import_module(module).__doc__
+    summary, rest = (doc.split('\n', 1) + [''])[:2]
+    assert summary.endswith('.') and rest.startswith('\n'), f'{module}: {summary!r}'
+    res = run([sys.executable, '-m', module, '--help'], tmp_path, timeout=300)
+    assert res.returncode == 0, res.stderr[-2000:]
+    assert res.stdout.startswith(f'usage: python -m {module} '), res.stdout[:500]
+    assert ' '.join(summary.split()) in ' '.join(res.stdout.split())
+    assert os.listdir(tmp_path) == []
+
+
+def test_bench_holds_the_suite_and_the_tools_are_apart():
+    """A module of ``rigid_body_sim.bench`` that runs alone is one the suite imports (a section
+    with its own entry point); standalone tools live in ``rigid_body_sim.tools``."""
+    import glob
+    bench_dir = os.path.join(REPO, 'rigid_body_sim', 'bench')
+    code = ('import sys, rigid_body_sim.bench; '
+            'print(" ".join(m for m in sys.modules if m.startswith("rigid_body_sim.")))')
+    loaded = set(run([sys.executable, '-c', code], REPO).stdout.split())
+    assert 'rigid_body_sim.bench.sections' in loaded
+    assert not any(m.startswith('rigid_body_sim.tools') for m in loaded)  # suite runs them apart
+    for path in glob.glob(os.path.join(bench_dir, '*.py')):
+        with open(path, encoding='utf-8') as f:
+            if "__name__ == '__main__'" in f.read():
+                name = os.path.basename(path)[:-3]
+                assert f'rigid_body_sim.bench.{name}' in loaded, f'{name} belongs in tools/'

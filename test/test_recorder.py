@@ -27,7 +27,7 @@ def start_recorder(ros_process, namespace, output, *params):
 
 def start_publisher(ros_process, namespace, rate, duration, subscribers=1, topics=TOPICS,
                     linger=1.0, depth=10):
-    return ros_process(sys.executable, '-m', 'rigid_body_sim.bench.recorder_load', 'publish',
+    return ros_process(sys.executable, '-m', 'rigid_body_sim.tools.recorder_load', 'publish',
                        '--namespace', namespace, '--rate', str(rate), '--duration',
                        str(duration), '--subscribers', str(subscribers),
                        '--topics', ','.join(topics), '--linger', str(linger),
@@ -215,7 +215,7 @@ def test_split_and_metadata(ros_process, namespace, tmp_path):
 
 
 def test_load_3_topics_1khz_no_loss(ros_process, namespace, tmp_path):
-    """Short version of `python -m rigid_body_sim.bench.recorder_load` (60 s): 3 x 1 kHz x 5 s.
+    """Short version of `python -m rigid_body_sim.tools.recorder_load` (60 s): 3 x 1 kHz x 5 s.
 
     The publisher keeps 1000 samples so reliable QoS can repair a scheduling stall of the
     recorder process (shared CI machine); with depth 10 a stall > 10 ms loses a burst

@@ -18,7 +18,7 @@ def bag(tmp_path, namespace):
     """An offline-written bag (the recorder's format) with two topics in ``namespace``."""
     from rclpy.serialization import serialize_message
 
-    from rigid_body_sim.bench.recorder_load import make_message
+    from rigid_body_sim.tools.recorder_load import make_message
     path = tmp_path / 'bag'
     w = BagWriter(str(path))
     w.add_topic(f'{namespace}/attitude', 'geometry_msgs/msg/QuaternionStamped')

@@ -169,9 +169,9 @@ def test_the_whole_selection_is_planned_within_a_tenth_of_the_run(duration):
 
 
 def test_candidate_cost_bench_measures_every_compiled_candidate():
-    """``bench.candidate_costs`` times every candidate but ``exact`` (Python per step), free
+    """``tools.candidate_costs`` times every candidate but ``exact`` (Python per step), free
     and damped, beside the table's cost; its ratios are the bench's to judge, not a test's."""
-    from rigid_body_sim.bench import candidate_costs
+    from rigid_body_sim.tools import candidate_costs
     rows = candidate_costs.run(steps=1000, log=lambda *_: None)
     assert {r['method'] for r in rows} == {c.name for c in CANDIDATES} - {'exact'}
     assert len(rows) == 2 * (len(CANDIDATES) - 1)

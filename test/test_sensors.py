@@ -200,10 +200,10 @@ def test_gyro_at_its_own_rate_reads_the_closed_form_truth():
 
 
 def test_prediction_command_prints_the_prediction_and_refuses_what_it_does_not_model(capsys):
-    """`python -m rigid_body_sim.bench.pointing SCENE` prints the per-axis RMS the test
+    """`python -m rigid_body_sim.tools.pointing SCENE` prints the per-axis RMS the test
     above checks; a gyro slower than the control rate is outside the model: exit 2 with
     the reason."""
-    from rigid_body_sim.bench import pointing
+    from rigid_body_sim.tools import pointing
     assert pointing.main([POINTING]) == 0
     rms = np.sqrt(pointing_variance(load().simulator, load().controller))
     assert ', '.join(f'{v:.3e}' for v in rms) in capsys.readouterr().out

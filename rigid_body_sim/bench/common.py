@@ -1,4 +1,5 @@
 """Timing, error metrics and references shared by the benchmark sections."""
+import csv
 import json
 import math
 import os
@@ -134,3 +135,12 @@ def reference(scene):
 
 __all__ = ['cpu', 'metrics', 'propagate', 'engine_for', 'timed', 'timed_engine', 'reference',
            'invariants', 'IntegrationError', 'EPS']
+
+
+def write_csv(path, fields, rows):
+    """Rows (dicts) as CSV with ``fields`` as columns; floats to 6 significant digits."""
+    with open(path, 'w', newline='') as f:
+        w = csv.DictWriter(f, fieldnames=fields, extrasaction='ignore')
+        w.writeheader()
+        for r in rows:
+            w.writerow({k: (f'{v:.6g}' if isinstance(v, float) else v) for k, v in r.items()})

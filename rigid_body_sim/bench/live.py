@@ -1,16 +1,19 @@
 """Live figures, measured by scripts other modules own (run as subprocesses).
 
-* simulator: ``rigid_body_sim.bench.live_simulator`` (real-time factor as fast as possible
+* simulator: ``rigid_body_sim.tools.live_simulator`` (real-time factor as fast as possible
   at 1 kHz physics / 100 Hz publishing, CPU share at real time);
-* recorder: ``rigid_body_sim.bench.recorder_load`` (messages/s through a real recorder, loss);
-* viewer: ``rigid_body_sim.bench.viewer`` (the Foxglove viewer's CPU beside a 50 Hz simulator).
+* recorder: ``rigid_body_sim.tools.recorder_load`` (messages/s through a real recorder, loss);
+* viewer: ``rigid_body_sim.tools.viewer`` (the Foxglove viewer's CPU beside a 50 Hz simulator).
 Absent modules or failures are reported as 'not measured (<reason>)', never as errors.
 """
 import importlib.util
 import json
+import math
 import re
 import subprocess
 import sys
+
+from . import targets
 
 RECORDER_RATE_HZ = 3400  # per topic; 3 topics → 10,200 messages/s offered
 
@@ -45,7 +48,7 @@ def _last_json(out, key=None) -> dict:
 
 
 def simulator(quick, log=print):
-    mod = 'rigid_body_sim.bench.live_simulator'
+    mod = 'rigid_body_sim.tools.live_simulator'
     skipped = _not_measured(mod, quick)
     if skipped:
         return skipped
@@ -75,9 +78,9 @@ def simulator(quick, log=print):
 
 
 def viewer(quick, log=print):
-    """The Foxglove viewer beside a real-time simulator at 50 Hz (``bench.viewer``): its CPU
+    """The Foxglove viewer beside a real-time simulator at 50 Hz (``tools.viewer``): its CPU
     share of a core with one client on every channel, the simulator's RTF with and without."""
-    mod = 'rigid_body_sim.bench.viewer'
+    mod = 'rigid_body_sim.tools.viewer'
     skipped = _not_measured(mod, quick)
     if skipped:
         return skipped
@@ -95,7 +98,7 @@ def viewer(quick, log=print):
 
 
 def recorder(quick, log=print):
-    mod = 'rigid_body_sim.bench.recorder_load'
+    mod = 'rigid_body_sim.tools.recorder_load'
     skipped = _not_measured(mod, quick)
     if skipped:
         return skipped
@@ -115,3 +118,46 @@ def recorder(quick, log=print):
             'published': int(m_pub.group(1)), 'published_msgs_per_s': int(m_pub.group(3)),
             'recorded': int(m_rec.group(1)), 'recorded_msgs_per_s': int(m_rec.group(2)),
             'lost': int(m_rec.group(3))}
+
+
+def targets_from(live_res):
+    """The targets rows for the three live measurements (not measured: verdict None)."""
+    rows = []
+    sim = live_res['simulator']
+    for key, req, better in (('real_time_factor', 100.0, 'ge'),
+                             ('cpu_share_at_real_time', 0.05, 'le'),
+                             ('first_message_s', 2.0, 'le')):
+        val = sim.get(key)
+        if isinstance(val, (int, float)):
+            ok = val >= req if better == 'ge' else val <= req
+            rows.append(targets.simple(f'live simulator {key}', float(val), req, ok))
+        else:
+            rows.append(targets.simple(f'live simulator {key}', math.nan, req, None,
+                                       sim['status']))
+    rss = sim.get('rss_mb')
+    rows.append(targets.simple('live simulator memory (RSS of a warm node, MB)',
+                               float(rss) if isinstance(rss, (int, float)) else math.nan,
+                               math.nan, None, 'reported, no target'))
+    rec = live_res['recorder']
+    if rec['status'] == 'ok':
+        ok = rec['recorded_msgs_per_s'] >= 10_000 and rec['lost'] == 0
+        rows.append(targets.simple(
+            'recorder messages/s with zero loss', float(rec['recorded_msgs_per_s']), 1e4, ok,
+            f'lost {rec["lost"]}; publisher achieved {rec["published_msgs_per_s"]} msg/s '
+            f'of {rec["offered_msgs_per_s"]} offered'))
+    else:
+        rows.append(targets.simple('recorder messages/s with zero loss', math.nan, 1e4, None,
+                                   rec['status']))
+    view = live_res['viewer']
+    if view['status'] == 'ok':
+        rows.append(targets.simple(
+            'live viewer CPU share of a core at 50 Hz', view['viewer_cpu_share'], 0.05,
+            view['viewer_cpu_share'] <= 0.05, view['viewer_phase']))
+        ratio = view['simulator_rtf_with_viewer'] / view['simulator_rtf_alone']
+        rows.append(targets.simple(
+            'live simulator RTF with the viewer / alone', ratio, 0.99, ratio >= 0.99,
+            f'{view["simulator_rtf_with_viewer"]:.4f} / {view["simulator_rtf_alone"]:.4f}'))
+    else:
+        rows.append(targets.simple('live viewer CPU share of a core at 50 Hz', math.nan,
+                                   0.05, None, view['status']))
+    return rows

@@ -137,3 +137,26 @@ def sweep_peers(scene, peers, ref, budget, quick, log=print):
             if stale >= 2 and e < 1e-6:
                 break
     return rows
+
+
+def print_best(rows, scenes, log):
+    """Per scene and method: the best attitude error reached and what it cost."""
+    log('\nbest attitude error reached per method (CPU s for it; nfev):')
+    for scene in scenes:
+        log(f'  {scene.name}')
+        for method in dict.fromkeys(r['method'] for r in rows if r['scene'] == scene.name):
+            rs = [r for r in rows
+                  if r['scene'] == scene.name and r['method'] == method and r['status'] == 'ok']
+            fails = [r for r in rows
+                     if r['scene'] == scene.name and r['method'] == method and r['status'] != 'ok']
+            if not rs:
+                log(f'    {method:20s} no successful run ({fails[0]["status"] if fails else "-"})')
+                continue
+            b = min(rs, key=lambda r: (r['attitude_error'], r['cpu_s']))
+            cheapest = min(rs, key=lambda r: r['cpu_s'])
+            log(f'    {method:20s} best {b["attitude_error"]:9.2e} rad in {b["cpu_s"]:8.3g} s '
+                f'({b["kind"]}={b["param"]:.3g}, nfev {b["nfev"]}); '
+                f'cheapest {cheapest["cpu_s"]:.3g} s -> '
+                f'{cheapest["attitude_error"]:.2e} rad; |L| drift {b["momentum_drift"]:.1e}, '
+                f'T {b["energy_drift"]:.1e}'
+                + (f'; {len(fails)} failed run(s)' if fails else ''))

@@ -77,7 +77,7 @@ def prefer_asynchronous_publication():
     measured here, one raw publish to a subscriber in another process cost 7.1 µs
     synchronous and 3.2 µs asynchronous, and the simulator with every state topic
     subscribed went from 4.7 % to 3.0 % of a core at real time and from 64× to 145× as
-    fast as possible (``python -m rigid_body_sim.bench.live_simulator --subscribe``).
+    fast as possible (``python -m rigid_body_sim.tools.live_simulator --subscribe``).
     Delivery guarantees are the QoS's either way (reliable history, acknowledgements)."""
     os.environ.setdefault('RMW_FASTRTPS_PUBLICATION_MODE', 'ASYNCHRONOUS')
 

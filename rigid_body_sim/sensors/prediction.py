@@ -17,7 +17,7 @@ averaged over whole star-tracker periods once the loop has settled. A turn-on bi
 outages only move the mean, which decays. Rate random walk is left out (the bias is not
 stationary then; the error still is, but this model does not carry it).
 
-``python -m rigid_body_sim.bench.pointing SCENE`` prints it for a scene.
+``python -m rigid_body_sim.tools.pointing SCENE`` prints it for a scene.
 """
 import math
 

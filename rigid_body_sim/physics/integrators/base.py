@@ -30,7 +30,7 @@ class Candidate:
     cost: CPU µs per step (compiled loops; only ratios matter), free and with weak
         dissipation (inside the compositions); stiff double-bracket damping outside a
         composition adds DAMP_SUBSTEP per substep. Measured on a 2-core AMD EPYC by
-        ``python -m rigid_body_sim.bench.candidate_costs``, which flags a ratio gone stale
+        ``python -m rigid_body_sim.tools.candidate_costs``, which flags a ratio gone stale
         (the earlier table, from slower loops, had RK4 at 6× and the damped compositions at
         2.5× their cost, and steered auto off them).
     k: a-priori error constant, the largest of E/((hΩ)^p·ΩT) over 80 random bodies and

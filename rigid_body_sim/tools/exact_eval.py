@@ -1,8 +1,9 @@
-"""Cost of evaluating the torque-free solution, compiled kernel against the numpy path,
-measured side by side in one run (ratios, not absolute times, are what carry between
-machines)::
+"""Cost of evaluating the torque-free solution: compiled kernel against the numpy path.
 
-    python -m rigid_body_sim.bench.exact_eval [--quick]
+Both are measured side by side in one run (ratios, not absolute times, are what carry
+between machines)::
+
+    python -m rigid_body_sim.tools.exact_eval [--quick]
 
 Per regime (elliptic A, separatrix, symmetric, steady spin): µs for one body at one time
 (``at(t)``, what the engine's events call) and per time for 1e5 times (``at(ts)``, the
@@ -57,9 +58,7 @@ def run(quick=False, log=print):
 
 
 if __name__ == '__main__':
-    import argparse
-    parser = argparse.ArgumentParser(prog='python -m rigid_body_sim.bench.exact_eval',
-                                     description='Time the exact solution: one body at one '
-                                     'time and at many, compiled against numpy.')
+    from . import argument_parser
+    parser = argument_parser(__spec__, __doc__)
     parser.add_argument('--quick', action='store_true', help='fewer repetitions')
     run(quick=parser.parse_args().quick)

@@ -1,6 +1,6 @@
 """Two hosts on one machine: the closed loop across a network link, and its isolation.
 
-``sudo python -m rigid_body_sim.bench.two_hosts [--seconds 15] [--out docs/bench]``
+``sudo python -m rigid_body_sim.tools.two_hosts [--seconds 15] [--out docs/bench]``
 
 Needs root (it creates network namespaces) and iproute2, and says so otherwise. Two
 network namespaces stand for two machines, joined by a veth pair (10.77.0.1 ↔ 10.77.0.2,
@@ -16,7 +16,7 @@ DDS would otherwise use between processes of one machine, is not available betwe
 
 Prints a table and one JSON line; ``--out DIR`` also writes DIR/two_hosts.json.
 """
-import argparse
+from . import argument_parser
 import math
 import os
 import random
@@ -29,7 +29,7 @@ import time
 
 import numpy as np
 
-from .common import report
+from ..bench.common import report
 
 SCENE = 'slew'
 SUBNET = '10.77.0'
@@ -152,7 +152,7 @@ def closed_loop(hosts: Hosts, discovery_range: str, seconds: float, workdir: str
 
 
 def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = argument_parser(__spec__, __doc__)
     parser.add_argument('--seconds', type=float, default=15.0,
                         help='simulated seconds of the slew (real time; default 15)')
     parser.add_argument('--out', help='directory for two_hosts.json (e.g. docs/bench)')
@@ -178,7 +178,7 @@ def main(argv=None) -> int:
               f"after the first, {r['not_yet_discovered_at_start']} before discovery), "
               f"{r['torque_commands_recorded_on_b']} torque commands, final pointing error "
               f"{'n/a' if err is None else f'{err:.4f}°'}, exit codes {r['exit_codes']}")
-    report({'command': 'sudo python -m rigid_body_sim.bench.two_hosts --seconds '
+    report({'command': 'sudo python -m rigid_body_sim.tools.two_hosts --seconds '
             f'{args.seconds:g}', 'results': results}, args.out, 'two_hosts.json')
     return 0
 

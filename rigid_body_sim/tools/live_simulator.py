@@ -1,6 +1,6 @@
 """Benchmark of the ``attitude_simulator`` node (real process, real DDS).
 
-``python -m rigid_body_sim.bench.live_simulator [--integrator auto] [--subscribe] [--seconds 6]``
+``python -m rigid_body_sim.tools.live_simulator [--integrator auto] [--subscribe] [--seconds 6]``
 
 Prints, for 1 kHz physics (step 1 ms) and 100 Hz publishing:
 * µs per physics step of ``Propagator.step`` in-process (no ROS), torque-free and torqued;
@@ -10,7 +10,7 @@ Prints, for 1 kHz physics (step 1 ms) and 100 Hz publishing:
 skipped by the node, as in a deployment where nobody listens to them).
 ``run(...)`` returns the figures as a dict for the bench command.
 """
-import argparse
+from . import argument_parser
 import os
 import random
 import subprocess
@@ -149,7 +149,7 @@ def run(integrator='auto', subscribe=False, seconds=6.0) -> dict:
 
 
 def main(argv=None):
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = argument_parser(__spec__, __doc__)
     parser.add_argument('--integrator', default='auto')
     parser.add_argument('--subscribe', action='store_true', help='subscribe to every state topic')
     parser.add_argument('--seconds', type=float, default=6.0)

@@ -1,13 +1,13 @@
 """Cost per step of the gyrostat (reaction wheels, CMG pyramid) against the body alone.
 
-``python -m rigid_body_sim.bench.actuators [--steps N]`` times, in the same run and on the
+``python -m rigid_body_sim.tools.actuators [--steps N]`` times, in the same run and on the
 same body and step, the compiled loops the engine runs: ``splitting2`` on the body alone
 with a held torque (``splitting_kernel.splitting_run``), and the gyrostat's Strang step
 (``gyrostat_kernel.gyrostat_run``) with four reaction wheels and with the four-CMG
 pyramid, both allocating a body torque every step (pseudo-inverse; singularity-robust
 inverse). It prints µs per step and the ratios; the issue's target is ≤ 2×.
 """
-import argparse
+from . import argument_parser
 import sys
 
 import numpy as np
@@ -15,7 +15,7 @@ import numpy as np
 from ..engine import EngineConfig
 from ..engine.actuators import Actuators
 from ..physics.integrators import splitting_kernel
-from .common import best_of
+from ..bench.common import best_of
 
 TARGET = 2.0
 MOMENTS = np.array([4.0, 5.0, 3.0])
@@ -60,7 +60,7 @@ def measure(n):
 
 
 def main(argv=None):
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = argument_parser(__spec__, __doc__)
     parser.add_argument('--steps', type=int, default=200_000, help='steps per timing')
     args = parser.parse_args(argv)
     if args.steps < 1:

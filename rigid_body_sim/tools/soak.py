@@ -1,6 +1,6 @@
 """Soak: the live graph at real time for a long while; memory, pacing and loss over time.
 
-    python -m rigid_body_sim.bench.soak [--minutes 60] [--every 10] [--out docs/bench]
+    python -m rigid_body_sim.tools.soak [--minutes 60] [--every 10] [--out docs/bench]
 
 Starts the recorder, the simulator (default scene, open-ended, 100 Hz), the controller
 (slew and hold) and the Foxglove viewer (on a free port; ``--no-viewer`` leaves it out) as
@@ -13,7 +13,7 @@ Writes ``soak.csv`` (one row per sampling) and prints one JSON summary line: RSS
 per hour of each process (least-squares slope after the first minute), the real-time
 factor range, missed deadlines, and lost messages.
 """
-import argparse
+from . import argument_parser
 import csv
 import json
 import os
@@ -58,7 +58,7 @@ def _exe(name):
 
 
 def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(prog='soak', description=__doc__.splitlines()[0])
+    parser = argument_parser(__spec__, __doc__)
     parser.add_argument('--minutes', type=float, default=60.0)
     parser.add_argument('--every', type=float, default=10.0, help='seconds between samples')
     parser.add_argument('--out', default='out/soak', help='directory for soak.csv and the bag')

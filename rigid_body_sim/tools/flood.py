@@ -1,13 +1,13 @@
 """Flood a simulator with torque commands: valid ones and each kind of garbage, at a rate.
 
-    python -m rigid_body_sim.bench.flood NAMESPACE [--rate HZ] [--duration S]
+    python -m rigid_body_sim.tools.flood NAMESPACE [--rate HZ] [--duration S]
 
 Publishes ``rate`` valid commands per second and ``rate`` garbage commands per second
 (NaN, a wrong frame, a stamp in the future, a stale stamp, in turn) on
 NAMESPACE/torque_command, then prints one JSON line with what it sent per class. The
 test suite floods for a few seconds; soak runs flood for longer.
 """
-import argparse
+from . import argument_parser
 import json
 import math
 import sys
@@ -17,7 +17,7 @@ CLASSES = ('valid', 'non_finite', 'wrong_frame', 'future_stamp', 'stale_stamp')
 
 
 def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(prog='flood', description=__doc__.splitlines()[0])
+    parser = argument_parser(__spec__, __doc__)
     parser.add_argument('namespace')
     parser.add_argument('--rate', type=float, default=10_000.0, help='valid commands per s, '
                         'and as many garbage ones')

@@ -1,9 +1,9 @@
 """The flood's figures from the simulator's side, for docs/bench (issue: survive floods).
 
-``python -m rigid_body_sim.bench.flood_report [--seconds 30] [--rate 10000] [--out docs/bench]``
+``python -m rigid_body_sim.tools.flood_report [--seconds 30] [--rate 10000] [--out docs/bench]``
 
 Starts a simulator (real time, 50 Hz publishing, splitting2), lets it settle, then runs
-``bench.flood`` against it (``rate`` valid commands per second and as many garbage ones:
+``tools.flood`` against it (``rate`` valid commands per second and as many garbage ones:
 NaN, wrong frame, future and stale stamps) and records from the simulator's diagnostics
 and topics: its achieved real-time factor during the flood, the samples it published
 against those due, what it accepted and rejected per class, and its RSS before and
@@ -11,7 +11,7 @@ after. Then the flood stops, and recovery (the held command timed out to zero to
 ``command_timeout``) is bounded by the first 1 Hz diagnostics report that shows it. Prints
 one JSON line; ``--out`` writes DIR/flood.json.
 """
-import argparse
+from . import argument_parser
 import json
 import math
 import os
@@ -20,7 +20,7 @@ import subprocess
 import sys
 import time
 
-from .common import report
+from ..bench.common import report
 from .live_simulator import _rss_mb
 from .soak import _exe
 
@@ -56,7 +56,7 @@ def run(seconds: float, rate: float) -> dict:
         if not spin_until(lambda: len(samples) > 50 and diags, 60.0):
             raise RuntimeError('the simulator did not start publishing within 60 s')
         rss0 = _rss_mb(sim.pid)
-        flood = subprocess.Popen([sys.executable, '-m', 'rigid_body_sim.bench.flood', ns,
+        flood = subprocess.Popen([sys.executable, '-m', 'rigid_body_sim.tools.flood', ns,
                                   '--rate', str(rate), '--duration', str(seconds)],
                                  stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
         t0, n0 = time.monotonic(), len(diags)
@@ -96,7 +96,7 @@ def run(seconds: float, rate: float) -> dict:
 
 
 def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = argument_parser(__spec__, __doc__)
     parser.add_argument('--seconds', type=float, default=30.0)
     parser.add_argument('--rate', type=float, default=10_000.0)
     parser.add_argument('--out', help='directory for flood.json (e.g. docs/bench)')
@@ -106,7 +106,7 @@ def main(argv=None) -> int:
         if not math.isfinite(value) or value <= 0:
             parser.error(f'--{name} {value}: must be a positive number')
     result = run(args.seconds, args.rate)
-    result['command'] = ('python -m rigid_body_sim.bench.flood_report --seconds '
+    result['command'] = ('python -m rigid_body_sim.tools.flood_report --seconds '
                          f'{args.seconds:g} --rate {args.rate:g}')
     report(result, args.out, 'flood.json')
     return 0

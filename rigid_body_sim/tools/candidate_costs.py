@@ -1,7 +1,9 @@
-"""The per-step costs in ``auto``'s model (``physics.auto.model.CANDIDATES``) against
-the compiled loops measured here, free and with weak double-bracket damping.
+"""Per-step costs in ``auto``'s model against the compiled loops, measured here.
 
-``python -m rigid_body_sim.bench.candidate_costs``
+The table is ``physics.auto.model.CANDIDATES``; the loops run free and with weak
+double-bracket damping.
+
+``python -m rigid_body_sim.tools.candidate_costs``
 
 Only the ratios between methods steer ``auto``, so the table is checked by its ratios to
 ``splitting2`` torque-free: a row whose measured ratio is off the table's by more than 1.5×
@@ -11,7 +13,7 @@ outside them. ``auto`` itself uses the costs calibrated on the machine where a c
 is current (``physics.auto.calibration``, written by ``python -m rigid_body_sim.compiled``),
 these constants otherwise; the last line says which.
 """
-import argparse
+from . import argument_parser
 import json
 import sys
 
@@ -20,7 +22,7 @@ import numpy as np
 from ..physics import Dissipation, Dynamics, create
 from ..physics.auto.calibration import ADAPTIVE_EVALS, REPEATS, current
 from ..physics.auto.model import CANDIDATES, DAMP_SUBSTEP
-from .common import best_of
+from ..bench.common import best_of
 
 MOMENTS = (0.04, 0.2, 0.2)   # Explorer 1, kg·m²
 M0 = np.array([2.5132741228718345, 0.04386936299713697, 0.0])  # its initial momentum
@@ -67,7 +69,7 @@ def run(steps=STEPS, log=print):
 
 
 def main(argv=None):
-    parser = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
+    parser = argument_parser(__spec__, __doc__)
     parser.add_argument('--steps', type=int, default=STEPS, help='steps per timing')
     args = parser.parse_args(argv)
     rows = run(args.steps)

@@ -1,6 +1,6 @@
 """Campaign throughput: Dask against a plain multiprocessing.Pool, scaling, memory.
 
-    python -m rigid_body_sim.bench.campaign [--runs 1000] [--workers N] [--repeats 2]
+    python -m rigid_body_sim.tools.campaign [--runs 1000] [--workers N] [--repeats 2]
 
 Runs of the detumble scene (15 s; inertia ±5 % uniform, ω0 + N(0, 0.2²) per component)
 through the campaign's per-run function (:func:`rigid_body_sim.campaign.runner.run_one`):
@@ -21,7 +21,7 @@ processes of each set-up spend beyond the runs' own (this process — with a loc
 cluster's scheduler and nannies — and the workers) does not, and is printed too. Prints
 a table and one JSON line.
 """
-import argparse
+from . import argument_parser
 import json
 import multiprocessing
 import os
@@ -117,8 +117,7 @@ def time_dask(s, workers, chunk):
 
 def main(argv=None) -> int:
     from ..campaign.runner import chunk_size
-    parser = argparse.ArgumentParser(prog='python -m rigid_body_sim.bench.campaign',
-                                     description=__doc__.splitlines()[0])
+    parser = argument_parser(__spec__, __doc__)
     parser.add_argument('--runs', type=int, default=1000)
     parser.add_argument('--workers', type=int, default=os.cpu_count() or 1)
     parser.add_argument('--duration', type=float, default=15.0, help='simulated s per run')

@@ -1,6 +1,6 @@
 """Pointing on sensors against its prediction, for a scene with a gyro and a star tracker.
 
-``python -m rigid_body_sim.bench.pointing SCENE [--run] [--settle S] [--set KEY=VALUE]``
+``python -m rigid_body_sim.tools.pointing SCENE [--run] [--settle S] [--set KEY=VALUE]``
 
 Prints the linearised closed loop's RMS pointing error per body axis
 (``sensors.prediction``) and, with ``--run``, the RMS an offline run of the scene shows
@@ -18,8 +18,8 @@ from ..sensors.prediction import pointing_variance
 def main(argv=None) -> int:
     """Print the predicted RMS pointing error per body axis of a scene (and, with --run,
     the RMS a run of it shows after ``settle`` s)."""
-    import argparse
-    parser = argparse.ArgumentParser(prog='python -m rigid_body_sim.bench.pointing')
+    from . import argument_parser
+    parser = argument_parser(__spec__, __doc__)
     parser.add_argument('scene')
     parser.add_argument('--run', action='store_true', help='also run the scene and compare')
     parser.add_argument('--settle', type=float, default=100.0, help='s ignored at the start')

@@ -1,6 +1,6 @@
 """Benchmark of the ``attitude_viewer`` node beside a real-time simulator at 50 Hz.
 
-``python -m rigid_body_sim.bench.viewer [--seconds 10] [--no-client]``
+``python -m rigid_body_sim.tools.viewer [--seconds 10] [--no-client]``
 
 One run, three phases of ``--seconds`` each, the same simulator process throughout:
 1. the simulator alone;
@@ -13,7 +13,7 @@ diagnostics), its missed deadlines, its CPU and the viewer's CPU in % of one cor
 (/proc utime+stime over the phase); then a summary line (JSON) and the verdict. Target:
 viewer ≤ 5 % of a core, simulator RTF unchanged (within 1 % of its RTF alone).
 """
-import argparse
+from . import argument_parser
 import json
 import os
 import random
@@ -139,7 +139,7 @@ def _stop(viewer, sim, node):
 
 
 def main(argv=None):
-    parser = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
+    parser = argument_parser(__spec__, __doc__)
     parser.add_argument('--seconds', type=float, default=10.0, help='length of each phase')
     parser.add_argument('--no-client', action='store_true', help='skip the client phase')
     args = parser.parse_args(argv)

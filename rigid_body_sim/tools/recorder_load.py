@@ -1,6 +1,6 @@
 """Recorder load test: N topics at R Hz for T s through a real recorder process.
 
-    python -m rigid_body_sim.bench.recorder_load [--rate 1000] [--duration 60] [--kill]
+    python -m rigid_body_sim.tools.recorder_load [--rate 1000] [--duration 60] [--kill]
 
 starts ``recorder`` and a publisher process (3 topics of the simulator's types:
 ``attitude`` QuaternionStamped, ``odometry`` Odometry, ``kinetic_energy`` Float64), then
@@ -11,6 +11,8 @@ and loss. ``publish`` is also the deterministic test publisher: message ``i`` ca
 from __future__ import annotations
 
 import argparse
+
+from . import argument_parser
 import json
 import os
 import shutil
@@ -100,7 +102,7 @@ def benchmark(args: argparse.Namespace) -> int:
                             '-p', f'flush_period:={args.flush_period}'],
                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
                            env=env, start_new_session=True)
-    cmd = [sys.executable, '-m', 'rigid_body_sim.bench.recorder_load', 'publish',
+    cmd = [sys.executable, '-m', 'rigid_body_sim.tools.recorder_load', 'publish',
            '--namespace', ns,
            '--rate', str(args.rate), '--duration', str(args.duration),
            '--topics', ','.join(topics), '--linger', '1', '--depth', str(args.pub_depth)]
@@ -162,7 +164,7 @@ def _gaps(bag: str) -> str:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
+    parser = argument_parser(__spec__, __doc__)
     sub = parser.add_subparsers(dest='cmd')
     pub = sub.add_parser('publish', help='the load/test publisher')
     pub.add_argument('--namespace', default='/')

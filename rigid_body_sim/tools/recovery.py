@@ -1,6 +1,6 @@
 """Recovery from crashed peers, timed (docs/bench beside the flood and the soak).
 
-``python -m rigid_body_sim.bench.recovery [--out docs/bench]``
+``python -m rigid_body_sim.tools.recovery [--out docs/bench]``
 
 A simulator and a slewing controller (max torque 0.05 N·m, state_timeout 0.3 s; the
 simulator's command_timeout 0.5 s). In turn: the controller is SIGKILLed and restarted,
@@ -14,7 +14,7 @@ receipt of the messages):
 * the largest command over the whole run against the controller's saturation.
 Prints one JSON line; ``--out DIR`` writes DIR/recovery.json.
 """
-import argparse
+from . import argument_parser
 import os
 import random
 import signal
@@ -24,7 +24,7 @@ import time
 
 import numpy as np
 
-from .common import report
+from ..bench.common import report
 from .soak import _exe
 
 MAX_TORQUE = 0.05
@@ -113,11 +113,11 @@ def run() -> dict:
 
 
 def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = argument_parser(__spec__, __doc__)
     parser.add_argument('--out', help='directory for recovery.json (e.g. docs/bench)')
     args = parser.parse_args(argv)
     result = run()
-    result['command'] = 'python -m rigid_body_sim.bench.recovery'
+    result['command'] = 'python -m rigid_body_sim.tools.recovery'
     report(result, args.out, 'recovery.json')
     return 0
 
