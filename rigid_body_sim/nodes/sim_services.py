@@ -28,6 +28,8 @@ named poses, bounds, setting entity info, unloading a world.
 They exist where the interface package is installed: a full Jazzy install
 (``ros-jazzy-simulation-interfaces``), or the venv, which builds it at setup.
 """
+import os
+
 import numpy as np
 
 from ..physics import rotation
@@ -64,8 +66,8 @@ class SimulationServices:
                 'SIMULATION_STATE_SETTING', 'SIMULATION_STATE_PAUSE', 'STEP_SIMULATION_SINGLE',
                 'STEP_SIMULATION_MULTIPLE', 'STEP_SIMULATION_ACTION', 'ENTITY_STATE_GETTING',
                 'ENTITY_STATE_SETTING', 'ENTITY_INFO_GETTING', 'ENTITY_CATEGORIES',
-                'ENTITY_TAGS', 'AVAILABLE_WORLDS', 'WORLD_LOADING', 'WORLD_INFO_GETTING',
-                'WORLD_TAGS')
+                'ENTITY_TAGS', 'AVAILABLE_WORLDS', 'WORLD_LOADING', 'WORLD_RESOURCE_STRING',
+                'WORLD_INFO_GETTING', 'WORLD_TAGS')
 
     def __init__(self, sim):
         self.sim = sim
@@ -273,17 +275,34 @@ class SimulationServices:
         return _result(response, Result.RESULT_OK)
 
     def _load_world(self, request, response):
+        if not request.uri and request.resource_string:
+            # a params file's text: read from a file as every scene is, named in messages
+            import tempfile
+            with tempfile.TemporaryDirectory() as folder:
+                path = os.path.join(folder, 'resource_string.yaml')
+                with open(path, 'w', encoding='utf-8') as f:
+                    f.write(request.resource_string)
+                self._load(path, response)
+            response.result.error_message = response.result.error_message.replace(
+                path, 'resource_string')
+            if response.result.result == Result.RESULT_OK:
+                response.world.world_resource.uri = ''
+                response.world.world_resource.resource_string = request.resource_string
+                self.world = self.world._replace(uri='')
+            return response
         if not request.uri:
-            code = LoadWorld.Response.UNSUPPORTED_FORMAT if request.resource_string else \
-                LoadWorld.Response.NO_RESOURCE
-            return _result(response, code, 'give the uri: a scene name (get_available_worlds)'
-                           ' or the path of a params file; resource strings are not supported')
+            return _result(response, LoadWorld.Response.NO_RESOURCE,
+                           'give the uri (a scene name, see get_available_worlds, or the path '
+                           'of a params file) or the resource_string (a params file\'s text)')
+        return self._load(request.uri, response)
+
+    def _load(self, uri, response):
         try:
-            resolve_scene(worlds.uri_path(request.uri))
+            resolve_scene(worlds.uri_path(uri))
         except SceneError as exc:
             return _result(response, LoadWorld.Response.NO_RESOURCE, str(exc))
         try:
-            scene, values = worlds.plan(request.uri, self.sim.parameters,
+            scene, values = worlds.plan(uri, self.sim.parameters,
                                         self.sim.get_namespace())
         except SceneError as exc:
             return _result(response, LoadWorld.Response.RESOURCE_PARSE_ERROR, str(exc))
@@ -298,6 +317,11 @@ class SimulationServices:
         return _result(response, Result.RESULT_OK)
 
     def _current_world(self, request, response):
+        if self.world is None and self.sim.has_parameter('scene.name'):
+            # the scene the node was started with, where the node declares its name
+            name = str(self.sim.get_parameter('scene.name').value or '')
+            found = [w for w in worlds.available(self.sim.get_namespace()) if w.name == name]
+            self.world = found[0] if found else None
         if self.world is None:
             return _result(response, GetCurrentWorld.Response.NO_WORLD_LOADED,
                            'no world loaded through load_world: the node runs the parameters '

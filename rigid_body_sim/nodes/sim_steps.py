@@ -11,9 +11,13 @@ steps, another goal running) is accepted and aborted at once with a result code 
 reason, which a rejection could not carry.
 """
 from rclpy.action import ActionServer, CancelResponse
+from rclpy.qos import QoSProfile
 
 from simulation_interfaces.action import SimulateSteps
 from simulation_interfaces.msg import Result, SimulationState
+
+
+FEEDBACK_DEPTH = 100
 
 
 class _Turn:
@@ -29,9 +33,12 @@ class StepsAction:
     def __init__(self, services):
         self.services = services
         self.running = None  # the goal handle being stepped
+        # feedback: a deeper history than rclpy's 10, as steps come faster than a reader
+        # may acknowledge them
         self.server = ActionServer(services.sim, SimulateSteps, '~/simulate_steps',
                                    execute_callback=self._execute,
-                                   cancel_callback=lambda _: CancelResponse.ACCEPT)
+                                   cancel_callback=lambda _: CancelResponse.ACCEPT,
+                                   feedback_pub_qos_profile=QoSProfile(depth=FEEDBACK_DEPTH))
 
     def _paused(self) -> bool:
         return self.services.state in (SimulationState.STATE_PAUSED,
@@ -74,6 +81,11 @@ class StepsAction:
                 await _Turn()
             goal.succeed()
             return self._result(Result.RESULT_OK)
+        except Exception as exc:  # noqa: BLE001 - report to the caller, keep simulating
+            self.services.sim.get_logger().error(f'simulate_steps: {type(exc).__name__}: {exc}')
+            if goal.is_active:
+                goal.abort()
+            return self._result(Result.RESULT_OPERATION_FAILED, f'{type(exc).__name__}: {exc}')
         finally:
             self.running = None
 
