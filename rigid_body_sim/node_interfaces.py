@@ -35,7 +35,7 @@ class Topic(NamedTuple):
 
 class Service(NamedTuple):
     name: str
-    type: str       # pkg/srv/Type
+    type: str       # pkg/srv/Type, or pkg/action/Type for an action server
     description: str
     when: str = ''
 
@@ -95,9 +95,26 @@ SIMULATOR = NodeInterfaces('attitude_simulator', 'simulator', (
     Service('~/step_simulation', _SIM + 'StepSimulation',
             'while paused: n sample periods, each published', SIM_INTERFACES),
     Service('~/reset_simulation', _SIM + 'ResetSimulation', 'as ~/reset', SIM_INTERFACES),
-    Service('~/get_entity_state', _SIM + 'GetEntityState', 'pose and twist of the body',
+    Service('~/simulate_steps', 'simulation_interfaces/action/SimulateSteps',
+            'action: as step_simulation, with feedback per step and cancellation',
+            SIM_INTERFACES),
+    Service('~/get_entities', _SIM + 'GetEntities',
+            'the spacecraft (child_frame_id), its wheels and CMGs (<child_frame_id>/<joint>)',
+            SIM_INTERFACES),
+    Service('~/get_entities_states', _SIM + 'GetEntitiesStates',
+            'their states (filters: regex, category, tags)', SIM_INTERFACES),
+    Service('~/get_entity_info', _SIM + 'GetEntityInfo', 'category, description, tags',
+            SIM_INTERFACES),
+    Service('~/get_entity_state', _SIM + 'GetEntityState',
+            'pose and twist of the body, or of a wheel or CMG in the body frame',
             SIM_INTERFACES),
     Service('~/set_entity_state', _SIM + 'SetEntityState', 'set attitude and rate',
+            SIM_INTERFACES),
+    Service('~/get_available_worlds', _SIM + 'GetAvailableWorlds', 'the scenes (config/)',
+            SIM_INTERFACES),
+    Service('~/load_world', _SIM + 'LoadWorld',
+            'switch scenes live (refused if start-up-only parameters differ)', SIM_INTERFACES),
+    Service('~/get_current_world', _SIM + 'GetCurrentWorld', 'the scene loaded last',
             SIM_INTERFACES),
 ))
 

@@ -235,3 +235,20 @@ def test_tf_and_a_simulation_service_cross_dds(ros_process, rclpy_node, namespac
     response = future.result()
     assert response.state.state == SimulationState.STATE_PAUSED
     assert response.result.result == Result.RESULT_OK
+
+
+def test_package_xml_names_the_simulation_interfaces_version_built_here():
+    """package.xml says which simulation_interfaces it builds against: a range holding the
+    release vendored in interfaces/ (Jazzy's), so rosdep on a full install resolves it."""
+    import xml.etree.ElementTree as ET
+    vendored = ET.parse(os.path.join(REPO, 'interfaces', 'simulation_interfaces',
+                                     'package.xml')).getroot().findtext('version')
+    deps = [d for d in ET.parse(os.path.join(REPO, 'package.xml')).getroot().iter('exec_depend')
+            if d.text == 'simulation_interfaces']
+    assert len(deps) == 1 and vendored == '1.5.1'
+
+    def key(text):
+        return tuple(int(p) for p in text.split('.'))
+    low, high = deps[0].get('version_gte'), deps[0].get('version_lt')
+    assert low is not None and high is not None, deps[0].attrib
+    assert key(low) <= key(vendored) < key(high)

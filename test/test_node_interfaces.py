@@ -52,13 +52,19 @@ def observed(probe, node, ns):
     """What the graph shows of ``node`` (None until it is discovered)."""
     from rclpy._rclpy_pybind11 import NodeNameNonExistentError
 
+    from rclpy.action import get_action_server_names_and_types_by_node
+
     def flat(pairs, automatic):
+        """Without an action's own topics and services (``.../_action/...``): the action
+        server is listed instead, among the services, as in the table."""
         return {(name, t) for name, types in pairs for t in types
-                if name not in automatic and name.rsplit('/', 1)[-1] not in automatic}
+                if name not in automatic and name.rsplit('/', 1)[-1] not in automatic
+                and '/_action/' not in name}
     try:
         return (flat(probe.get_publisher_names_and_types_by_node(node, ns), AUTOMATIC_TOPICS),
                 flat(probe.get_subscriber_names_and_types_by_node(node, ns), AUTOMATIC_TOPICS),
-                flat(probe.get_service_names_and_types_by_node(node, ns), AUTOMATIC_SERVICES))
+                flat(probe.get_service_names_and_types_by_node(node, ns), AUTOMATIC_SERVICES)
+                | flat(get_action_server_names_and_types_by_node(probe, node, ns), ()))
     except NodeNameNonExistentError:
         return None
 

@@ -65,7 +65,7 @@ def topics_table(topics) -> list:
 
 
 def services_table(services) -> list:
-    rows = ['| service | type | when | description |', '|---|---|---|---|']
+    rows = ['| service or action | type | when | description |', '|---|---|---|---|']
     for s in services:
         rows.append(f'| `{s.name}` | `{s.type}` | {_cell(s.when) or "always"} | '
                     f'{_cell(s.description)} |')
@@ -101,7 +101,7 @@ def pages() -> dict:
                  '## Parameters', ''] + parameters_table(params[node.name]) + \
                 ['', '## Topics', ''] + topics_table(node.topics)
         if node.services:
-            lines += ['', '## Services', ''] + services_table(node.services)
+            lines += ['', '## Services and actions', ''] + services_table(node.services)
         out[f'{node.name}.md'] = '\n'.join(lines) + '\n'
         index.append(node.name)
     out['mcap_replay.md'] = '\n'.join([

@@ -11,23 +11,39 @@ Gazebo serves ``/gz_server/...``):
   (1/``publish_rate``), and each step publishes its sample.
 * ``reset_simulation``: the body back to its initial state. Sim time keeps running, so
   stamps and /clock stay monotonic, and SCOPE_TIME alone is refused as unsupported.
-* ``get_entity_state`` / ``set_entity_state``: the one entity, named after
-  ``child_frame_id``. Its pose is the attitude in ``frame_id``. Its twist is the angular
-  velocity in ``frame_id``, or in the body frame when the request's header names
-  ``child_frame_id``.
+* ``simulate_steps`` (action ``SimulateSteps``, ``sim_steps``): as ``step_simulation``,
+  with feedback after each step and cancellation.
+* ``get_entities`` / ``get_entities_states`` / ``get_entity_info`` / ``get_entity_state``:
+  the spacecraft, named after ``child_frame_id``, and its wheels and CMGs (``sim_entities``
+  says what their states hold); filters by regular expression, category and tags.
+* ``set_entity_state``: the spacecraft. Its pose is the attitude in ``frame_id``. Its
+  twist is the angular velocity in ``frame_id``, or in the body frame when the request's
+  header names ``child_frame_id``.
+* ``get_available_worlds`` / ``load_world`` / ``get_current_world``: the scenes
+  (``sim_worlds``), switched live when the node can.
+
+Not served, and not listed as features: spawning and deleting (one spacecraft per node),
+named poses, bounds, setting entity info, unloading a world.
 
 They exist where the interface package is installed: a full Jazzy install
 (``ros-jazzy-simulation-interfaces``), or the venv, which builds it at setup.
 """
+import os
+
 import numpy as np
 
 from ..physics import rotation
+from ..scene import SceneError, resolve as resolve_scene
+from . import sim_entities as entities, sim_worlds as worlds
 
 try:
-    from simulation_interfaces.msg import Result, SimulationState, SimulatorFeatures
-    from simulation_interfaces.srv import (GetEntityState, GetSimulationState,
-                                           GetSimulatorFeatures, ResetSimulation,
-                                           SetEntityState, SetSimulationState, StepSimulation)
+    from simulation_interfaces.msg import (EntityInfo, EntityState, Result, SimulationState,
+                                           SimulatorFeatures, TagsFilter, WorldResource)
+    from simulation_interfaces.srv import (GetAvailableWorlds, GetCurrentWorld, GetEntities,
+                                           GetEntitiesStates, GetEntityInfo, GetEntityState,
+                                           GetSimulationState, GetSimulatorFeatures, LoadWorld,
+                                           ResetSimulation, SetEntityState, SetSimulationState,
+                                           StepSimulation)
     AVAILABLE = True
 except ImportError:  # pragma: no cover - depends on the installation
     AVAILABLE = False
@@ -44,24 +60,36 @@ def _result(response, code, message=''):
 class SimulationServices:
     """Serves the standard on a :class:`~rigid_body_sim.nodes.simulator.Simulator`, which
     provides ``engine``, ``paused``, ``pause()``, ``play()``, ``step(n)``, ``reset()``,
-    ``quit()``, ``frames`` and ``set_state(q, w)``."""
+    ``quit()``, ``frames``, ``set_state(q, w)``, ``parameters`` and ``load_values(values)``."""
 
     FEATURES = ('SIMULATION_RESET', 'SIMULATION_RESET_STATE', 'SIMULATION_STATE_GETTING',
                 'SIMULATION_STATE_SETTING', 'SIMULATION_STATE_PAUSE', 'STEP_SIMULATION_SINGLE',
-                'STEP_SIMULATION_MULTIPLE', 'ENTITY_STATE_GETTING', 'ENTITY_STATE_SETTING')
+                'STEP_SIMULATION_MULTIPLE', 'STEP_SIMULATION_ACTION', 'ENTITY_STATE_GETTING',
+                'ENTITY_STATE_SETTING', 'ENTITY_INFO_GETTING', 'ENTITY_CATEGORIES',
+                'ENTITY_TAGS', 'AVAILABLE_WORLDS', 'WORLD_LOADING', 'WORLD_RESOURCE_STRING',
+                'WORLD_INFO_GETTING', 'WORLD_TAGS')
 
     def __init__(self, sim):
         self.sim = sim
         self.state = SimulationState.STATE_PLAYING
+        self.world = None  # the World loaded by load_world
         for srv, name, handler in (
                 (GetSimulatorFeatures, 'get_simulator_features', self._features),
                 (GetSimulationState, 'get_simulation_state', self._get_state),
                 (SetSimulationState, 'set_simulation_state', self._set_state),
                 (StepSimulation, 'step_simulation', self._step),
                 (ResetSimulation, 'reset_simulation', self._reset),
+                (GetEntities, 'get_entities', self._get_entities),
+                (GetEntitiesStates, 'get_entities_states', self._get_entities_states),
+                (GetEntityInfo, 'get_entity_info', self._get_entity_info),
                 (GetEntityState, 'get_entity_state', self._get_entity),
-                (SetEntityState, 'set_entity_state', self._set_entity)):
+                (SetEntityState, 'set_entity_state', self._set_entity),
+                (GetAvailableWorlds, 'get_available_worlds', self._available_worlds),
+                (LoadWorld, 'load_world', self._load_world),
+                (GetCurrentWorld, 'get_current_world', self._current_world)):
             sim.create_service(srv, f'~/{name}', self._guarded(handler))
+        from .sim_steps import StepsAction  # rclpy.action: only with the interfaces
+        self.steps_action = StepsAction(self)
 
     def _guarded(self, handler):
         """A failing request answers RESULT_OPERATION_FAILED; it never stops the node."""
@@ -80,8 +108,10 @@ class SimulationServices:
     def _features(self, request, response):
         response.features.features = [getattr(SimulatorFeatures, f) for f in self.FEATURES]
         response.features.custom_info = (
-            'one rigid body (entity named after child_frame_id); a step is one sample period '
-            '(1/publish_rate); reset keeps sim time')
+            'one spacecraft per node (entity named after child_frame_id), its wheels and CMGs '
+            '(<child_frame_id>/<joint>); a step is one sample period (1/publish_rate); reset '
+            'keeps sim time; worlds are scenes (config/*.yaml), loaded live when their '
+            'start-up-only parameters match the running node\'s')
         return response
 
     def _get_state(self, request, response):
@@ -134,29 +164,73 @@ class SimulationServices:
                        'state reset; sim time keeps running' if scope != 4 else
                        'nothing spawned to remove')
 
-    # ------------------------------------------------------------------ the body
+    # ------------------------------------------------------------------ entities
+    def _find(self, name):
+        """(entity, None) or (None, the reason it is not there)."""
+        entity = entities.find(self.sim.engine, self.sim.frames[1], name)
+        if entity is None:
+            names = [e.name for e in entities.entities(self.sim.engine, self.sim.frames[1])]
+            return None, f'no entity {name!r}: the entities are {", ".join(names)}'
+        return entity, None
+
+    def _fill_state(self, msg, entity, body_twist=False):
+        e, (world, body) = self.sim.engine, self.sim.frames
+        frame, q, w = entities.state(e, entity, body_twist)
+        msg.header.frame_id = body if frame == 'body' else world
+        msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(self.sim.stamp_ns(e.t_ns),
+                                                                1_000_000_000)
+        o = msg.pose.orientation
+        o.x, o.y, o.z, o.w = (float(v) for v in q)
+        a = msg.twist.angular
+        a.x, a.y, a.z = (float(v) for v in w)
+        return msg
+
+    def _filtered(self, filters):
+        """Entities passing ``filters``, or (None, code, reason)."""
+        if filters.bounds.type != 0:  # Bounds.TYPE_EMPTY
+            return None, Result.RESULT_FEATURE_UNSUPPORTED, \
+                'bounds filters are not supported (ENTITY_BOUNDS): entities have no extent'
+        try:
+            found = entities.matching(
+                self.sim.engine, self.sim.frames[1], filters.filter,
+                [c.category for c in filters.categories], list(filters.tags.tags),
+                filters.tags.filter_mode == TagsFilter.FILTER_MODE_ALL)
+        except ValueError as exc:
+            return None, Result.RESULT_OPERATION_FAILED, str(exc)
+        return found, Result.RESULT_OK, ''
+
+    def _get_entities(self, request, response):
+        found, code, reason = self._filtered(request.filters)
+        response.entities = [e.name for e in found or ()]
+        return _result(response, code, reason)
+
+    def _get_entities_states(self, request, response):
+        found, code, reason = self._filtered(request.filters)
+        response.entities = [e.name for e in found or ()]
+        response.states = [self._fill_state(EntityState(), e) for e in found or ()]
+        return _result(response, code, reason)
+
+    def _get_entity_info(self, request, response):
+        entity, problem = self._find(request.entity)
+        if problem:
+            return _result(response, Result.RESULT_NOT_FOUND, problem)
+        response.info = EntityInfo(description=entity.description, tags=list(entity.tags))
+        response.info.category.category = entity.category
+        return _result(response, Result.RESULT_OK)
+
+    def _get_entity(self, request, response):
+        entity, problem = self._find(request.entity)
+        if problem:
+            return _result(response, Result.RESULT_NOT_FOUND, problem)
+        self._fill_state(response.state, entity)
+        return _result(response, Result.RESULT_OK)
+
     def _entity_problem(self, name):
         body = self.sim.frames[1]
         if name not in (body, '/' + body):
-            return f'no entity {name!r}: the one entity is {body!r} (child_frame_id)'
+            return f'no entity {name!r} to set: the spacecraft is {body!r} (child_frame_id); ' \
+                'wheel and CMG states follow from their commands'
         return None
-
-    def _get_entity(self, request, response):
-        problem = self._entity_problem(request.entity)
-        if problem:
-            return _result(response, Result.RESULT_NOT_FOUND, problem)
-        e, (world, _) = self.sim.engine, self.sim.frames
-        q = e.attitude
-        w_world = rotation.rotate(q, e.angular_velocity)
-        st = response.state
-        st.header.frame_id = world
-        st.header.stamp.sec, st.header.stamp.nanosec = divmod(self.sim.stamp_ns(e.t_ns),
-                                                              1_000_000_000)
-        o = st.pose.orientation
-        o.x, o.y, o.z, o.w = (float(v) for v in q)
-        a = st.twist.angular
-        a.x, a.y, a.z = (float(v) for v in w_world)
-        return _result(response, Result.RESULT_OK)
 
     def _set_entity(self, request, response):
         problem = self._entity_problem(request.entity)
@@ -179,4 +253,78 @@ class SimulationServices:
             self.sim.set_state(q, w)
         except ValueError as exc:
             return _result(response, SetEntityState.Response.INVALID_POSE, str(exc))
+        return _result(response, Result.RESULT_OK)
+
+    # ------------------------------------------------------------------ worlds
+    def _world_msg(self, world):
+        msg = WorldResource(name=world.name, description=world.description,
+                            tags=list(world.tags))
+        msg.world_resource.uri = world.uri
+        return msg
+
+    def _available_worlds(self, request, response):
+        if request.additional_sources:
+            return _result(response, Result.RESULT_FEATURE_UNSUPPORTED,
+                           'additional sources are not searched: load_world takes the path '
+                           'of any params file as its uri')
+        wanted = set(request.filter.tags)
+        every = request.filter.filter_mode == TagsFilter.FILTER_MODE_ALL
+        response.worlds = [
+            self._world_msg(w) for w in worlds.available(self.sim.get_namespace())
+            if not wanted or (wanted <= set(w.tags) if every else wanted & set(w.tags))]
+        return _result(response, Result.RESULT_OK)
+
+    def _load_world(self, request, response):
+        if not request.uri and request.resource_string:
+            # a params file's text: read from a file as every scene is, named in messages
+            import tempfile
+            with tempfile.TemporaryDirectory() as folder:
+                path = os.path.join(folder, 'resource_string.yaml')
+                with open(path, 'w', encoding='utf-8') as f:
+                    f.write(request.resource_string)
+                self._load(path, response)
+            response.result.error_message = response.result.error_message.replace(
+                path, 'resource_string')
+            if response.result.result == Result.RESULT_OK:
+                response.world.world_resource.uri = ''
+                response.world.world_resource.resource_string = request.resource_string
+                self.world = self.world._replace(uri='')
+            return response
+        if not request.uri:
+            return _result(response, LoadWorld.Response.NO_RESOURCE,
+                           'give the uri (a scene name, see get_available_worlds, or the path '
+                           'of a params file) or the resource_string (a params file\'s text)')
+        return self._load(request.uri, response)
+
+    def _load(self, uri, response):
+        try:
+            resolve_scene(worlds.uri_path(uri))
+        except SceneError as exc:
+            return _result(response, LoadWorld.Response.NO_RESOURCE, str(exc))
+        try:
+            scene, values = worlds.plan(uri, self.sim.parameters,
+                                        self.sim.get_namespace())
+        except SceneError as exc:
+            return _result(response, LoadWorld.Response.RESOURCE_PARSE_ERROR, str(exc))
+        except ValueError as exc:  # start-up-only parameters differ: nothing changed
+            return _result(response, LoadWorld.Response.UNSUPPORTED_ELEMENTS, str(exc))
+        problem = self.sim.load_values(values)
+        if problem:
+            return _result(response, Result.RESULT_OPERATION_FAILED, problem)
+        self.world = worlds.World(scene.name, scene.path, scene.description,
+                                  worlds.tags_of(scene))
+        response.world = self._world_msg(self.world)
+        return _result(response, Result.RESULT_OK)
+
+    def _current_world(self, request, response):
+        if self.world is None and self.sim.has_parameter('scene.name'):
+            # the scene the node was started with, where the node declares its name
+            name = str(self.sim.get_parameter('scene.name').value or '')
+            found = [w for w in worlds.available(self.sim.get_namespace()) if w.name == name]
+            self.world = found[0] if found else None
+        if self.world is None:
+            return _result(response, GetCurrentWorld.Response.NO_WORLD_LOADED,
+                           'no world loaded through load_world: the node runs the parameters '
+                           'it was started with')
+        response.world = self._world_msg(self.world)
         return _result(response, Result.RESULT_OK)

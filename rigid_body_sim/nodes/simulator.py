@@ -31,6 +31,7 @@ from dataclasses import replace
 
 from rclpy.duration import Duration
 from rclpy.node import Node
+from rclpy.parameter import Parameter
 
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import Vector3Stamped, WrenchStamped
@@ -419,6 +420,23 @@ class Simulator(Node):
         self._fault = None
         self._log.info(f'state set at t = {self._engine.t:.6g} s')
         self._new_run()
+
+    @property
+    def parameters(self) -> dict:
+        """The parameters' values now (a copy)."""
+        return dict(self._p)
+
+    def load_values(self, values: dict):
+        """Set ``values`` ({name: value}) at once, as a params file would at start-up, then
+        reset to the initial state they give (load_world); a problem text, or None (then
+        nothing changed)."""
+        if values:
+            result = self.set_parameters_atomically([
+                Parameter(k, self.get_parameter(k).type_, v) for k, v in values.items()])
+            if not result.successful:
+                return result.reason
+        self.reset()
+        return None
 
     def quit(self):
         """End the run loop shortly: the reply to the request still reaches the caller."""

@@ -72,7 +72,9 @@ EXECUTABLES = {
          'sub actuator_command (std_msgs/Float64MultiArray) with actuators'),
         ('~/reset (std_srvs/Trigger): back to the initial state',
          '~/get_simulator_features, ~/get_simulation_state, ~/set_simulation_state, '
-         '~/step_simulation, ~/reset_simulation, ~/get_entity_state, ~/set_entity_state '
+         '~/step_simulation, ~/simulate_steps (action), ~/reset_simulation, '
+         '~/get_entities, ~/get_entities_states, ~/get_entity_info, ~/get_entity_state, '
+         '~/set_entity_state, ~/get_available_worlds, ~/load_world, ~/get_current_world '
          '(simulation_interfaces, where installed)'),
         '--ros-args --params-file {scene}'),
     'controller': Executable(
@@ -165,7 +167,7 @@ def node_help(name: str) -> str:
              parameters_text(e.specs()), '',
              'Topics (relative names, remappable):', *_items(e.topics)]
     if e.services:
-        parts += ['Services:', *_items(e.services)]
+        parts += ['Services and actions:', *_items(e.services)]
     if name in ('simulator', 'controller'):
         parts += ['', textwrap.fill(SCENES.format(config=config, cli=command('rigid-body-sim')),
                                     88)]
