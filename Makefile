@@ -27,11 +27,11 @@ INTERFACES  := $(wildcard interfaces/* interfaces/*/* interfaces/*/*/*)
 demo: venv
 	$(VENV)/bin/rigid-body-sim demo --duration $(DEMO_DURATION) --out $(DEMO_OUT)
 
-# -v names each test as it ends, with its worker. loadgroup keeps a module marked
-# xdist_group on one worker, so its module-scoped fixture (the benchmark's run, colcon's
-# build, the viewer's graph) runs once.
+# -v names each test as it ends, with its worker. loadfile keeps a file on one worker, so
+# a module-scoped fixture (the benchmark's run, colcon's build, the viewer's graph) runs
+# once; xdist 3.8's loadgroup did not keep a module-level xdist_group together here.
 test: venv
-	$(PY) -m pytest -v -n $(TEST_WORKERS) --dist loadgroup $(PYTEST_ARGS)
+	$(PY) -m pytest -v -n $(TEST_WORKERS) --dist loadfile $(PYTEST_ARGS)
 
 check: venv
 	$(PY) -m pytest -q -n 2 -m 'fast and not slow' $(PYTEST_ARGS)

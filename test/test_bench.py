@@ -13,8 +13,6 @@ from rigid_body_sim import bench
 from rigid_body_sim.bench.scenes import SCENES
 from rigid_body_sim.physics.integrators import BODY_ONLY
 
-# one xdist worker runs this module, so its module-scoped fixture runs once (make test)
-pytestmark = pytest.mark.xdist_group('bench')
 
 RK4_REAL_AXIS_LIMIT = 2.7853
 GENERATED = 4

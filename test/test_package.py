@@ -9,8 +9,6 @@ import pytest
 
 from ros_helpers import venv_exe
 
-# one xdist worker runs this module, so its module-scoped fixture runs once (make test)
-pytestmark = pytest.mark.xdist_group('colcon')
 
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 NODES = ('simulator', 'controller', 'recorder', 'replay')

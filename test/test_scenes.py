@@ -13,8 +13,6 @@ from rigid_body_sim.physics import rotation
 from rigid_body_sim.physics.exact import TorqueFreeSolution
 from rigid_body_sim.scene import SceneError, list_scenes, load
 
-# one xdist worker runs this module, so its module-scoped fixture runs once (make test)
-pytestmark = pytest.mark.xdist_group('explorer1_reference')
 
 CLI = os.path.join(os.path.dirname(sys.executable), 'rigid-body-sim')
 # Scenes are discovered from config/: a new scene file is tested with no code change.

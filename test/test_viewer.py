@@ -16,8 +16,6 @@ import pytest
 
 from ros_helpers import NodeProcess, spin_until, unique_namespace, venv_exe
 
-# one xdist worker runs this module, so its module-scoped fixture runs once (make test)
-pytestmark = pytest.mark.xdist_group('viewer_live')
 
 CLIENT_DIR = os.path.join(os.path.dirname(__file__), 'foxglove_client')
 RATE = 50.0  # Hz, the simulator's publish rate in these tests
