@@ -334,7 +334,7 @@ def main(argv: list[str] | None = None) -> int:
     code = start_ros('mcap_recorder', argv)  # stops between callbacks: never inside a write
     if code is not None:
         return code
-    node = None
+    node = executor = None
     code = 0
     try:
         node = Recorder()
@@ -358,6 +358,12 @@ def main(argv: list[str] | None = None) -> int:
                     print(f'error: {exc}', file=sys.stderr)
                     code = 1
                 node.destroy_node()
+            if executor is not None:
+                # before the context goes: collected after it, the executor's __del__
+                # destroys a guard condition the shutdown already took and prints an
+                # "Exception ignored ... InvalidHandle" traceback (a launch group's
+                # double Ctrl-C, 1 in 2 runs of test_signals in one suite)
+                executor.shutdown(timeout_sec=0)
             rclpy.try_shutdown()
     return code
 
