@@ -76,6 +76,16 @@ class NodeProcess:
         return self.proc.returncode
 
 
+def wait_output(proc, text, timeout=60.0):
+    """Until ``proc`` (a NodeProcess) has printed ``text``; False after ``timeout`` s. A
+    process that ends first fails the test with its output."""
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline and text not in proc.output():
+        assert proc.poll() is None, proc.output()[-3000:]
+        time.sleep(0.05)
+    return text in proc.output()
+
+
 def spin_until(node, predicate, timeout, executor=None):
     """Spin ``node`` until ``predicate()`` is true or ``timeout`` s pass; returns predicate()."""
     import rclpy

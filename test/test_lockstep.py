@@ -7,12 +7,11 @@ does not answer pauses the simulator, which reports it and resumes on the answer
 """
 import os
 import sys
-import time
 
 import pytest
 from rclpy.serialization import deserialize_message
 
-from ros_helpers import spin_until, venv_exe
+from ros_helpers import spin_until, venv_exe, wait_output
 from stamp_checks import STATE_TOPICS
 
 from rigid_body_sim import offline
@@ -25,14 +24,6 @@ SCENE = os.path.join(REPO, 'config', 'slew.yaml')
 # a fixed method: with auto the simulator, which does not know the controller's gains,
 # may choose another method than the offline run's in-process law (docs/live-nodes.md)
 OVERRIDES = ['integrator=splitting4', 'duration=3.0']
-
-
-def _wait_output(proc, text, timeout=60.0):
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline and text not in proc.output():
-        assert proc.poll() is None, proc.output()[-3000:]
-        time.sleep(0.05)
-    return text in proc.output()
 
 
 def _state_messages(bag, topics=STATE_TOPICS):
@@ -69,7 +60,7 @@ def _live_bag(ros_process, namespace, tmp_path, label, rtf):
     env = {'PYTHONUNBUFFERED': '1'}
     rec = ros_process(venv_exe('recorder'), '--ros-args', '-r', f'__ns:={ns}',
                       '-p', f'output:={bag}', env=env)
-    assert _wait_output(rec, 'recording to'), rec.output()
+    assert wait_output(rec, 'recording to'), rec.output()
     ctl = ros_process(venv_exe('controller'), '--ros-args', '-r', f'__ns:={ns}',
                       '--params-file', SCENE, '--params-file', str(over), env=env)
     sim = ros_process(venv_exe('simulator'), '--ros-args', '-r', f'__ns:={ns}',

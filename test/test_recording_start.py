@@ -2,20 +2,11 @@
 the recorder subscribes to the nodes' topics at its start, and the simulator, with
 ``wait_for_subscribers``, holds its t = 0 until they are matched. Real node processes."""
 import os
-import time
 
-from ros_helpers import venv_exe
+from ros_helpers import venv_exe, wait_output
 from stamp_checks import gaps_from_t0
 
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-
-
-def _wait_output(proc, text, timeout=60.0):
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline and text not in proc.output():
-        assert proc.poll() is None, proc.output()[-3000:]
-        time.sleep(0.05)
-    return text in proc.output()
 
 
 def test_as_fast_as_possible_recording_holds_every_sample_from_t0(ros_process, namespace,
@@ -31,7 +22,7 @@ def test_as_fast_as_possible_recording_holds_every_sample_from_t0(ros_process, n
     bag = tmp_path / 'bag'
     rec = ros_process(venv_exe('recorder'), '--ros-args', '-r', f'__ns:={namespace}',
                       '-p', f'output:={bag}', env={'PYTHONUNBUFFERED': '1'})
-    assert _wait_output(rec, 'recording to'), rec.output()
+    assert wait_output(rec, 'recording to'), rec.output()
     sim = ros_process(venv_exe('simulator'), '--ros-args', '-r', f'__ns:={namespace}',
                       '--params-file', os.path.join(REPO, 'config', 'tennis_racket.yaml'),
                       '--params-file', str(fast))

@@ -45,6 +45,7 @@ M0 = (2.5132741228718345, 0.04386936299713697, 0.0)
 STEP = 0.01
 DAMPING = {'double_bracket': 1.0678e-05, 'viscous': 1e-3}
 KINDS = ('free', 'double_bracket', 'viscous')
+DAMP_SUBSTEP = 0.068       # µs per double-bracket substep outside a composition, uncalibrated
 VISCOUS_FACTOR = 1.3       # splitting2's viscous cost / free cost, uncalibrated
 ADAPTIVE_EVALS = 12        # evaluations per step of the adaptive method (DOP853)
 
@@ -64,8 +65,8 @@ class Costs:
 
 
 def _candidates():
-    from .model import CANDIDATES
-    return CANDIDATES
+    from ..integrators import AUTO_CANDIDATES  # the registry's, as the cost model's
+    return AUTO_CANDIDATES
 
 
 def kernel_files():
@@ -236,7 +237,6 @@ def costs_from(record) -> Costs:
     ref = ratios[record['reference']]
     viscous = _clamp(ref['viscous'] / ref['free'], VISCOUS_FACTOR)
     # splitting2 damped at the timed step: its free step and one substep (two half-steps)
-    from .model import DAMP_SUBSTEP
     substep = _clamp((ref['double_bracket'] - ref['free']) * unit / 2, DAMP_SUBSTEP)
     return Costs(per_step, viscous, substep,
                  f'costs calibrated on {record.get("cpu", "this CPU")}')

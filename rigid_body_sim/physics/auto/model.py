@@ -7,17 +7,15 @@ are the registered methods' own facts (``Integrator.auto``, a :class:`Candidate`
 method states them on its class and nothing here changes.
 """
 import math
-from dataclasses import replace
 
 import numpy as np
 
-from ..integrators import INTEGRATORS, create, get_integrator
+from ..integrators import AUTO_CANDIDATES, create, get_integrator
 from . import calibration
+from .calibration import DAMP_SUBSTEP
 
-# What auto may choose: every registered method that states its facts (``Integrator.auto``),
-# in the registry's order (auto breaks ties of cost in it).
-CANDIDATES = tuple(replace(cls.auto, name=cls.name, stages=cls.stages)
-                   for cls in INTEGRATORS.values() if cls.auto is not None)
+# What auto may choose: the registry's candidates (integrators.AUTO_CANDIDATES).
+CANDIDATES = AUTO_CANDIDATES
 # dop853's a-priori model, from 60 runs on 20 generated dissipative scenes (seed 7,
 # ``bench.generated``; 150–2·10⁴ rad turned, rtol 1e-5–1e-9): its attitude error was
 # E/(rtol·ΩT) ≤ 60, median 0.09, growing with ΩT beyond a few hundred rad (energy drift):
@@ -29,7 +27,6 @@ DOP853_STEPS = 0.1        # steps per rad turned at rtol 1
 DOP853_STABLE = 6.0       # its real-axis stability limit, roughly (h·stiffness)
 RTOL_RANGE = (1e-13, 1e-3)
 ROUNDOFF = 2.5e-17        # rad per stage, step and radian turned (see Candidate.stages)
-DAMP_SUBSTEP = 0.068      # µs per double-bracket substep outside a composition
 RUN_COST = 3e-4           # s: building and finishing a run (engine, first and last sample)
 EVENT_COST = 1.5e-5       # s per event interval (a sample or control instant from Python)
 DRIFT_TURNS = 30          # the calibration horizon of ``k``, in turns (growth 'drift')

@@ -5,6 +5,8 @@ stages, stability function, closed-loop code, auto's costs, its compiled loops' 
 beside its compiled loop (``<method>_kernel.py``), and add it to ``_METHODS``. ``auto``,
 the warm-up, the stability check and the engine's closed loop read the facts from here.
 """
+from dataclasses import replace
+
 from .base import KINDS, PRESERVES, Candidate, IntegrationError, Integrator
 from .explicit import Euler, RK4
 from .exact_flow import Exact
@@ -19,6 +21,11 @@ _METHODS = (Splitting2, Splitting4, Splitting6, RK4, ImplicitMidpoint, Splitting
             DOP853, Euler, GyrostatStrang)
 
 INTEGRATORS = {cls.name: cls for cls in _METHODS}
+
+# auto's candidates: every registered method that states its facts (``Integrator.auto``),
+# in the registry's order (auto breaks ties of cost in it)
+AUTO_CANDIDATES = tuple(replace(cls.auto, name=cls.name, stages=cls.stages)
+                        for cls in _METHODS if cls.auto is not None)
 
 # the methods a scene without actuators can run (the others carry wheels/CMGs)
 BODY_ONLY = tuple(name for name, cls in INTEGRATORS.items() if not cls.requires_actuators)
@@ -38,5 +45,5 @@ def create(name: str, dynamics, **options) -> Integrator:
     return get_integrator(name)(dynamics, **options)
 
 
-__all__ = ['BODY_ONLY', 'INTEGRATORS', 'Candidate', 'Integrator', 'IntegrationError', 'KINDS',
-           'PRESERVES', 'create', 'get_integrator']
+__all__ = ['AUTO_CANDIDATES', 'BODY_ONLY', 'INTEGRATORS', 'Candidate', 'Integrator',
+           'IntegrationError', 'KINDS', 'PRESERVES', 'create', 'get_integrator']
