@@ -16,6 +16,7 @@ from typing import Optional
 import numpy as np
 
 from .engine import Engine, EngineConfig, SampleBlock
+from .engine.warm import warm_for
 from .physics import IntegrationError
 from .scene import SceneError, SceneFile, content_sha256, load
 from .sensors.specs import SensorSettings
@@ -225,21 +226,6 @@ def simulate(scene: SceneFile, duration=None, integrator=None, step=None, accura
                      selection=engine.selected,
                      actuators=engine.config.actuators, evaluations=engine.total_evaluations,
                      output_cpu_seconds=output)
-
-
-def warm_for(engine: Engine) -> None:
-    """Load every kernel ``engine``'s run will use, with the argument types it will pass,
-    before its clock starts: :func:`compiled.warm` loads each module's kernels, but some
-    are first called inside a run (the gyrostat loop of wheel scenes: 60 ms of a 64 ms
-    run). A fresh engine of the same configuration (so ``auto`` chooses the same) runs the
-    first few sample periods, past the mission's free phase, where the law's method starts."""
-    c = engine.config
-    span = 3 * c.sample_period_ns
-    if c.control is not None:
-        span += round(c.control.free_time * 1e9) + 3 * c.control.period_ns
-    copy = Engine(c)
-    for _ in copy.run(min(copy.end_ns, copy.t_ns + span)):
-        pass
 
 
 def kernel_signatures() -> int:
