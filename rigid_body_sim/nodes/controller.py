@@ -202,22 +202,9 @@ class Controller(Node):
         period = round(1e9 / self._p['control_rate'])
         if t_ns is None or t_ns != self._w_ns or t_ns % period or t_ns == self._answered_ns:
             return
-        if self._answered_ns is None:
-            self._wait_command_matched()
         self._answered_ns = t_ns
         self._age, self._stale_reason = 0.0, ''
         self._command(t_ns / 1e9, stamp)
-
-    def _wait_command_matched(self, timeout=5.0):
-        """Before lockstep's first answer: every subscription discovered on the command
-        topic (the simulator's, a recorder's) matched to our publisher, or ``timeout`` s.
-        The simulator holds the instant meanwhile, so this costs the run nothing; without
-        it a recorder matched a moment late missed the first commands (0.7 s of them in
-        one run of test_lockstep)."""
-        topic, deadline = self._pub.topic_name, time.monotonic() + timeout
-        while time.monotonic() < deadline and self._pub.get_subscription_count() < max(
-                1, len(self.get_subscriptions_info_by_topic(topic))):
-            time.sleep(0.01)  # matching happens in the middleware's threads
 
     def _on_gyro(self, msg: Imu):
         """A gyro reading (body frame): propagate the estimate; it becomes the state."""

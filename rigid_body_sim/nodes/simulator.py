@@ -40,7 +40,6 @@ from std_msgs.msg import Float64MultiArray
 from std_srvs.srv import Trigger
 
 from ..engine import NS, Engine, EngineConfig, lockstep, specs
-from ..engine.warm import warm_for
 from ..physics import IntegrationError
 from ..scene import SceneError, params_files_record
 from .commands import CommandFilter
@@ -252,12 +251,9 @@ class Simulator(Node):
 
     @property
     def _paced(self) -> bool:
-        """Publishing waits for acknowledgements as fast as possible, where a burst would
-        outrun the STATE_DEPTH history. Not at real time: there the history holds 1-2 s of
-        samples, and a wait for acknowledgements (which come with Fast DDS's heartbeats)
-        stalled the run by its whole 1 s timeout every ACK_EVERY samples, so a controller
-        found the state stale. The end of every run still waits (Simulator.run)."""
-        return not self._p['real_time_factor']
+        """Publishing waits for acknowledgements: as fast as possible, or when subscribers
+        were waited for (a recorder: it must get every sample, even if it lags)."""
+        return not self._p['real_time_factor'] or self._p['wait_for_subscribers'] > 0
 
     def _wait_acked(self):
         """Hold until reliable subscribers have acknowledged what was published, so that
@@ -324,16 +320,12 @@ class Simulator(Node):
         physics."""
         with events_executor(self) as executor:
             self._wait_for_subscribers(executor)
-            # the kernels the run will use, loaded before t = 0: the first samples stalled
-            # 1 s here while numba loaded them, so a controller found them stale (> its
-            # state_timeout) and began its mission 1.1 s late
-            warm_for(self._engine)
             self._base_stamp(self.get_clock().now().nanoseconds)
             self._anchor()  # pace from the first turn of the loop, not from construction
             while self.context.ok() and not self._engine.finished and not (
                     self._quit_at is not None and time.monotonic() >= self._quit_at):
                 executor.spin_once(timeout_sec=self.run_once())
-            if self._engine.finished and self._active and self.context.ok():
+            if self._engine.finished and self._paced and self.context.ok():
                 # the last samples are still in flight when the run ends: a recorder that
                 # was waited for must get them before this process takes its writers away
                 self._wait_acked()
