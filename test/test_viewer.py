@@ -371,7 +371,9 @@ def test_demo_starts_the_viewer_and_prints_its_url(client_js, tmp_path):
                             stderr=subprocess.STDOUT, text=True, start_new_session=True)
     try:
         _wait_port(port, 90.0)
-        (s,) = run_client(client_js, port, 4.0, '--subscribe', '/tf,/state')
+        # the viewer's port opens before the simulator's t = 0 (it holds t = 0 until the
+        # recorder and the controller are matched): listen long enough to see samples
+        (s,) = run_client(client_js, port, 20.0, '--subscribe', '/tf,/state')
     finally:
         out, _ = demo.communicate(timeout=120)
     assert demo.returncode == 0, out[-3000:]
