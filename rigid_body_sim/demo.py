@@ -256,6 +256,25 @@ def _body(scene):
     return EngineConfig.from_parameters(scene.simulator).body
 
 
+def free_phase(samples, free_end):
+    """(samples, relative drift of T, of |L|) of the recorded free phase: the samples
+    before ``free_end``, on the same time origin as the phases and control.png (the live
+    monitor's own count would include samples that arrived before the first command)."""
+    free = samples['t'] < free_end
+    L = np.linalg.norm(samples['angular_momentum'][free], axis=1)
+    return int(np.count_nonzero(free)), _drift(samples['kinetic_energy'][free]), _drift(L)
+
+
+def _ends_run(scene, args) -> bool:
+    """Whether the demo gives the simulator ``duration = --duration``: the run then ends at
+    that sim time itself (its last sample recorded) instead of when the demo stops it, unless
+    ``--set duration=...`` chose, or the scene ends sooner."""
+    if any(s.split('=', 1)[0].strip() == 'duration' for s in args.set or []):
+        return False
+    scene_duration = scene.simulator['duration']
+    return not 0.0 < scene_duration <= args.duration
+
+
 def slew_start(samples, free_end, controller):
     """When the slew began (s; inf if not): the rule control.png draws
     (plots.story.control): at the end of the free phase in slew mode, else at the first
@@ -414,6 +433,9 @@ def run(args) -> int:
             return 2
         args.set = list(args.set or []) + [f'{k}={str(v).lower()}' for k, v in extra.items()]
         scene = load(args.scene, args.set)
+    if _ends_run(scene, args):  # the simulator ends at --duration: bag and summary agree
+        args.set = list(args.set or []) + [f'duration={args.duration!r}']
+        scene = load(args.scene, args.set)
     # a demo stays on this machine
     os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
     out = os.path.abspath(args.out)
@@ -455,7 +477,8 @@ def run(args) -> int:
             procs.append(_Process('controller', params, out))
         _wait_for_nodes(node, executor, ['mcap_recorder'] + (
             ['attitude_controller'] if scene.controlled else []), procs)
-        procs.append(_Process('simulator', params + ['-p', 'wait_for_subscribers:=1'], out))
+        procs.append(_Process('simulator', params + ['-p', 'wait_for_subscribers:=1'] + (
+            ['-p', 'wait_for_controller:=true'] if scene.controlled else []), out))
         sim = procs[-1]
         if getattr(args, 'viewer', False):  # its own process: a viewer problem stops nothing
             procs.append(_Process('viewer', ['--ros-args', '-p', f'port:={args.viewer_port}'],
@@ -524,9 +547,10 @@ def run(args) -> int:
               + ('' if failed else _phase_hint(watcher, scene, slew)))
         print(f'  final pointing error: {watcher.error_deg():.4f}° '
               f'(target {np.round(target, 6).tolist()})')
-        print(f'  free phase: {len(watcher.free["T"])} samples, '
-              f'relative drift T {_drift(watcher.free["T"]):.2e}, '
-              f'|L| {_drift(watcher.free["L"]):.2e}')
+        count, drift_T, drift_L = free_phase(samples, free_end) if samples is not None \
+            else (len(watcher.free['T']), _drift(watcher.free['T']), _drift(watcher.free['L']))
+        print(f'  free phase: {count} samples, relative drift T {drift_T:.2e}, '
+              f'|L| {drift_L:.2e}' if count > 1 else '  free phase: none (torque from t = 0)')
     elif watcher is not None:
         print('  no sample from the simulator')
     if samples is not None and scene.controlled:

@@ -79,8 +79,11 @@ def plan(scene: str = 'default', record: str = 'true', output: str = '',
         sim_extra, ctl_extra = lockstep_parameters(loaded)
     # recording: the simulator holds its t = 0 until the recorder (which subscribes at its
     # start) is matched on every state topic, so the bag begins with the first sample
+    # and with a controller, until it is matched too: its mission clock starts at t = 0
     nodes = [PlannedNode('simulator', 'attitude_simulator', (path,),
-                         {**({'wait_for_subscribers': 1} if record else {}), **sim_extra})]
+                         {**({'wait_for_subscribers': 1} if record else {}),
+                          **({'wait_for_controller': True} if with_controller else {}),
+                          **sim_extra})]
     if with_controller:
         nodes.append(PlannedNode('controller', 'attitude_controller', (path,), ctl_extra))
     if _flag(viewer, 'viewer') == 'true':

@@ -23,8 +23,11 @@ def test_every_scene_plans_its_nodes(name):
     assert ('controller' in names) == load(name).controlled
     assert all(os.path.isabs(f) and os.path.isfile(f) for n in nodes for f in n.params_files)
     assert 'when the simulator exits' in summary
-    # recording: the simulator holds t = 0 until the recorder is matched (a full bag)
-    assert nodes[0].parameters == {'wait_for_subscribers': 1}
+    # recording: the simulator holds t = 0 until the recorder is matched (a full bag), and
+    # the controller when there is one (its mission clock starts with t = 0)
+    assert nodes[0].parameters == {'wait_for_subscribers': 1,
+                                   **({'wait_for_controller': True} if 'controller' in names
+                                      else {})}
     forced = [n.executable for n in plan(name, controller='true', record='false')[0]]
     assert forced == ['simulator', 'controller']
     viewed = plan(name, record='false', controller='false', viewer='true', viewer_port='9001')[0]
@@ -91,7 +94,8 @@ def test_lockstep_argument_runs_the_scene_in_lockstep(ros_process, namespace, tm
     nodes, summary = plan('slew', output=str(tmp_path / 'bag'), lockstep='true')
     assert 'in lockstep' in summary
     params = {n.executable: n.parameters for n in nodes}
-    assert params['simulator'] == {'wait_for_subscribers': 1, 'lockstep': True,
+    assert params['simulator'] == {'wait_for_subscribers': 1, 'wait_for_controller': True,
+                                   'lockstep': True,
                                    'publish_clock': True, 'control_rate': 50.0}
     assert params['controller'] == {'lockstep': True}
     with pytest.raises(ValueError, match='lockstep:=true: scene tennis_racket runs no controller'):

@@ -72,6 +72,11 @@ SIMULATOR = (
               'discovered is matched, so that they get every sample from the first; 0 = '
               'start at once (live node only)', kind='int',
               low=0, high=1000, read_only=True),
+    ParamSpec('wait_for_controller', False, 'before t = 0, also wait for a controller: a '
+              'matched publisher on a command topic whose node\'s state subscriptions are '
+              'discovered and matched, so that its first state is that of t = 0 (its mission '
+              'clock starts there); lockstep implies it (live node only)', kind='bool',
+              read_only=True),
     ParamSpec('wait_for_subscribers_timeout', 10.0, 'longest wait for those subscribers (wall '
               'time); then the run starts anyway, with a warning naming the topics without '
               'them', kind='float', unit='s', low=0.0, high=1e6, read_only=True),

@@ -336,25 +336,25 @@ class Simulator(Node):
         from the first), or ``wait_for_subscribers_timeout`` has passed: then start anyway,
         with a warning naming the topics still without them."""
         n = self._p['wait_for_subscribers']
-        if n <= 0 and not self._lockstep:
+        controller = self._lockstep or self._p['wait_for_controller']
+        if n <= 0 and not controller:
             return
         pubs = [p for p, _ in self._pubs] + list(self._sensor_pubs.values())
 
         def missing():
             """Topics with fewer than n matched subscriptions, or with one discovered but
-            not matched yet (discovery delivers a node's subscriptions one by one); with
-            lockstep, also a command topic without a matched publisher (the controller must
-            get the state of t = 0)."""
-            commands = [s.topic_name for s in self._command_subs]
+            not matched yet (discovery delivers a node's subscriptions one by one); with a
+            controller awaited, also a command topic without one (_controller_ready)."""
             return [p.topic_name for p in pubs if p.get_subscription_count() < max(
                 n, len(self.get_subscriptions_info_by_topic(p.topic_name)))] + (
-                commands[:1] if self._lockstep and not any(
-                    s.get_publisher_count() for s in self._command_subs) else [])
+                [self._command_subs[0].topic_name]
+                if controller and not self._controller_ready(pubs) else [])
         timeout = self._p['wait_for_subscribers_timeout']
         self._log.info(f'waiting up to {timeout:g} s for {n} matched subscription(s) on each '
                        f'of {len(pubs)} state topics before t = 0 (wait_for_subscribers)'
-                       + (' and a controller on torque_command (lockstep)'
-                          if self._lockstep else ''))
+                       + (' and a controller on torque_command ('
+                          + ('lockstep)' if self._lockstep else 'wait_for_controller)')
+                          if controller else ''))
         now = time.monotonic()
         deadline, settled = now + timeout, now + SUBSCRIBER_SETTLE_S
         paused, self.paused = self.paused, True  # commands arriving meanwhile advance nothing
@@ -374,6 +374,29 @@ class Simulator(Node):
             self._log.info('every state topic has its subscribers; starting at t = 0')
         self._refresh_subscribers()
         self._last_diag = (time.monotonic(), self._engine.t_ns)  # the rate leaves the wait out
+
+    def _controller_ready(self, pubs) -> bool:
+        """A command topic has a matched publisher whose node this process has seen
+        subscribe to a state topic: the controller is discovered, so the rule that every
+        discovered subscription be matched now covers its state subscriptions too (the
+        subscriber count alone is met by a recorder while the controller is still unknown,
+        and the controller then misses the first samples under load)."""
+        from rclpy._rclpy_pybind11 import RCLError
+        from rclpy.node import NodeNameNonExistentError
+        state = {p.topic_name for p in pubs}
+        for sub in self._command_subs:
+            if not sub.get_publisher_count():
+                continue
+            for info in self.get_publishers_info_by_topic(sub.topic_name):
+                ns = info.node_namespace  # may come without its leading '/'
+                try:
+                    topics = self.get_subscriber_names_and_types_by_node(
+                        info.node_name, ns if ns.startswith('/') else '/' + ns)
+                except (NodeNameNonExistentError, RCLError):  # gone, or not a ROS node
+                    continue
+                if any(name in state for name, _ in topics):
+                    return True
+        return False
 
     @property
     def finished(self) -> bool:
