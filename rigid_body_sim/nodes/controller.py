@@ -133,9 +133,11 @@ class Controller(Node):
         self.create_subscription(QuaternionStamped, 'attitude_target', self._on_target, qos)
         self._timer = None if self._p['lockstep'] else \
             self.create_timer(1.0 / self._p['control_rate'], self._tick)
-        if self._timer is None:  # load the law's kernel now, not at the first answer
-            from ..control_kernel import warm
-            warm()
+        # Load the law's kernel now, before the simulator's t = 0 (it waits for us), not
+        # at the first non-free command: that load held the first command ~0.4 s at real
+        # time, so it acted later than its stamp says (and a lockstep answer, longer).
+        from ..control_kernel import warm
+        warm()
         self.create_timer(DIAGNOSTICS_PERIOD_S, self._publish_diagnostics,
                           clock=Clock(clock_type=ClockType.STEADY_TIME))
         self.add_on_set_parameters_callback(self._validate_parameters)
