@@ -18,6 +18,7 @@ import time
 
 import numpy as np
 
+from .demo_summary import stamp_origin, summarize
 from .scene import SceneError, load
 
 STARTUP_TIMEOUT = 60.0  # wall s for the first sample (imports, kernels from cache, discovery)
@@ -161,110 +162,6 @@ class _Watcher:
         return '  '.join(parts)
 
 
-def stamp_origin(stamp, sim_time, time_scale) -> int:
-    """The stamp (ns) of the simulator's t = 0, from one of its diagnostics: the header
-    stamp is that of sim time ``sim_time`` (s, as text), stamps advance by sim time /
-    ``time_scale``."""
-    return stamp.sec * 1_000_000_000 + stamp.nanosec - round(float(sim_time) * 1e9 / time_scale)
-
-
-def _phase_hint(watcher, scene, slew_start):
-    """Why the pointing error is still large, when the run ended before the slew."""
-    if not scene.controlled or watcher.ended_in() == 'off':
-        return ''
-    if watcher.ended_in() == 'slew':
-        from .control import critical_settling_time
-        wn = np.mean(scene.controller.get('natural_frequency', 0.5))
-        settle = critical_settling_time(wn)
-        if not np.isfinite(slew_start) or watcher.t - slew_start >= settle:
-            return ''
-        return (f' — the slew began at t = {slew_start:.2f} s and settles to 2 % in '
-                f'5.83/ω_n = {settle:.1f} s (try a longer --duration)')
-    free = scene.controller.get('mission.free_time', 0.0)
-    return (f' — the slew had not begun: the free phase lasts {free:g} s, then the detumble; '
-            'the error is the tumble\'s, not the controller\'s (try a longer --duration)')
-
-
-def _drift(values):
-    if len(values) < 2 or values[0] == 0:
-        return math.nan
-    v = np.asarray(values)
-    return float(np.max(np.abs(v - v[0])) / abs(v[0]))
-
-
-def bag_samples(bag, scene):
-    """The recorded state as plot samples, and the end of the free phase (s), or None.
-
-    Topics are joined by their header stamps (every topic of one sample carries the same
-    stamp). Time is sim time from the simulator's t = 0: its diagnostics in the bag say
-    which stamp that is (``stamp_origin``; with ``publish_clock`` stamps are sim time), so
-    a bag that missed the first samples still has the right times."""
-    from rclpy.serialization import deserialize_message
-    from .bag.reader import iter_messages
-    from .bag.schema import message_class
-    p = scene.simulator
-    rtf = 1.0 if p['publish_clock'] else (p['real_time_factor'] or 1.0)
-    series = {'/attitude': {}, '/angular_velocity': {}, '/angular_momentum': {}}
-    first_torque = None  # stamp of the first nonzero command: the end of the free phase
-    commands = []  # (stamp, torque): held from its stamp on
-    origin = 0 if p['publish_clock'] else None
-    for m in iter_messages(bag, topics=list(series) + ['/torque_command', '/diagnostics']):
-        msg = deserialize_message(m.data, message_class(m.type))
-        if m.topic == '/diagnostics':
-            for status in msg.status:
-                values = {kv.key: kv.value for kv in status.values}
-                if origin is None and status.name.startswith('attitude_simulator') and \
-                        'sim_time' in values:
-                    origin = stamp_origin(msg.header.stamp, values['sim_time'], rtf)
-            continue
-        stamp = msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
-        if m.topic == '/torque_command':
-            v = msg.vector
-            if first_torque is None and (v.x or v.y or v.z):
-                first_torque = stamp
-            commands.append((stamp, (v.x, v.y, v.z)))
-        elif m.topic == '/attitude':
-            o = msg.quaternion
-            series[m.topic][stamp] = (o.x, o.y, o.z, o.w)
-        else:
-            v = msg.vector
-            series[m.topic][stamp] = (v.x, v.y, v.z)
-    stamps = sorted(set.intersection(*(set(v) for v in series.values())))
-    if len(stamps) < 2:
-        return None, None
-    t0 = stamps[0] if origin is None else origin
-    w = np.array([series['/angular_velocity'][s] for s in stamps])
-    torque = np.zeros_like(w)
-    if commands:
-        commands.sort(key=lambda c: c[0])
-        k = np.searchsorted([c[0] for c in commands], stamps, side='right') - 1
-        held = np.array([c[1] for c in commands])
-        torque[k >= 0] = held[k[k >= 0]]
-    body = _body(scene)
-    samples = {'t': (np.array(stamps) - t0) * 1e-9 * rtf,
-               'attitude': np.array([series['/attitude'][s] for s in stamps]),
-               'angular_velocity': w,
-               'angular_momentum': np.array([series['/angular_momentum'][s] for s in stamps]),
-               'kinetic_energy': 0.5 * np.einsum('ni,ij,nj->n', w, body.inertia, w),
-               'torque': torque}
-    free_end = np.inf if first_torque is None else (first_torque - t0) * 1e-9 * rtf
-    return samples, free_end
-
-
-def _body(scene):
-    from .engine import EngineConfig
-    return EngineConfig.from_parameters(scene.simulator).body
-
-
-def free_phase(samples, free_end):
-    """(samples, relative drift of T, of |L|) of the recorded free phase: the samples
-    before ``free_end``, on the same time origin as the phases and control.png (the live
-    monitor's own count would include samples that arrived before the first command)."""
-    free = samples['t'] < free_end
-    L = np.linalg.norm(samples['angular_momentum'][free], axis=1)
-    return int(np.count_nonzero(free)), _drift(samples['kinetic_energy'][free]), _drift(L)
-
-
 def _ends_run(scene, args) -> bool:
     """Whether the demo gives the simulator ``duration = --duration``: the run then ends at
     that sim time itself (its last sample recorded) instead of when the demo stops it, unless
@@ -273,21 +170,6 @@ def _ends_run(scene, args) -> bool:
         return False
     scene_duration = scene.simulator['duration']
     return not 0.0 < scene_duration <= args.duration
-
-
-def slew_start(samples, free_end, controller):
-    """When the slew began (s; inf if not): the rule control.png draws
-    (plots.story.control): at the end of the free phase in slew mode, else at the first
-    sample after it with |ω| below mission.detumble_exit_rate."""
-    t = samples['t']
-    w = np.linalg.norm(samples['angular_velocity'], axis=1)
-    active = t >= (free_end if np.isfinite(free_end) else t[0])
-    exit_rate = controller.get('mission.detumble_exit_rate', 0.0)
-    if controller['mode'] == 'slew' and np.any(active):
-        return float(t[np.argmax(active)])
-    if exit_rate > 0 and np.any(active & (w < exit_rate)):
-        return float(t[np.argmax(active & (w < exit_rate))])
-    return np.inf
 
 
 def _wait_for_nodes(node, executor, names, procs):
@@ -301,16 +183,6 @@ def _wait_for_nodes(node, executor, names, procs):
                                          if n in names):
             return
         executor.spin_once(timeout_sec=0.1)
-
-
-def _last_line(path):
-    """The last non-empty line of a log (what a node said before it exited)."""
-    try:
-        with open(path, errors='replace') as f:
-            lines = [line.strip() for line in f if line.strip()]
-    except OSError:
-        return ''
-    return lines[-1] if lines else ''
 
 
 def _interrupt(signum, frame):
@@ -412,8 +284,6 @@ def run(args) -> int:
     import rclpy
     from rclpy.executors import SingleThreadedExecutor
     from rclpy.node import Node
-    from .bag.errors import BagError
-    from .bag.reader import read_info
     try:
         scene = load(args.scene, args.set)
     except SceneError as exc:
@@ -529,45 +399,6 @@ def run(args) -> int:
     if codes.get('viewer') not in (0, None, -signal.SIGINT):  # reported, not a demo failure
         print(f'  viewer: exited with {codes.pop("viewer")} (log: {out}/viewer.log)')
     failed = {n: c for n, c in codes.items() if c not in (0, None, -signal.SIGINT)}
-    logs = {p.name: p.log_path for p in procs}
-    samples, free_end, bag_error = None, None, None
-    try:
-        info = read_info(bag)
-        samples, free_end = bag_samples(bag, scene)
-    except BagError as exc:
-        bag_error = exc
-    slew = slew_start(samples, free_end, scene.controller) \
-        if samples is not None and scene.controlled else np.inf
-    print('demo: summary' + (' (interrupted)' if interrupted else ''))
-    for name, code in failed.items():  # what the node said last: usually why
-        print(f'  {name}: exited with {code}: {_last_line(logs[name])} (log: {logs[name]})')
-    if watcher is not None and watcher.t0 is not None:
-        # the phase hint would guess at a cause; a failed node has its own
-        print(f'  ended at t = {watcher.t:.2f} s (sim time) in the {watcher.ended_in()} phase'
-              + ('' if failed else _phase_hint(watcher, scene, slew)))
-        print(f'  final pointing error: {watcher.error_deg():.4f}° '
-              f'(target {np.round(target, 6).tolist()})')
-        count, drift_T, drift_L = free_phase(samples, free_end) if samples is not None \
-            else (len(watcher.free['T']), _drift(watcher.free['T']), _drift(watcher.free['L']))
-        print(f'  free phase: {count} samples, relative drift T {drift_T:.2e}, '
-              f'|L| {drift_L:.2e}' if count > 1 else '  free phase: none (torque from t = 0)')
-    elif watcher is not None:
-        print('  no sample from the simulator')
-    if samples is not None and scene.controlled:
-        phases = [f'free until {free_end:.2f} s' if np.isfinite(free_end) else 'free']
-        phases += [f'slew from {slew:.2f} s'] if np.isfinite(slew) else []
-        print('  phases (sim time from the simulator\'s t = 0, as in control.png): '
-              + ', '.join(phases))
-    if bag_error is not None:
-        print(f'  bag: not readable ({bag_error}); recorder log: {logs["recorder"]}')
-        return 1
-    print(f'  messages recorded: {info.message_count} on {len(info.topics)} topics, '
-          f'{info.duration_s:.2f} s — bag: {bag}')
-    if samples is not None:
-        from .plots import write_plots
-        for path in write_plots(samples, _body(scene), out, f'{scene.name} (live)', free_end,
-                                scene):
-            print(f'  plot: {path}')
-    if failed:
-        return 1
-    return 130 if interrupted else 0
+    code = summarize(scene, bag, out, watcher, target, failed,
+                     {p.name: p.log_path for p in procs}, interrupted)
+    return code if code else (130 if interrupted else 0)

@@ -104,7 +104,8 @@ def test_make_venv_skips_a_pyenv_shim_of_a_missing_version_quietly(tmp_path):
 def test_demo_summary_explains_an_unfinished_run():
     import numpy as np
 
-    from rigid_body_sim.demo import _phase_hint, _Watcher
+    from rigid_body_sim.demo import _Watcher
+    from rigid_body_sim.demo_summary import phase_hint as _phase_hint
     from rigid_body_sim.scene import load
     scene = load(os.path.join(REPO, 'config', 'default.yaml'))
     w = _Watcher(_FakeNode(), np.array([0.0, 0.0, 0.0, 1.0]))

@@ -170,6 +170,21 @@ def nutation(s, body, out_dir, title, unit, scale, coefficient):
                                                           float(s['kinetic_energy'][-1]))})
 
 
+def slew_begins(s, free_end, controller) -> float:
+    """When the slew began (s; inf if not): at the end of the free phase in slew mode,
+    else at the first sample after it with |ω| below mission.detumble_exit_rate (the
+    figure marks it, the demo's summary prints it)."""
+    t = np.asarray(s['t'])
+    w = np.linalg.norm(s['angular_velocity'], axis=1)
+    active = t >= (free_end if np.isfinite(free_end) else t[0])
+    exit_rate = controller.get('mission.detumble_exit_rate', 0.0)
+    if controller['mode'] == 'slew' and np.any(active):
+        return float(t[np.argmax(active)])
+    if exit_rate > 0 and np.any(active & (w < exit_rate)):
+        return float(t[np.argmax(active & (w < exit_rate))])
+    return np.inf
+
+
 def control(s, out_dir, title, unit, scale, controller, free_end):
     """Error angle, rate and |L| against the critically damped / exponential predictions."""
     plt = pyplot()
@@ -180,14 +195,8 @@ def control(s, out_dir, title, unit, scale, controller, free_end):
     L = np.linalg.norm(s['angular_momentum'], axis=1)
     wn = float(np.mean(controller['natural_frequency']))
     zeta = float(np.mean(controller['damping_ratio']))
-    exit_rate = controller.get('mission.detumble_exit_rate', 0.0)
     active = t >= (free_end if np.isfinite(free_end) else t[0])
-    if controller['mode'] == 'slew':
-        slew_start = t[np.argmax(active)]
-    elif exit_rate > 0 and np.any(active & (w < exit_rate)):
-        slew_start = t[np.argmax(active & (w < exit_rate))]
-    else:
-        slew_start = np.inf
+    slew_start = slew_begins(s, free_end, controller)
     values = {}
     fig, axes = plt.subplots(3, 1, figsize=(8.5, 8), sharex=True)
     axes[0].plot(t / scale, np.degrees(angle), lw=2.5, alpha=0.5, label='simulated')

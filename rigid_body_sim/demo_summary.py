@@ -1,0 +1,174 @@
+"""The demo's summary: the recorded run read back on the simulator's time origin (one
+origin for the summary and the plots, from the stamps and the simulator's diagnostics),
+the phases, the free phase's drift, and why a run that ended early shows a large error."""
+import math
+
+import numpy as np
+
+
+def stamp_origin(stamp, sim_time, time_scale) -> int:
+    """The stamp (ns) of the simulator's t = 0, from one of its diagnostics: the header
+    stamp is that of sim time ``sim_time`` (s, as text), stamps advance by sim time /
+    ``time_scale``."""
+    return stamp.sec * 1_000_000_000 + stamp.nanosec - round(float(sim_time) * 1e9 / time_scale)
+
+
+
+def phase_hint(watcher, scene, slew_start):
+    """Why the pointing error is still large, when the run ended before the slew."""
+    if not scene.controlled or watcher.ended_in() == 'off':
+        return ''
+    if watcher.ended_in() == 'slew':
+        from .control import critical_settling_time
+        wn = np.mean(scene.controller.get('natural_frequency', 0.5))
+        settle = critical_settling_time(wn)
+        if not np.isfinite(slew_start) or watcher.t - slew_start >= settle:
+            return ''
+        return (f' — the slew began at t = {slew_start:.2f} s and settles to 2 % in '
+                f'5.83/ω_n = {settle:.1f} s (try a longer --duration)')
+    free = scene.controller.get('mission.free_time', 0.0)
+    return (f' — the slew had not begun: the free phase lasts {free:g} s, then the detumble; '
+            'the error is the tumble\'s, not the controller\'s (try a longer --duration)')
+
+
+
+def drift(values):
+    if len(values) < 2 or values[0] == 0:
+        return math.nan
+    v = np.asarray(values)
+    return float(np.max(np.abs(v - v[0])) / abs(v[0]))
+
+
+
+def bag_samples(bag, scene):
+    """The recorded state as plot samples, and the end of the free phase (s), or None.
+
+    Topics are joined by their header stamps (every topic of one sample carries the same
+    stamp). Time is sim time from the simulator's t = 0: its diagnostics in the bag say
+    which stamp that is (``stamp_origin``; with ``publish_clock`` stamps are sim time), so
+    a bag that missed the first samples still has the right times."""
+    from rclpy.serialization import deserialize_message
+    from .bag.reader import iter_messages
+    from .bag.schema import message_class
+    p = scene.simulator
+    rtf = 1.0 if p['publish_clock'] else (p['real_time_factor'] or 1.0)
+    series = {'/attitude': {}, '/angular_velocity': {}, '/angular_momentum': {}}
+    first_torque = None  # stamp of the first nonzero command: the end of the free phase
+    commands = []  # (stamp, torque): held from its stamp on
+    origin = 0 if p['publish_clock'] else None
+    for m in iter_messages(bag, topics=list(series) + ['/torque_command', '/diagnostics']):
+        msg = deserialize_message(m.data, message_class(m.type))
+        if m.topic == '/diagnostics':
+            for status in msg.status:
+                values = {kv.key: kv.value for kv in status.values}
+                if origin is None and status.name.startswith('attitude_simulator') and \
+                        'sim_time' in values:
+                    origin = stamp_origin(msg.header.stamp, values['sim_time'], rtf)
+            continue
+        stamp = msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
+        if m.topic == '/torque_command':
+            v = msg.vector
+            if first_torque is None and (v.x or v.y or v.z):
+                first_torque = stamp
+            commands.append((stamp, (v.x, v.y, v.z)))
+        elif m.topic == '/attitude':
+            o = msg.quaternion
+            series[m.topic][stamp] = (o.x, o.y, o.z, o.w)
+        else:
+            v = msg.vector
+            series[m.topic][stamp] = (v.x, v.y, v.z)
+    stamps = sorted(set.intersection(*(set(v) for v in series.values())))
+    if len(stamps) < 2:
+        return None, None
+    t0 = stamps[0] if origin is None else origin
+    w = np.array([series['/angular_velocity'][s] for s in stamps])
+    torque = np.zeros_like(w)
+    if commands:
+        commands.sort(key=lambda c: c[0])
+        k = np.searchsorted([c[0] for c in commands], stamps, side='right') - 1
+        held = np.array([c[1] for c in commands])
+        torque[k >= 0] = held[k[k >= 0]]
+    body = body_of(scene)
+    samples = {'t': (np.array(stamps) - t0) * 1e-9 * rtf,
+               'attitude': np.array([series['/attitude'][s] for s in stamps]),
+               'angular_velocity': w,
+               'angular_momentum': np.array([series['/angular_momentum'][s] for s in stamps]),
+               'kinetic_energy': 0.5 * np.einsum('ni,ij,nj->n', w, body.inertia, w),
+               'torque': torque}
+    free_end = np.inf if first_torque is None else (first_torque - t0) * 1e-9 * rtf
+    return samples, free_end
+
+
+
+def body_of(scene):
+    from .engine import EngineConfig
+    return EngineConfig.from_parameters(scene.simulator).body
+
+
+
+def free_phase(samples, free_end):
+    """(samples, relative drift of T, of |L|) of the recorded free phase: the samples
+    before ``free_end``, on the same time origin as the phases and control.png (the live
+    monitor's own count would include samples that arrived before the first command)."""
+    free = samples['t'] < free_end
+    L = np.linalg.norm(samples['angular_momentum'][free], axis=1)
+    return int(np.count_nonzero(free)), drift(samples['kinetic_energy'][free]), drift(L)
+
+
+
+def last_line(path):
+    """The last non-empty line of a log (what a node said before it exited)."""
+    try:
+        with open(path, errors='replace') as f:
+            lines = [line.strip() for line in f if line.strip()]
+    except OSError:
+        return ''
+    return lines[-1] if lines else ''
+
+
+def summarize(scene, bag, out, watcher, target, failed, logs, interrupted) -> int:
+    """Print the demo's summary from the bag, on the simulator's time origin, and write
+    the plots; 1 when the bag is unreadable or a node failed (``failed``: name → exit
+    code; ``logs``: name → log path), else 0."""
+    from .bag.errors import BagError
+    from .bag.reader import read_info
+    samples, free_end, bag_error = None, None, None
+    try:
+        info = read_info(bag)
+        samples, free_end = bag_samples(bag, scene)
+    except BagError as exc:
+        bag_error = exc
+    from .plots.story import slew_begins
+    slew = slew_begins(samples, free_end, scene.controller) \
+        if samples is not None and scene.controlled else np.inf
+    print('demo: summary' + (' (interrupted)' if interrupted else ''))
+    for name, code in failed.items():  # what the node said last: usually why
+        print(f'  {name}: exited with {code}: {last_line(logs[name])} (log: {logs[name]})')
+    if watcher is not None and watcher.t0 is not None:
+        # the phase hint would guess at a cause; a failed node has its own
+        print(f'  ended at t = {watcher.t:.2f} s (sim time) in the {watcher.ended_in()} phase'
+              + ('' if failed else phase_hint(watcher, scene, slew)))
+        print(f'  final pointing error: {watcher.error_deg():.4f}° '
+              f'(target {np.round(target, 6).tolist()})')
+        count, drift_T, drift_L = free_phase(samples, free_end) if samples is not None \
+            else (len(watcher.free['T']), drift(watcher.free['T']), drift(watcher.free['L']))
+        print(f'  free phase: {count} samples, relative drift T {drift_T:.2e}, '
+              f'|L| {drift_L:.2e}' if count > 1 else '  free phase: none (torque from t = 0)')
+    elif watcher is not None:
+        print('  no sample from the simulator')
+    if samples is not None and scene.controlled:
+        phases = [f'free until {free_end:.2f} s' if np.isfinite(free_end) else 'free']
+        phases += [f'slew from {slew:.2f} s'] if np.isfinite(slew) else []
+        print('  phases (sim time from the simulator\'s t = 0, as in control.png): '
+              + ', '.join(phases))
+    if bag_error is not None:
+        print(f'  bag: not readable ({bag_error}); recorder log: {logs["recorder"]}')
+        return 1
+    print(f'  messages recorded: {info.message_count} on {len(info.topics)} topics, '
+          f'{info.duration_s:.2f} s — bag: {bag}')
+    if samples is not None:
+        from .plots import write_plots
+        for path in write_plots(samples, body_of(scene), out, f'{scene.name} (live)', free_end,
+                                scene):
+            print(f'  plot: {path}')
+    return 1 if failed else 0
