@@ -21,8 +21,7 @@ from rigid_body_sim.scene import load
 
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 SCENE = os.path.join(REPO, 'config', 'slew.yaml')
-# a fixed method: with auto the simulator, which does not know the controller's gains,
-# may choose another method than the offline run's in-process law (docs/live-nodes.md)
+# a fixed method here; test_lockstep_with_auto_chooses_as_the_offline_run runs auto
 OVERRIDES = ['integrator=splitting4', 'duration=3.0']
 
 
@@ -37,8 +36,8 @@ def _state_messages(bag, topics=STATE_TOPICS):
     return out
 
 
-def _offline_bag(tmp_path):
-    scene = load(SCENE, OVERRIDES)
+def _offline_bag(tmp_path, overrides=OVERRIDES):
+    scene = load(SCENE, overrides)
     sink = offline.BagSink(scene, str(tmp_path / 'offline'), {}, scene.simulator)
     result = offline.simulate(scene, sinks=[sink], keep='none')
     sink.finish(result)
@@ -46,12 +45,12 @@ def _offline_bag(tmp_path):
     return tmp_path / 'offline'
 
 
-def _live_bag(ros_process, namespace, tmp_path, label, rtf):
+def _live_bag(ros_process, namespace, tmp_path, label, rtf, integrator='splitting4'):
     """Recorder, controller and simulator in lockstep on the scene; the bag."""
     over = tmp_path / f'{label}.yaml'
     over.write_text('/**/attitude_simulator:\n  ros__parameters:\n'
                     f'    real_time_factor: {rtf}\n    publish_clock: true\n'
-                    '    integrator: splitting4\n    duration: 3.0\n'
+                    f'    integrator: {integrator}\n    duration: 3.0\n'
                     '    wait_for_subscribers: 1\n    wait_for_subscribers_timeout: 60.0\n'
                     '    lockstep: true\n    control_rate: 50.0\n    lockstep_timeout: 30.0\n'
                     '/**/attitude_controller:\n  ros__parameters:\n    lockstep: true\n')
@@ -95,6 +94,20 @@ def test_lockstep_runs_equal_each_other_and_the_offline_run(ros_process, namespa
     stamps = [(m.header.stamp.sec, m.header.stamp.nanosec) for m in fast['torque_command']]
     assert stamps == [(m.header.stamp.sec, m.header.stamp.nanosec)
                       for m in expected['attitude']]
+
+
+def test_lockstep_with_auto_chooses_as_the_offline_run(ros_process, namespace, tmp_path):
+    """The scene as shipped (``integrator: auto``): the simulator reads its controller's
+    gains from the same params files, so ``auto`` expects the law's torque as the offline
+    run's in-process law tells it, and chooses the same method and step (splitting4 at
+    10 ms on slew; with √(√3·max_torque/I_min) as the torque's rate it chose splitting6 at
+    20 ms, and the messages differed)."""
+    offline_scene = load(SCENE, ['duration=3.0'])
+    assert offline_scene.simulator['integrator'] == 'auto'
+    expected = _state_messages(_offline_bag(tmp_path, ['duration=3.0']))
+    _, live = _live_bag(ros_process, namespace, tmp_path, 'auto', 0.0, integrator='auto')
+    for topic, messages in expected.items():
+        assert live[topic] == messages, topic
 
 
 def test_a_controller_that_does_not_answer_pauses_the_simulator(ros_process, namespace,

@@ -39,6 +39,13 @@ class ControlSettings:
     feedback: str = 'truth'             # or 'sensors' (the estimator's output)
     estimator_bandwidth: float = 0.5    # rad/s
 
+    def bandwidth(self) -> float:
+        """The law's rate scale (1/s): its fastest gain over the principal moments."""
+        cfg = self.config
+        i = cfg.body.principal_moments
+        return float(max(np.max(np.sqrt(cfg.kp_principal / i)), np.max(cfg.kd_principal / i),
+                         np.max(cfg.rate_gain_principal / i)))
+
     @classmethod
     def from_parameters(cls, values: Mapping) -> 'ControlSettings':
         p = coerce_all(specs.CONTROLLER, values)
@@ -67,6 +74,9 @@ class EngineConfig:
     duration_ns: the run ends there (0 = open-ended).
     max_torque: per-axis clip of commanded torque (N·m); command_timeout_ns: hold time.
     control: the in-process control law, or None (commands come from outside).
+    law_bandwidth: with commands from outside, the rate scale of the controller's law when
+        its gains are known (a lockstep controller's scene), so that ``auto`` expects the
+        torque the offline run's in-process law gives and chooses as it does; 0 = unknown.
     actuators: reaction wheels / CMGs (``actuators``), or None: the plain rigid body.
     sensors: the simulated gyro / star tracker (``sensors.specs``), or None.
     """
@@ -85,6 +95,7 @@ class EngineConfig:
     integrator_options: Mapping = field(default_factory=dict)
     actuators: Optional[ActuatorConfig] = None
     sensors: Optional[SensorSettings] = None  # None: no sensor simulated (nothing built)
+    law_bandwidth: float = 0.0  # 1/s: an outside controller's, when its gains are known
 
     @property
     def duration(self) -> float:
@@ -105,13 +116,13 @@ class EngineConfig:
         return h
 
     def torque_rate(self) -> float:
-        """Rate scale (1/s) of the torque ``auto`` must expect: the in-process control
-        law's bandwidth, else that of the largest command, √(√3·max_torque/I_min)."""
+        """Rate scale (1/s) of the torque ``auto`` must expect: the control law's
+        bandwidth (in process, or ``law_bandwidth`` of an outside one whose gains are
+        known), else that of the largest command, √(√3·max_torque/I_min)."""
         if self.control is not None:
-            cfg = self.control.config
-            i = cfg.body.principal_moments
-            return float(max(np.max(np.sqrt(cfg.kp_principal / i)), np.max(cfg.kd_principal / i),
-                             np.max(cfg.rate_gain_principal / i)))
+            return self.control.bandwidth()
+        if self.law_bandwidth > 0.0:
+            return self.law_bandwidth
         return math.sqrt(math.sqrt(3.0) * self.max_torque / self.body.principal_moments.min())
 
     def replace(self, **changes) -> 'EngineConfig':

@@ -37,6 +37,34 @@ def period_ns(p) -> int:
     return period
 
 
+def controller_values(params_files, namespace: str = '/') -> dict:
+    """The values the scene's controller (``attitude_controller`` beside the simulator, in
+    ``namespace``) takes from ``params_files``, later files winning, as rcl reads them."""
+    from ..params_file import fully_qualified, node_parameters
+    fqn = fully_qualified('attitude_controller', namespace)
+    values = {}
+    for path in params_files:
+        values.update({k: v.value for k, v in node_parameters(path, fqn).items()})
+    return values
+
+
+def law_bandwidth(controller) -> float:
+    """The rate scale (1/s) of the controller's law with the values ``controller`` (its
+    defaults where the files give none): what the offline run's in-process law tells
+    ``auto``. 0 (unknown) without values or when they are not a valid law, which the
+    controller node itself then refuses."""
+    if not controller:
+        return 0.0
+    from .config import ControlSettings
+    from .specs import CONTROLLER
+    known = {s.name for s in CONTROLLER}  # the scene record (scene.*) is not the law's
+    try:
+        return ControlSettings.from_parameters(
+            {k: v for k, v in controller.items() if k in known}).bandwidth()
+    except ValueError:
+        return 0.0
+
+
 class RoundTrips:
     """Sim-side cost of the exchanges: wall time from publishing a control instant's state
     to applying its command, and the simulator's CPU per control period (stepping,

@@ -76,10 +76,13 @@ ACK_EVERY = STATE_DEPTH // 2  # as fast as possible: wait for acknowledgements t
 ACK_TIMEOUT = Duration(seconds=1.0)  # then go on (a subscriber that hangs stalls no run)
 
 
-def check_parameters(p):
-    """Validate a full set of coerced values (frames, inertia, ...); ValueError(reason)."""
+def check_parameters(p, controller=None):
+    """Validate a full set of coerced values (frames, inertia, ...); ValueError(reason).
+    ``controller``: in lockstep, the controller's values from the same params files, so
+    that ``auto`` chooses as the offline run of the scene does (lockstep.law_bandwidth)."""
     if p['lockstep']:
         lockstep.period_ns(p)
+        return EngineConfig.from_parameters(p, law_bandwidth=lockstep.law_bandwidth(controller))
     return EngineConfig.from_parameters(p)
 
 
@@ -99,8 +102,10 @@ class Simulator(Node):
             self._p = declare_parameters(self, [replace(s, default=record.get(s.name, s.default))
                                                 for s in specs.SIMULATOR_DECLARED])
             self.scene_record = {s.name: self._p.pop(s.name) for s in specs.SCENE_RECORD}
-            self._engine = Engine(check_parameters(self._p), blocking_selection=False,
-                                  check_method=True)
+            self._controller_values = lockstep.controller_values(
+                ros_arguments()[0], self.get_namespace()) if self._p['lockstep'] else None
+            self._engine = Engine(check_parameters(self._p, self._controller_values),
+                                  blocking_selection=False, check_method=True)
         except ValueError as exc:
             raise SceneError(str(exc)) from None
         self._log = self.get_logger()
@@ -564,7 +569,7 @@ class Simulator(Node):
         self._catch_up()  # what was due runs under the old values
         stamp_now = self.stamp_ns(self._engine.t_ns)
         self._p.update(changed)
-        self._engine.reconfigure(check_parameters(self._p))
+        self._engine.reconfigure(check_parameters(self._p, self._controller_values))
         self._commands.params = self._p
         if 'real_time_factor' in changed or 'publish_clock' in changed:
             self._base_stamp(stamp_now)  # stamps stay continuous across the change
