@@ -36,8 +36,8 @@ def _state_messages(bag, topics=STATE_TOPICS):
     return out
 
 
-def _offline_bag(tmp_path, overrides=OVERRIDES):
-    scene = load(SCENE, overrides)
+def _offline_bag(tmp_path, overrides=OVERRIDES, path=SCENE):
+    scene = load(path, overrides)
     sink = offline.BagSink(scene, str(tmp_path / 'offline'), {}, scene.simulator)
     result = offline.simulate(scene, sinks=[sink], keep='none')
     sink.finish(result)
@@ -45,14 +45,16 @@ def _offline_bag(tmp_path, overrides=OVERRIDES):
     return tmp_path / 'offline'
 
 
-def _live_bag(ros_process, namespace, tmp_path, label, rtf, integrator='splitting4'):
+def _live_bag(ros_process, namespace, tmp_path, label, rtf, integrator='splitting4',
+              path=SCENE):
     """Recorder, controller and simulator in lockstep on the scene; the bag."""
+    rate = load(path).controller['control_rate']
     over = tmp_path / f'{label}.yaml'
     over.write_text('/**/attitude_simulator:\n  ros__parameters:\n'
                     f'    real_time_factor: {rtf}\n    publish_clock: true\n'
                     f'    integrator: {integrator}\n    duration: 3.0\n'
                     '    wait_for_subscribers: 1\n    wait_for_subscribers_timeout: 60.0\n'
-                    '    lockstep: true\n    control_rate: 50.0\n    lockstep_timeout: 30.0\n'
+                    f'    lockstep: true\n    control_rate: {rate}\n    lockstep_timeout: 30.0\n'
                     '/**/attitude_controller:\n  ros__parameters:\n    lockstep: true\n')
     ns = f'{namespace}_{label}'
     bag = tmp_path / label
@@ -61,13 +63,14 @@ def _live_bag(ros_process, namespace, tmp_path, label, rtf, integrator='splittin
                       '-p', f'output:={bag}', env=env)
     assert wait_output(rec, 'recording to'), rec.output()
     ctl = ros_process(venv_exe('controller'), '--ros-args', '-r', f'__ns:={ns}',
-                      '--params-file', SCENE, '--params-file', str(over), env=env)
+                      '--params-file', path, '--params-file', str(over), env=env)
     sim = ros_process(venv_exe('simulator'), '--ros-args', '-r', f'__ns:={ns}',
-                      '--params-file', SCENE, '--params-file', str(over), env=env)
+                      '--params-file', path, '--params-file', str(over), env=env)
     assert sim.wait(240) == 0, sim.output()[-3000:]
     out = sim.output()
     assert 'every state topic has its subscribers; starting at t = 0' in out, out[-3000:]
-    assert 'lockstep: 150 exchanges' in out, out[-3000:]  # 3 s at 50 Hz: t = 0 … 2.98 s
+    # 3 s of control instants: t = 0 … 3 s less one period
+    assert f'lockstep: {round(3 * rate)} exchanges' in out, out[-3000:]
     assert 'paused' not in out, out[-3000:]
     assert ctl.stop() == 0, ctl.output()[-3000:]
     assert rec.stop() == 0, rec.output()[-3000:]
@@ -96,16 +99,19 @@ def test_lockstep_runs_equal_each_other_and_the_offline_run(ros_process, namespa
                       for m in expected['attitude']]
 
 
-def test_lockstep_with_auto_chooses_as_the_offline_run(ros_process, namespace, tmp_path):
-    """The scene as shipped (``integrator: auto``): the simulator reads its controller's
+@pytest.mark.parametrize('name', ['slew', 'detumble', 'wheel_slew'])
+def test_lockstep_with_auto_chooses_as_the_offline_run(ros_process, namespace, tmp_path, name):
+    """The scenes as shipped (``integrator: auto``): the simulator reads its controller's
     gains from the same params files, so ``auto`` expects the law's torque as the offline
     run's in-process law tells it, and chooses the same method and step (splitting4 at
     10 ms on slew; with √(√3·max_torque/I_min) as the torque's rate it chose splitting6 at
-    20 ms, and the messages differed)."""
-    offline_scene = load(SCENE, ['duration=3.0'])
-    assert offline_scene.simulator['integrator'] == 'auto'
-    expected = _state_messages(_offline_bag(tmp_path, ['duration=3.0']))
-    _, live = _live_bag(ros_process, namespace, tmp_path, 'auto', 0.0, integrator='auto')
+    20 ms, and the messages differed). The wheels' method carries the commands alike."""
+    path = os.path.join(REPO, 'config', f'{name}.yaml')
+    assert load(path).simulator['integrator'] == 'auto'
+    expected = _state_messages(_offline_bag(tmp_path, ['duration=3.0'], path))
+    assert expected['attitude'] and expected['attitude'][0].header.stamp.sec == 0
+    _, live = _live_bag(ros_process, namespace, tmp_path, name, 0.0, integrator='auto',
+                        path=path)
     for topic, messages in expected.items():
         assert live[topic] == messages, topic
 
