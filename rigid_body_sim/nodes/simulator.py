@@ -43,6 +43,7 @@ from ..engine import NS, Engine, EngineConfig, lockstep, specs
 from ..physics import IntegrationError
 from ..scene import SceneError, params_files_record
 from .commands import CommandFilter
+from .joint_commands import JointCommands
 from .common import (changed_values, declare_parameters, diagnostic_status, qos_profile,
                      validate_update)
 from .process import events_executor, run_node
@@ -134,10 +135,13 @@ class Simulator(Node):
                 m.header, m.vector, 'torque_command'), qos),
             self.create_subscription(WrenchStamped, 'wrench_command', lambda m: self._on_command(
                 m.header, m.wrench.torque, 'wrench_command'), qos)]
+        self._joints = None
         if actuators is not None:  # ros2_control forward-command convention
             self._actuator_warn = 0.0
             self.create_subscription(Float64MultiArray, 'actuator_command',
                                      self._on_actuator_command, qos)
+            # ros2_control's joint_state_topic_hardware_interface (joint_commands.py)
+            self._joints = JointCommands(self, self._engine, qos, self._actuators_ready)
         self.create_service(Trigger, '~/reset', self._on_reset)
         self.paused = False
         self._quit_at = None  # wall time at which a requested quit ends the loop
@@ -500,6 +504,13 @@ class Simulator(Node):
         self._commands.reject(reason, source, f'stamp {header.stamp.sec}.'
                               f'{header.stamp.nanosec:09d}: {held}')
 
+    def _actuators_ready(self) -> bool:
+        """Before an actuator command: False if the run stopped, else what was due ran."""
+        if self._fault or self._engine.finished:
+            return False
+        self._catch_up()
+        return True
+
     def _on_actuator_command(self, msg):
         """Wheel torques then gimbal rates; a bad one is counted by the engine's actuators
         (diagnostics) and warned about (throttled); the last valid command stays."""
@@ -587,6 +598,7 @@ class Simulator(Node):
         values = {**e.diagnostics(), 'real_time_factor_target': self._p['real_time_factor'],
                   **(self._lockstep_values() if self._lockstep else {}),
                   'real_time_factor_achieved': achieved, **self._commands.counts(),
+                  **(self._joints.counts() if self._joints is not None else {}),
                   'missed_deadlines': self._missed,
                   'missed_deadlines_in_period': self._missed - self._missed_at_last_diag,
                   'worst_lateness_in_period': self._worst_late,
