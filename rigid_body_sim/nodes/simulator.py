@@ -128,7 +128,7 @@ class Simulator(Node):
         if self._p['publish_clock']:
             self._clock_pub = pub(Clock, '/clock', qos_profile('reliable'))
         self._diag_pub = pub(DiagnosticArray, '/diagnostics', qos_profile('reliable'))
-        self._active = []
+        self._active, self._active_names = [], frozenset()
         self._commands = CommandFilter(self, self._p)
         self._command_subs = [
             self.create_subscription(Vector3Stamped, 'torque_command', lambda m: self._on_command(
@@ -233,11 +233,14 @@ class Simulator(Node):
     def _publish(self, block, late=True):
         msgs, rtf = self._msgs, (self._p['real_time_factor'] if late else 0)
         if block.sensors is not None:  # readings at their own instants, stamped likewise
-            for _, name, msg in self._sensor_msgs.messages(block.sensors, self.stamp_ns):
+            only = frozenset(n for n, p in self._sensor_pubs.items()
+                             if p.get_subscription_count() > 0)
+            for _, name, msg in self._sensor_msgs.messages(block.sensors, self.stamp_ns, only):
                 self._sensor_pubs[name].publish(msg)
         for i in range(len(block)):
             t_ns = int(block.t_ns[i])
-            data = msgs.encoded(block, i, self.stamp_ns(t_ns)) if self._active else None
+            data = msgs.encoded(block, i, self.stamp_ns(t_ns), self._active_names) \
+                if self._active else None
             if self._clock_pub is not None:
                 self._clock_msg.clock.sec, self._clock_msg.clock.nanosec = divmod(t_ns, NS)
                 self._clock_pub.publish(self._clock_msg)
@@ -313,7 +316,9 @@ class Simulator(Node):
         return min(max(wait, 0.0), self._next_diag_wall - now, 0.1)
 
     def _refresh_subscribers(self):
+        # only topics with subscribers are built and published (a late one joins here)
         self._active = [(p, name) for p, name in self._pubs if p.get_subscription_count() > 0]
+        self._active_names = frozenset(name for _, name in self._active)
 
     def run(self):
         """Spin until shutdown or ``duration`` is reached.
@@ -603,7 +608,8 @@ class Simulator(Node):
                   'missed_deadlines_in_period': self._missed - self._missed_at_last_diag,
                   'worst_lateness_in_period': self._worst_late,
                   'deadline_tolerance': self._p['deadline_tolerance'],
-                  'fault': self._fault or '', 'resets': self._resets}
+                  'fault': self._fault or '', 'resets': self._resets,
+                  **{f'messages_built.{k}': n for k, n in self._msgs.built().items()}}
         missed = self._missed - self._missed_at_last_diag
         if self._fault:
             level, message = 'ERROR', f'stopped: {self._fault}'
