@@ -416,8 +416,22 @@ class Simulator(Node):
         if self._fault or e.finished:
             return f'cannot step: {self._fault or "the run reached its duration"}'
         p = e.config.sample_period_ns
-        self._advance((e.t_ns // p + n) * p, float('inf'), late=False)
-        return self._fault
+        start, target = e.t_ns, (e.t_ns // p + n) * p
+        self._advance(target, float('inf'), late=False)
+        if self._fault or e.t_ns >= target:
+            return self._fault
+        # lockstep: a step never passes a control instant before its command (the action
+        # waits for it: lockstep_held)
+        return (f'stepped {(e.t_ns - start) // p} of {n}: {self.lockstep_held}; step again '
+                'once the controller has answered')
+
+    @property
+    def lockstep_held(self):
+        """Lockstep holding a control instant for its command: why, in words; else None."""
+        if not self._lockstep or self._held is None:
+            return None
+        return (f'lockstep holds t = {self._held / NS:.9g} s until the command stamped '
+                f'{self._held_stamp()} arrives')
 
     def reset(self):
         self._on_reset(None, Trigger.Response())
