@@ -84,6 +84,9 @@ SIMULATOR = NodeInterfaces('attitude_simulator', 'simulator', (
     Topic('sub', 'wrench_command', 'geometry_msgs/msg/WrenchStamped', 'its torque part'),
     Topic('sub', 'actuator_command', 'std_msgs/msg/Float64MultiArray',
           'N wheel torques then K gimbal rates (actuators.command: forward)', ACTUATORS),
+    Topic('sub', 'robot_joint_commands', 'sensor_msgs/msg/JointState',
+          'ros2_control joint_state_topic_hardware_interface: wheel effort [N*m], gimbal '
+          'velocity [rad/s] (actuators.command: forward)', ACTUATORS),
 ), (
     Service('~/reset', 'std_srvs/srv/Trigger', 'back to the initial state; sim time goes on'),
     Service('~/get_simulator_features', _SIM + 'GetSimulatorFeatures', 'what is supported',

@@ -116,6 +116,42 @@ def test_lockstep_with_auto_chooses_as_the_offline_run(ros_process, namespace, t
         assert live[topic] == messages, topic
 
 
+def test_a_recorder_discovered_after_t0_still_records_every_command(ros_process, namespace,
+                                                                     tmp_path):
+    """Discovery between two processes can take seconds on a loaded machine, and the
+    simulator cannot see whether the controller has discovered a recorder: in 1 of 6 loaded
+    runs of the test above the controller first answered with only the simulator matched,
+    and the bag lacked the first 0.26 s of commands. Here the recorder starts only after
+    t = 0, the extreme case: its bag still holds every command from t = 0, once and in
+    order (the controller keeps them for late joiners; the recorder asks for them). Before,
+    it began wherever the recorder joined."""
+    over = tmp_path / 'late.yaml'
+    over.write_text('/**/attitude_simulator:\n  ros__parameters:\n'
+                    '    real_time_factor: 1.0\n    publish_clock: true\n'
+                    '    integrator: splitting4\n    duration: 5.0\n'
+                    '    wait_for_subscribers: 0\n    wait_for_subscribers_timeout: 60.0\n'
+                    '    lockstep: true\n    control_rate: 50.0\n    lockstep_timeout: 30.0\n'
+                    '/**/attitude_controller:\n  ros__parameters:\n    lockstep: true\n')
+    env = {'PYTHONUNBUFFERED': '1'}
+    args = ['--ros-args', '-r', f'__ns:={namespace}', '--params-file', SCENE,
+            '--params-file', str(over)]
+    ctl = ros_process(venv_exe('controller'), *args, env=env)
+    sim = ros_process(venv_exe('simulator'), *args, env=env)
+    assert wait_output(sim, 'starting at t = 0', 120), sim.output()[-3000:]
+    bag = tmp_path / 'bag'
+    rec = ros_process(venv_exe('recorder'), '--ros-args', '-r', f'__ns:={namespace}',
+                      '-p', f'output:={bag}', env=env)
+    assert wait_output(rec, f'subscribed to {namespace}/torque_command', 60), rec.output()
+    assert sim.wait(240) == 0, sim.output()[-3000:]
+    assert 'lockstep: 250 exchanges' in sim.output(), sim.output()[-3000:]
+    assert ctl.stop() == 0, ctl.output()[-3000:]
+    assert rec.stop() == 0, rec.output()[-3000:]
+    commands = _state_messages(bag, ('torque_command',))['torque_command']
+    stamps = [m.header.stamp.sec * 10**9 + m.header.stamp.nanosec for m in commands]
+    assert stamps[:3] == [0, 20_000_000, 40_000_000], stamps[:3]
+    assert stamps == [k * 20_000_000 for k in range(251)], (len(stamps), stamps[-3:])
+
+
 def test_a_controller_that_does_not_answer_pauses_the_simulator(ros_process, namespace,
                                                                  rclpy_node):
     """No controller: the simulator publishes t = 0, holds, and after lockstep_timeout
@@ -173,3 +209,13 @@ def test_lockstep_refuses_what_it_cannot_hold(change, reason):
     p = coerce_all(specs.SIMULATOR, {'lockstep': True, 'publish_clock': True, **change})
     with pytest.raises(ValueError, match=reason):
         lockstep.period_ns(p)
+
+
+def test_the_lockstep_benchmark_reports_the_simulators_figures():
+    """tools/lockstep.py runs a simulator and a controller in lockstep (real processes) and
+    reads the simulator's own figures: every period exchanged, round trip and CPU > 0."""
+    from rigid_body_sim.tools.lockstep import exchange
+    got = exchange(50.0, 0.0, 0.4)
+    assert got['exchanges'] == 20, got  # t = 0 ... 0.38 s
+    assert got['round_trip_wall_us'] > 0 and got['sim_cpu_per_period_us'] > 0, got
+    assert got['achieved_rate_hz'] > 0, got

@@ -426,3 +426,62 @@ def test_worlds_are_scenes_loaded_live(ros_process, namespace, rclpy_node):
     current = _call(rclpy_node, client['get_current_world'], srv.GetCurrentWorld.Request())
     assert current.world.name == 'spun'
     assert sim.poll() is None, sim.output()[-2000:]
+
+
+def test_simulate_steps_in_lockstep_waits_for_each_control_instants_command(
+        ros_process, namespace, rclpy_node):
+    """Lockstep holds the clock at each control instant until its command: SimulateSteps
+    then steps up to the instant, waits there for the command (serving a cancel meanwhile),
+    and goes on when it comes; step_simulation, which cannot wait, stops at the instant and
+    says how far it got. Before, a step at a held instant advanced nothing and the action
+    still reported it done."""
+    from action_msgs.msg import GoalStatus
+    from geometry_msgs.msg import QuaternionStamped, Vector3Stamped
+    from rclpy.action import ActionClient
+    from simulation_interfaces.action import SimulateSteps
+    sim = ros_process(venv_exe('simulator'), '--ros-args', '-r', f'__ns:={namespace}',
+                      '-p', 'publish_rate:=50.0', '-p', 'publish_clock:=true',
+                      '-p', 'lockstep:=true', '-p', 'control_rate:=25.0',
+                      '-p', 'integrator:=splitting4', '-p', 'lockstep_timeout:=60.0',
+                      '-p', 'wait_for_subscribers_timeout:=60.0')
+    base = f'{namespace}/attitude_simulator'
+    att = []
+    rclpy_node.create_subscription(QuaternionStamped, f'{namespace}/attitude', att.append, 1000)
+    pub = rclpy_node.create_publisher(Vector3Stamped, f'{namespace}/torque_command', 10)
+
+    def answer(t_ns):  # the controller's command for the state stamped t_ns
+        msg = Vector3Stamped()
+        msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(t_ns, NS)
+        msg.vector.z = 0.01
+        pub.publish(msg)
+    assert spin_until(rclpy_node, lambda: len(att) >= 1, 60.0), sim.output()[-2000:]
+    _pause(rclpy_node, base)
+    client = ActionClient(rclpy_node, SimulateSteps, f'{base}/simulate_steps')
+    feedback = []
+    handle = _send_goal(rclpy_node, client, 4, feedback)
+    spin_until(rclpy_node, lambda: False, 1.0)  # held at t = 0: nothing moves
+    assert [_stamp(m) for m in att] == [0] and not feedback
+    answer(0)  # steps 1-2 reach the instant 0.04 s, which holds step 3
+    assert spin_until(rclpy_node, lambda: len(att) >= 3, 30.0)
+    spin_until(rclpy_node, lambda: False, 0.5)
+    assert [_stamp(m) for m in att] == [0, 20_000_000, 40_000_000]
+    answer(40_000_000)
+    done = _goal_result(rclpy_node, handle)
+    assert done.status == GoalStatus.STATUS_SUCCEEDED, done.result.result.error_message
+    assert spin_until(rclpy_node, lambda: len(att) >= 5, 30.0)
+    assert [_stamp(m) for m in att] == [k * 20_000_000 for k in range(5)]
+    # step_simulation at the held instant 0.08 s: stops there, with the reason
+    step = rclpy_node.create_client(srv.StepSimulation, f'{base}/step_simulation')
+    got = _call(rclpy_node, step, srv.StepSimulation.Request(steps=3)).result
+    assert got.result == Result.RESULT_OPERATION_FAILED
+    assert got.error_message.startswith('stepped 0 of 3: lockstep holds t = 0.08 s'), \
+        got.error_message
+    # a goal waiting at the instant is cancelled there
+    handle = _send_goal(rclpy_node, client, 2, feedback)
+    spin_until(rclpy_node, lambda: False, 0.5)
+    cancel = handle.cancel_goal_async()
+    assert spin_until(rclpy_node, cancel.done, 30.0)
+    done = _goal_result(rclpy_node, handle)
+    assert done.status == GoalStatus.STATUS_CANCELED
+    assert done.result.result.error_message == 'canceled after 0 of 2 steps'
+    assert len(att) == 5 and sim.poll() is None, sim.output()[-2000:]

@@ -13,27 +13,37 @@ REJECT_REASONS = ('non_finite', 'wrong_frame', 'future_stamp', 'stale_stamp', 'l
 WARN_THROTTLE_S = 2.0
 
 
-class CommandFilter:
-    """Validates commands against the simulator's parameters ``params`` (a live dict)."""
+class Rejections:
+    """Rejected inputs counted by reason (one of ``reasons``; reported in diagnostics as
+    ``<prefix>.<reason>``) and warned about, throttled per reason; ``outcome``: what the
+    warning says happens instead (e.g. the torque is not applied)."""
 
-    def __init__(self, node, params):
+    def __init__(self, node, reasons, prefix: str, outcome: str):
         self._log = node.get_logger()
-        self.params = params
-        self.rejected = dict.fromkeys(REJECT_REASONS, 0)
+        self.rejected = dict.fromkeys(reasons, 0)
+        self._prefix, self._outcome = prefix, outcome
         self._next_warn = {}
 
     def counts(self) -> dict:
-        return {f'commands_rejected.{r}': n for r, n in self.rejected.items()}
+        return {f'{self._prefix}.{r}': n for r, n in self.rejected.items()}
 
     def reject(self, reason: str, source: str, detail: str) -> bool:
-        """Count ``reason`` (one of REJECT_REASONS) and warn (throttled); returns False."""
+        """Count ``reason`` and warn (throttled); returns False."""
         self.rejected[reason] += 1
         now = time.monotonic()
         if now >= self._next_warn.get(reason, 0.0):
             self._next_warn[reason] = now + WARN_THROTTLE_S
-            self._log.warn(f'{source} rejected ({reason}): {detail}; torque not applied '
+            self._log.warn(f'{source} rejected ({reason}): {detail}; {self._outcome} '
                            f'({self.rejected[reason]} {reason} rejections so far)')
         return False
+
+
+class CommandFilter(Rejections):
+    """Validates commands against the simulator's parameters ``params`` (a live dict)."""
+
+    def __init__(self, node, params):
+        super().__init__(node, REJECT_REASONS, 'commands_rejected', 'torque not applied')
+        self.params = params
 
     def accept(self, header, vector, source: str, now_stamp_ns: int) -> bool:
         """True if the command may be applied; ``now_stamp_ns``: this node's current stamp."""

@@ -23,7 +23,11 @@ warning; so does mode ``off``.
 Lockstep (``lockstep: true``, for the simulator's lockstep: docs/live-nodes.md). No timer:
 each state whose attitude and angular velocity share a stamp that is a multiple of the
 control period (the simulator stamps with sim time) is answered at once with a command
-stamped with that stamp; the law's time is the stamp, so no state is ever stale.
+stamped with that stamp; the law's time is the stamp, so no state is ever stale. The
+commands are then published transient-local with a history of ``LOCKSTEP_HISTORY``: a
+recorder this node discovers only after t = 0 (discovery between two processes can take
+seconds on a loaded machine, and the simulator cannot see whether it has happened) still
+gets every command from the first (recorder.py asks for the history).
 
 Target. ``target_attitude`` (parameter) sets the target at start and whenever it is set;
 an ``attitude_target`` message replaces it until the parameter is set again (latest wins).
@@ -38,6 +42,7 @@ import numpy as np
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 from rclpy.parameter import Parameter
+from rclpy.qos import DurabilityPolicy, ReliabilityPolicy
 from rcl_interfaces.msg import SetParametersResult
 
 from diagnostic_msgs.msg import DiagnosticArray
@@ -57,6 +62,7 @@ WARN_THROTTLE_S = 2.0       # wall clock
 # an attitude unit to this is used as sent: the law sees exactly what the simulator published
 # (renormalising a normalised quaternion can move its last bit), as the offline law does
 UNIT_TOLERANCE = 1e-12
+LOCKSTEP_HISTORY = 1000     # lockstep: commands kept for late-joining subscribers
 
 
 SPECS = specs.CONTROLLER  # ROS-free specs, shared with scene files and offline runs
@@ -117,7 +123,11 @@ class Controller(Node):
         self._next_warn = {}
 
         qos = qos_profile(self._p['qos'])
-        self._pub = self.create_publisher(Vector3Stamped, 'torque_command', qos)
+        command_qos = qos
+        if self._p['lockstep'] and qos.reliability == ReliabilityPolicy.RELIABLE:
+            command_qos = qos_profile('reliable', LOCKSTEP_HISTORY)
+            command_qos.durability = DurabilityPolicy.TRANSIENT_LOCAL
+        self._pub = self.create_publisher(Vector3Stamped, 'torque_command', command_qos)
         self._diag_pub = self.create_publisher(DiagnosticArray, '/diagnostics',
                                                qos_profile('reliable'))
         self._estimator = None

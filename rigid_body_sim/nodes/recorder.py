@@ -9,8 +9,12 @@ before any publisher exists: a simulator started with ``wait_for_subscribers`` t
 this recorder matched before its t = 0, and the bag holds every sample from the first.
 Any other topic is subscribed once a publisher is seen, with a QoS compatible with all its
 publishers (like rosbag2); a topic subscribed early whose publishers turn out to offer
-best effort, or another type, is subscribed again to match them. A topic is added to
-the bag at its first message, with the QoS its publishers offer (stored like rosbag2).
+best effort, or another type, is subscribed again to match them. So is one whose
+publishers all keep a transient-local history (the controller's commands in lockstep),
+to get that history: its messages are not recorded from the early subscription, so the
+bag gets every one, once and in order, even from a publisher discovered late. A topic is
+added to the bag at its first message, with the QoS its publishers offer (stored like
+rosbag2).
 """
 from __future__ import annotations
 
@@ -84,6 +88,8 @@ class Recorder(Node):
         self._record: dict[str, Callable[[bytes, dict], None]] = {}
         self._skipped: set[str] = set()
         self._early: set[str] = set()  # subscribed before any publisher was seen
+        self._replayed: set[str] = set()  # early, its publishers' history to be asked for
+        self._added: set[str] = set()  # in the bag
         self._before_clock: list[tuple[str, bytes, dict]] = []  # use_sim_time, no /clock yet
         # Same keys as the offline run's bag (rigid_body_sim.offline) where they overlap.
         self._config: dict[str, Any] = {'mode': 'live', 'scene': get('scene').value or None,
@@ -135,11 +141,13 @@ class Recorder(Node):
                 except TypeNotFound:
                     same = False
                 if same and all(p.qos_profile.reliability == ReliabilityPolicy.RELIABLE
-                            for p in publishers):
+                            for p in publishers) and (topic in self._added or not _latched(
+                                publishers)):
                     continue  # the early subscription matches them
-                self.get_logger().info(f'{topic}: its publishers offer another type or best '
-                                       'effort; subscribing again to match them')
+                self.get_logger().info(f'{topic}: its publishers offer another type, best '
+                                       'effort or a history; subscribing again to match them')
                 self.destroy_subscription(self._subs.pop(topic))
+                self._replayed.discard(topic)
             self._subscribe(topic, publishers[0].topic_type, publishers)
         if not self._all and self._wanted <= (set(self._subs) - self._early) | self._skipped:
             self._discovery.cancel()
@@ -156,8 +164,7 @@ class Recorder(Node):
         offered = [p.qos_profile for p in publishers]
         # Like rosbag2: request the strongest policy every publisher offers.
         reliable = all(q.reliability == ReliabilityPolicy.RELIABLE for q in offered)
-        latched = bool(offered) and all(q.durability == DurabilityPolicy.TRANSIENT_LOCAL
-                                        for q in offered)
+        latched = bool(offered) and _latched(publishers)
         # Subscribed early (the nodes' own, reliable topics): keep all, so that a burst (a
         # run as fast as possible) waits in the publisher until this node has taken it,
         # instead of overwriting what it has not taken yet.
@@ -184,7 +191,19 @@ class Recorder(Node):
             self.get_logger().warning(f'not recording {topic}: {exc}')
             self._skipped.add(topic)
             return False
+        self._added.add(topic)
         return True
+
+    def _replay_instead(self, topic: str) -> bool:
+        """At the first message of an early subscription: True if its publishers all keep
+        a transient-local history, which the subscription that replaces it will get
+        (_discover), so that nothing is recorded here (it would come twice, out of order)."""
+        if topic in self._replayed:
+            return True
+        if topic in self._early and _latched(self.get_publishers_info_by_topic(topic)):
+            self._replayed.add(topic)
+            return True
+        return False
 
     def _callback(self, topic: str, subscription: Any) -> Callable[[bytes, dict], None]:
         """The per-message path: stamp and append the raw bytes, nothing else.
@@ -214,7 +233,7 @@ class Recorder(Node):
 
         def record(data: bytes, info: dict) -> None:
             if not state['added']:
-                if state['added'] is False:
+                if state['added'] is False or self._replay_instead(topic):
                     return
                 state['added'] = self._add_to_bag(topic, type_name)
                 if not state['added']:
@@ -324,6 +343,12 @@ class Recorder(Node):
         # After SIGINT the context is gone: log without the /rosout publisher.
         rclpy.logging.get_logger('rigid_body_sim.recorder').info(
             f'wrote {sum(counts.values())} messages to {self.writer.directory}: {counts}')
+
+
+def _latched(publishers) -> bool:
+    """Every publisher (of a non-empty list) offers transient-local durability."""
+    return bool(publishers) and all(p.qos_profile.durability == DurabilityPolicy.TRANSIENT_LOCAL
+                                    for p in publishers)
 
 
 def _hidden(topic: str) -> bool:

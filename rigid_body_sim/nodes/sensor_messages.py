@@ -55,11 +55,14 @@ class SensorMessages:
         return [(name, f'{type(msg).__module__.split(".")[0]}/msg/{type(msg).__name__}')
                 for name, msg in self.topics()]
 
-    def messages(self, readings, stamp_ns=lambda t: t):
+    def messages(self, readings, stamp_ns=lambda t: t, only=None):
         """(sim t_ns, topic, message) of every reading, in time order (gyro first at a shared
-        instant); each message is filled in place just before it is yielded."""
-        events = [(int(t), 0, i) for i, t in enumerate(readings.gyro_t_ns)] + \
-            [(int(t), 1, i) for i, t in enumerate(readings.star_t_ns)]
+        instant); each message is filled in place just before it is yielded. ``only``: the
+        topics to build (the live node's subscribed ones), None for both."""
+        events = [(int(t), 0, i) for i, t in enumerate(readings.gyro_t_ns)
+                  if only is None or 'gyro' in only] + \
+            [(int(t), 1, i) for i, t in enumerate(readings.star_t_ns)
+             if only is None or 'star_tracker' in only]
         for t, kind, i in sorted(events):
             stamp = Time()
             stamp.sec, stamp.nanosec = divmod(int(stamp_ns(t)), NS)

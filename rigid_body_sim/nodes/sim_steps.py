@@ -1,7 +1,12 @@
 """The ``SimulateSteps`` action of simulation_interfaces: steps while paused, with
 feedback after each and cancellation between any two.
 
-A step is one sample period, as ``step_simulation``'s, and publishes its sample. The
+A step is one sample period, as ``step_simulation``'s, and publishes its sample. With
+``lockstep: true`` a step that reaches a control instant publishes its state and the next
+step waits, polling every ``LOCKSTEP_POLL_S``, for the controller's command for that
+instant (the stepping never passes it without one, as when playing); a cancel request is
+served meanwhile, and ``step_simulation`` (a plain service, which cannot wait) stops there
+and says how many steps it made. The
 execute callback is a coroutine that hands the executor back after every step, so the
 node keeps serving (a cancel request, other services, commands) while a long goal runs;
 rclpy's events executor, the simulator's, resumes it at its next turn.
@@ -18,6 +23,7 @@ from simulation_interfaces.msg import Result, SimulationState
 
 
 FEEDBACK_DEPTH = 100
+LOCKSTEP_POLL_S = 0.005  # a held lockstep instant is checked this often while a goal waits
 
 
 class _Turn:
@@ -70,6 +76,11 @@ class StepsAction:
                     goal.abort()
                     return self._result(Result.RESULT_INCORRECT_STATE,
                                         f'the simulation left PAUSED after {done} of {n} steps')
+                while self.services.sim.lockstep_held and not goal.is_cancel_requested:
+                    await self._sleep(LOCKSTEP_POLL_S)  # the controller's command for it
+                if goal.is_cancel_requested:
+                    goal.canceled()
+                    return self._result(Result.RESULT_OK, f'canceled after {done} of {n} steps')
                 problem = self.services.sim.step(1)
                 if problem:
                     goal.abort()
@@ -88,6 +99,18 @@ class StepsAction:
             return self._result(Result.RESULT_OPERATION_FAILED, f'{type(exc).__name__}: {exc}')
         finally:
             self.running = None
+
+    def _sleep(self, seconds):
+        """A future done ``seconds`` from now (wall clock), for the coroutine to await."""
+        from rclpy.clock import Clock, ClockType
+        from rclpy.task import Future
+        node, done = self.services.sim, Future()
+
+        def fire():
+            node.destroy_timer(timer)
+            done.set_result(True)
+        timer = node.create_timer(seconds, fire, clock=Clock(clock_type=ClockType.STEADY_TIME))
+        return done
 
     @staticmethod
     def _result(code, message=''):

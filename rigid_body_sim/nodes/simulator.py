@@ -43,6 +43,7 @@ from ..engine import NS, Engine, EngineConfig, lockstep, specs
 from ..physics import IntegrationError
 from ..scene import SceneError, params_files_record
 from .commands import CommandFilter
+from .joint_commands import JointCommands
 from .common import (changed_values, declare_parameters, diagnostic_status, qos_profile,
                      validate_update)
 from .process import events_executor, run_node
@@ -132,17 +133,20 @@ class Simulator(Node):
         if self._p['publish_clock']:
             self._clock_pub = pub(Clock, '/clock', qos_profile('reliable'))
         self._diag_pub = pub(DiagnosticArray, '/diagnostics', qos_profile('reliable'))
-        self._active = []
+        self._active, self._active_names = [], frozenset()
         self._commands = CommandFilter(self, self._p)
         self._command_subs = [
             self.create_subscription(Vector3Stamped, 'torque_command', lambda m: self._on_command(
                 m.header, m.vector, 'torque_command'), qos),
             self.create_subscription(WrenchStamped, 'wrench_command', lambda m: self._on_command(
                 m.header, m.wrench.torque, 'wrench_command'), qos)]
+        self._joints = None
         if actuators is not None:  # ros2_control forward-command convention
             self._actuator_warn = 0.0
             self.create_subscription(Float64MultiArray, 'actuator_command',
                                      self._on_actuator_command, qos)
+            # ros2_control's joint_state_topic_hardware_interface (joint_commands.py)
+            self._joints = JointCommands(self, self._engine, qos, self._actuators_ready)
         self.create_service(Trigger, '~/reset', self._on_reset)
         self.paused = False
         self._quit_at = None  # wall time at which a requested quit ends the loop
@@ -234,11 +238,14 @@ class Simulator(Node):
     def _publish(self, block, late=True):
         msgs, rtf = self._msgs, (self._p['real_time_factor'] if late else 0)
         if block.sensors is not None:  # readings at their own instants, stamped likewise
-            for _, name, msg in self._sensor_msgs.messages(block.sensors, self.stamp_ns):
+            only = frozenset(n for n, p in self._sensor_pubs.items()
+                             if p.get_subscription_count() > 0)
+            for _, name, msg in self._sensor_msgs.messages(block.sensors, self.stamp_ns, only):
                 self._sensor_pubs[name].publish(msg)
         for i in range(len(block)):
             t_ns = int(block.t_ns[i])
-            data = msgs.encoded(block, i, self.stamp_ns(t_ns)) if self._active else None
+            data = msgs.encoded(block, i, self.stamp_ns(t_ns), self._active_names) \
+                if self._active else None
             if self._clock_pub is not None:
                 self._clock_msg.clock.sec, self._clock_msg.clock.nanosec = divmod(t_ns, NS)
                 self._clock_pub.publish(self._clock_msg)
@@ -314,7 +321,9 @@ class Simulator(Node):
         return min(max(wait, 0.0), self._next_diag_wall - now, 0.1)
 
     def _refresh_subscribers(self):
+        # only topics with subscribers are built and published (a late one joins here)
         self._active = [(p, name) for p, name in self._pubs if p.get_subscription_count() > 0]
+        self._active_names = frozenset(name for _, name in self._active)
 
     def run(self):
         """Spin until shutdown or ``duration`` is reached.
@@ -435,8 +444,22 @@ class Simulator(Node):
         if self._fault or e.finished:
             return f'cannot step: {self._fault or "the run reached its duration"}'
         p = e.config.sample_period_ns
-        self._advance((e.t_ns // p + n) * p, float('inf'), late=False)
-        return self._fault
+        start, target = e.t_ns, (e.t_ns // p + n) * p
+        self._advance(target, float('inf'), late=False)
+        if self._fault or e.t_ns >= target:
+            return self._fault
+        # lockstep: a step never passes a control instant before its command (the action
+        # waits for it: lockstep_held)
+        return (f'stepped {(e.t_ns - start) // p} of {n}: {self.lockstep_held}; step again '
+                'once the controller has answered')
+
+    @property
+    def lockstep_held(self):
+        """Lockstep holding a control instant for its command: why, in words; else None."""
+        if not self._lockstep or self._held is None:
+            return None
+        return (f'lockstep holds t = {self._held / NS:.9g} s until the command stamped '
+                f'{self._held_stamp()} arrives')
 
     def reset(self):
         self._on_reset(None, Trigger.Response())
@@ -528,6 +551,13 @@ class Simulator(Node):
         self._commands.reject(reason, source, f'stamp {header.stamp.sec}.'
                               f'{header.stamp.nanosec:09d}: {held}')
 
+    def _actuators_ready(self) -> bool:
+        """Before an actuator command: False if the run stopped, else what was due ran."""
+        if self._fault or self._engine.finished:
+            return False
+        self._catch_up()
+        return True
+
     def _on_actuator_command(self, msg):
         """Wheel torques then gimbal rates; a bad one is counted by the engine's actuators
         (diagnostics) and warned about (throttled); the last valid command stays."""
@@ -615,11 +645,13 @@ class Simulator(Node):
         values = {**e.diagnostics(), 'real_time_factor_target': self._p['real_time_factor'],
                   **(self._lockstep_values() if self._lockstep else {}),
                   'real_time_factor_achieved': achieved, **self._commands.counts(),
+                  **(self._joints.counts() if self._joints is not None else {}),
                   'missed_deadlines': self._missed,
                   'missed_deadlines_in_period': self._missed - self._missed_at_last_diag,
                   'worst_lateness_in_period': self._worst_late,
                   'deadline_tolerance': self._p['deadline_tolerance'],
-                  'fault': self._fault or '', 'resets': self._resets}
+                  'fault': self._fault or '', 'resets': self._resets,
+                  **{f'messages_built.{k}': n for k, n in self._msgs.built().items()}}
         missed = self._missed - self._missed_at_last_diag
         if self._fault:
             level, message = 'ERROR', f'stopped: {self._fault}'

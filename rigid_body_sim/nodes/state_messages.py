@@ -76,6 +76,7 @@ class StateMessages:
         for msg in self.stamped():
             msg.header.stamp = self.stamp
         self._extra = []
+        self._builds = {}  # {frozenset of topics built (None: all): samples}
         self.set_frames(frame_id, child_frame_id)
 
     def stamped(self):
@@ -163,16 +164,30 @@ class StateMessages:
         """[(topic, CDR bytes)] of sample ``i``, every topic."""
         return list(self.encoded(block, i, stamp_ns).items())
 
-    def encoded(self, block, i: int, stamp_ns: int) -> dict:
-        """{topic: CDR bytes} of sample ``i`` (as rclpy's serialize_message writes them)."""
+    def encoded(self, block, i: int, stamp_ns: int, only=None) -> dict:
+        """{topic: CDR bytes} of sample ``i`` (as rclpy's serialize_message writes them);
+        ``only``: a frozenset of the topics to build (the live node's subscribed ones: a
+        topic nobody subscribes to costs nothing), None for every topic."""
         self.prepare()
+        self._builds[only] = self._builds.get(only, 0) + 1  # one count per sample: cheap
         sec, nsec = divmod(int(stamp_ns), 1_000_000_000)
-        out = self._templates.encode(block.values(i), sec, nsec)
+        out = self._templates.encode(block.values(i), sec, nsec, only)
         if self.actuators is not None:
-            self.stamp.sec, self.stamp.nanosec = sec, nsec
-            self._fill_actuators(block, i)
-            for name, msg in self._joints():
+            joints = [(n, m) for n, m in self._joints() if only is None or n in only]
+            if joints:
+                self.stamp.sec, self.stamp.nanosec = sec, nsec
+                self._fill_actuators(block, i)
+            for name, msg in joints:
                 out[name] = joint_state_cdr(msg)
+        return out
+
+    def built(self) -> dict:
+        """{topic: messages built so far by ``encoded``}, every topic (0: never built)."""
+        out = dict.fromkeys((name for name, _ in self.topics()), 0)
+        for only, n in self._builds.items():
+            for name in out if only is None else only:
+                if name in out:
+                    out[name] += n
         return out
 
 
@@ -207,17 +222,20 @@ class _Templates:
         self.fallback = [(name, msg) for name, msg in templated if name in bad]
         self.topics = [t for t in self.topics if t[0] not in bad]
 
-    def encode(self, v, sec, nsec) -> dict:
+    def encode(self, v, sec, nsec, only=None) -> dict:
         out = {}
         for name, buf, fields, stamps in self.topics:
+            if only is not None and name not in only:
+                continue
             for offset, packer, first in fields:
                 packer.pack_into(buf, offset, *v[first:first + packer.size // 8])
             for offset in stamps:
                 _STAMP.pack_into(buf, offset, sec, nsec)
             out[name] = bytes(buf)
-        if self.fallback:
+        fallback = [(n, m) for n, m in self.fallback if only is None or n in only]
+        if fallback:
             self.msgs._assign(v, sec, nsec)
-            for name, msg in self.fallback:
+            for name, msg in fallback:
                 out[name] = serialize_message(msg)
         return out
 

@@ -1,0 +1,107 @@
+"""Lockstep round trip: simulator and controller processes exchanging state and command.
+
+``python -m rigid_body_sim.tools.lockstep [--periods 2000] [--seconds 5] [--rates 100 1000]``
+
+For each control rate (publishing at the same rate, the slew scene, ``splitting4``):
+* as fast as possible (``real_time_factor: 0``), ``--periods`` control periods: the
+  simulator's own figures (``engine.lockstep.RoundTrips``, logged at the end of its run):
+  wall time from publishing a control instant's state to applying its command, and the
+  simulator's CPU per control period (stepping, publishing and receiving; target ≤ 100 µs);
+* at real time (``real_time_factor: 1``), ``--seconds`` of sim time: the achieved control
+  rate, exchanges per wall second between t = 0 and the end (the simulator's log stamps).
+Real processes and real DDS, in a ROS domain of their own; nothing else is started.
+"""
+import os
+import random
+import re
+import subprocess
+import sys
+import tempfile
+
+from . import argument_parser
+
+SCENE = os.path.join(os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(
+    __file__)))), 'config', 'slew.yaml')
+SUMMARY = re.compile(r'lockstep: (\d+) exchanges, round trip (\d+) µs wall on average \(max '
+                     r'(\d+) µs\), simulator CPU (\d+) µs per control period')
+STAMP = re.compile(r'\[(\d+\.\d+)\]')
+
+
+def _exe(name):
+    exe = os.path.join(sys.prefix, 'lib', 'rigid_body_sim', name)
+    if os.path.exists(exe):
+        return [exe]
+    return [sys.executable, '-m', f'rigid_body_sim.nodes.{name}']
+
+
+def _stamp(line):
+    m = STAMP.search(line)
+    return float(m.group(1)) if m else None
+
+
+def exchange(rate: float, rtf: float, duration: float, timeout: float = 600.0) -> dict:
+    """One lockstep run of simulator + controller; the simulator's figures."""
+    env = dict(os.environ, PYTHONUNBUFFERED='1',
+               ROS_DOMAIN_ID=os.environ.get('ROS_DOMAIN_ID', str(random.randint(101, 200))))
+    ns = f'/lockstep_bench_{os.getpid()}_{int(rate)}_{int(rtf)}'
+    with tempfile.NamedTemporaryFile('w', suffix='.yaml', delete=False) as f:
+        f.write('/**/attitude_simulator:\n  ros__parameters:\n'
+                f'    real_time_factor: {rtf}\n    publish_clock: true\n'
+                f'    integrator: splitting4\n    duration: {duration}\n'
+                f'    publish_rate: {rate}\n    control_rate: {rate}\n    lockstep: true\n'
+                '    wait_for_subscribers: 0\n    wait_for_subscribers_timeout: 60.0\n'
+                '    lockstep_timeout: 30.0\n'
+                '/**/attitude_controller:\n  ros__parameters:\n    lockstep: true\n'
+                f'    control_rate: {rate}\n')
+        over = f.name
+    args = ['--ros-args', '-r', f'__ns:={ns}', '--params-file', SCENE, '--params-file', over]
+    ctl = subprocess.Popen(_exe('controller') + args, env=env, stdout=subprocess.DEVNULL,
+                           stderr=subprocess.DEVNULL, start_new_session=True)
+    try:
+        sim = subprocess.run(_exe('simulator') + args, env=env, capture_output=True,
+                             text=True, timeout=timeout)
+    finally:
+        ctl.send_signal(2)
+        try:
+            ctl.wait(10)
+        except subprocess.TimeoutExpired:
+            ctl.kill()
+        os.unlink(over)
+    log = sim.stdout + sim.stderr
+    m = SUMMARY.search(log)
+    if sim.returncode != 0 or m is None:
+        raise RuntimeError(f'simulator exited {sim.returncode} without its lockstep summary:\n'
+                           + log[-2000:])
+    lines = log.splitlines()
+    t0 = next(_stamp(x) for x in lines if 'starting at t = 0' in x)
+    t1 = next(_stamp(x) for x in lines if 'reached at t =' in x)
+    n = int(m.group(1))
+    return {'control_rate_hz': rate, 'real_time_factor': rtf, 'exchanges': n,
+            'round_trip_wall_us': int(m.group(2)), 'round_trip_wall_max_us': int(m.group(3)),
+            'sim_cpu_per_period_us': int(m.group(4)),
+            'achieved_rate_hz': n / (t1 - t0) if t1 > t0 else None}
+
+
+def main(argv=None):
+    parser = argument_parser(__spec__, __doc__)
+    parser.add_argument('--periods', type=int, default=2000,
+                        help='control periods as fast as possible, per rate')
+    parser.add_argument('--seconds', type=float, default=5.0,
+                        help='sim seconds at real time, per rate')
+    parser.add_argument('--rates', type=float, nargs='+', default=[100.0, 1000.0],
+                        help='control rates [Hz]')
+    args = parser.parse_args(argv)
+    for rate in args.rates:
+        fast = exchange(rate, 0.0, args.periods / rate)
+        real = exchange(rate, 1.0, args.seconds)
+        print(f'control {rate:g} Hz: as fast as possible {fast["exchanges"]} exchanges, round '
+              f'trip {fast["round_trip_wall_us"]} µs wall (max {fast["round_trip_wall_max_us"]}'
+              f' µs), simulator CPU {fast["sim_cpu_per_period_us"]} µs per period, '
+              f'{fast["achieved_rate_hz"]:.0f} exchanges/s; at real time '
+              f'{real["achieved_rate_hz"]:.1f} exchanges/s (target {rate:g}), simulator CPU '
+              f'{real["sim_cpu_per_period_us"]} µs per period', flush=True)
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())
