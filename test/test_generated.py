@@ -122,3 +122,12 @@ def test_a_failing_reference_is_a_row_with_its_reason(monkeypatch):
     row = generated.judge(generated.draw(SEED, 4, True))
     assert row['status'] == 'no reference' and 'overflow' in row['reason']
 
+
+def test_dop853s_cost_fact_lets_auto_take_it_where_it_is_cheapest():
+    """Seed 1 scene 19 (double bracket, 1e-5 rad over 6.2e3 rad): the oracle is dop853
+    (rtol 1e-11); rk4, which auto took, costs 2.4× that. dop853's per-step cost on its
+    class was 1.2 µs, 2.7× its measured 5× splitting2's step (~0.47 µs in the table's units),
+    which priced it out. The tests run on the class constants (conftest)."""
+    scene = generated.draw(SEED, 19, True)
+    result = simulate(scene.scene_file())
+    assert result.integrator == 'dop853', result.reason
