@@ -17,8 +17,8 @@ copyright = '2025, rigid_body_sim developers'
 extensions = ['myst_parser', 'node_reference']
 source_suffix = {'.md': 'markdown'}
 root_doc = 'index'
-# docs/bench/targets.md is written by the bench and included by benchmarks.md
-exclude_patterns = ['_build', 'bench/targets.md', 'README.md']
+# docs/bench/targets.md and summary.md are written by the bench and included by benchmarks.md
+exclude_patterns = ['_build', 'bench/targets.md', 'bench/summary.md', 'README.md']
 # "## Heading" gets the anchor #heading, for links such as [x](physics.md#integrators)
 myst_heading_anchors = 3
 myst_enable_extensions = ['dollarmath']

@@ -6,7 +6,8 @@ One process run measures every section, prints tables and writes CSV + PNG files
 work_precision.csv, stability.csv, long_horizon.csv, batch.csv, sampling.csv, live.json,
 exact_horizon.csv,
 generated.csv (auto against each generated scene's oracle),
-targets.csv, targets.md, work_precision_<scene>.png, stability.png, long_horizon.png. Times
+targets.csv, targets.md, summary.md (:mod:`.report`: the benchmarks page's figures from
+these files), work_precision_<scene>.png, stability.png, long_horizon.png. Times
 are process CPU seconds (``time.process_time``), so they include Python overhead — ours and
 scipy's alike; MuJoCo and Basilisk step in C. ``sections.SECTIONS`` lists the sections in run
 order; each is a module here: workprecision, stability, longhorizon, batch, perstep, sampling,
@@ -20,7 +21,7 @@ import platform
 import sys
 import time
 
-from . import charts, generated, peers, sections, targets
+from . import charts, generated, peers, report, sections, targets
 from .common import write_csv
 from .scenes import SCENES, SCENE_BY_NAME
 
@@ -94,7 +95,9 @@ def _run(args) -> int:
     quick = bool(args.quick)
     out = charts.ensure_dir(args.out)
     command = 'rigid-body-sim bench' + (' --quick' if quick else '') + \
-        (' --peers' if args.peers else '') + f' --out {args.out}'
+        (' --peers' if args.peers else '') + \
+        (f' --generated {args.generated}' if args.generated is not None else '') + \
+        f' --out {args.out}'
     machine_text = machine()
     wall0, cpu0 = time.monotonic(), time.process_time()
 
@@ -154,6 +157,8 @@ def _run(args) -> int:
         charts.long_horizon(run.results['long_horizon'], os.path.join(out, 'long_horizon.png'))
     except Exception as exc:  # noqa: BLE001 - charts are a convenience; the CSVs carry the data
         log(f'charts not written: {type(exc).__name__}: {exc}')
-    log(f'\nwrote {out}/ (CSV, PNG, targets.md) in {time.monotonic() - wall0:.0f} s wall, '
-        f'{time.process_time() - cpu0:.0f} s CPU (this process). Regenerate: {command}')
+    report.write(out)  # the benchmarks page's figures, from the files just written
+    log(f'\nwrote {out}/ (CSV, PNG, targets.md, summary.md) in '
+        f'{time.monotonic() - wall0:.0f} s wall, {time.process_time() - cpu0:.0f} s CPU '
+        f'(this process). Regenerate: {command}')
     return 0

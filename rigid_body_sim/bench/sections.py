@@ -115,7 +115,7 @@ def _perstep(run):
 
 
 def _sampling(run):
-    rows, sm_targets = sampling.run(run.quick, run.log)
+    rows, sm_targets = sampling.run(run.quick, run.log, run.generated_count)
     run.csv('sampling.csv', sampling.FIELDS, rows)
     return sm_targets
 

@@ -1,0 +1,130 @@
+"""The benchmarks page states no figure by hand: its figures are the run's files, rendered.
+
+docs/benchmarks.md includes docs/bench/summary.md and targets.md, which the bench writes
+(``bench.report``). A number in the page's own prose must be one of the run files'
+numbers (at the precision the page states it); commands and code are not figures.
+"""
+import csv
+import json
+import math
+import os
+import re
+
+import pytest
+
+from rigid_body_sim.bench import report
+
+pytestmark = pytest.mark.fast
+DOCS = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), 'docs')
+RUN = os.path.join(DOCS, 'bench')
+PAGE = os.path.join(DOCS, 'benchmarks.md')
+INCLUDED = ('bench/summary.md', 'bench/targets.md')
+NUMBER = re.compile(r'(?<![\w.])[-−]?\d[\d,]*(?:\.\d+)?(?:[eE][-−+]?\d+)?'
+                    r'(?:\s*·\s*10[⁰¹²³⁴⁵⁶⁷⁸⁹⁻]+)?')
+SUPERSCRIPT = str.maketrans('⁰¹²³⁴⁵⁶⁷⁸⁹⁻', '0123456789-')
+
+
+def prose(text):
+    """The page without its code blocks, inline code, comments, link targets and includes."""
+    text = re.sub(r'```.*?```', ' ', text, flags=re.S)
+    text = re.sub(r'<!--.*?-->', ' ', text, flags=re.S)
+    text = re.sub(r'`[^`]*`', ' ', text)
+    text = re.sub(r'\]\([^)]*\)', ']', text)           # link targets (file names, anchors)
+    return re.sub(r'!\[[^\]]*\]', ' ', text)            # image alt texts
+
+
+def value(token):
+    t = token.replace('−', '-').replace(',', '')
+    if '·' in t:
+        mantissa, power = t.split('·')
+        return float(mantissa) * 10.0 ** int(power.strip()[2:].translate(SUPERSCRIPT))
+    return float(t)
+
+
+def stated(text):
+    """(token, value, significant digits) of every number the prose states."""
+    out = []
+    for m in NUMBER.finditer(prose(text)):
+        token = m.group(0).strip()
+        digits = len(re.sub(r'[^\d]', '', token.split('e')[0].split('E')[0].split('·')[0])
+                     .lstrip('0')) or 1
+        out.append((token, value(token), digits))
+    return out
+
+
+def run_numbers(folder=RUN):
+    """Every number in the run's CSV, JSON and Markdown files."""
+    found = set()
+
+    def add(x):
+        try:
+            v = float(x)
+        except (TypeError, ValueError):
+            return
+        if math.isfinite(v):
+            found.add(v)
+
+    for name in os.listdir(folder):
+        path = os.path.join(folder, name)
+        if name.endswith('.csv'):
+            with open(path, newline='', encoding='utf-8') as f:
+                for row in csv.DictReader(f):
+                    for v in row.values():
+                        add(v)
+        elif name.endswith('.json'):
+            with open(path, encoding='utf-8') as f:
+                stack = [json.load(f)]
+            while stack:
+                x = stack.pop()
+                if isinstance(x, dict):
+                    stack.extend(x.values())
+                elif isinstance(x, list):
+                    stack.extend(x)
+                else:
+                    add(x)
+        elif name.endswith('.md'):
+            with open(path, encoding='utf-8') as f:
+                for _, v, _ in stated(f.read()):
+                    found.add(v)
+    return found
+
+
+def in_run(v, digits, numbers):
+    """v is a run number rounded to ``digits`` significant digits (or that as a percent)."""
+    def rounds_to(x):
+        if x == 0 or v == 0:
+            return x == v
+        return float(f'{x:.{digits - 1}e}') == v
+    return any(rounds_to(x) or rounds_to(100 * x) for x in numbers)
+
+
+def test_the_page_includes_the_run_files_and_they_exist():
+    with open(PAGE, encoding='utf-8') as f:
+        text = f.read()
+    for name in INCLUDED:
+        assert f'```{{include}} {name}\n```' in text, name
+        assert os.path.getsize(os.path.join(DOCS, name)) > 0, name
+
+
+def test_the_page_states_no_number_that_is_not_in_the_run_files():
+    with open(PAGE, encoding='utf-8') as f:
+        text = f.read()
+    numbers = run_numbers()
+    typed = [token for token, v, digits in stated(text) if not in_run(v, digits, numbers)]
+    assert not typed, f'benchmarks.md states figures not in docs/bench: {typed}'
+
+
+def test_a_hand_typed_figure_fails_the_check():
+    """The check itself: made-up figures are caught (the old page's 82,000 publishes a
+    second and 141.9 runs/s among them), a run file's figure and code are not."""
+    numbers = run_numbers()
+    made_up = 'The slew ran 4,417× faster, 82,000 times a second, 141.9 runs/s.'
+    assert [t for t, v, d in stated(made_up) if not in_run(v, d, numbers)] == [
+        '4,417', '82,000', '141.9']
+    assert stated('`--minutes 60` and ```sh\nrun 12\n```') == []
+
+
+def test_the_summary_is_what_the_run_files_render():
+    """summary.md is rendered from its neighbours, not edited: rendering again gives it."""
+    with open(os.path.join(RUN, report.NAME), encoding='utf-8') as f:
+        assert f.read() == report.render(RUN)
