@@ -194,6 +194,7 @@ def test_formation_topics_tf_and_commands_per_spacecraft(ros_process, namespace,
     status, values = f.status()
     assert values['spacecraft'] == '3' and values['spacecraft_names'] == \
         'leader, wingman, tumbler'
+    assert int(values['messages_published']) > 0  # what the fleet benchmark reads
     for c in CRAFTS:  # a status of its own each, with its physics
         assert 'integrator' in f.status(c)[1]
     # the leader holds its wheels' momentum; its wheel entities are its

@@ -54,6 +54,7 @@ def diagnostics(sim) -> DiagnosticArray:
         **(crafts[0].commands.counts() if single else {
             'commands_rejected.unknown_spacecraft':
                 sim._commands.rejected['unknown_spacecraft']}),
+        'messages_published': sim._published,  # state topics, /tf included
         'missed_deadlines': sim._missed,
         'missed_deadlines_in_period': sim._missed - sim._missed_at_last_diag,
         'worst_lateness_in_period': sim._worst_late,

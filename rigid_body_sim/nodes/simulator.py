@@ -143,6 +143,7 @@ class Simulator(Fleet, Holds, Node):
         self._sim_services = SimulationServices(self) if SIM_SERVICES else None
         self._fault = None
         self._missed = self._missed_at_last_diag = 0
+        self._published = 0  # state messages published (diagnostics: messages_published)
         self._resets = 0  # ~/reset and set_state: viewers restart their drift and traces on it
         self._worst_late = 0.0
         self._unacked, self._ack_warn = 0, 0.0  # samples since the last wait for acks
@@ -277,6 +278,7 @@ class Simulator(Fleet, Holds, Node):
             new = self._tick_clock(t_ns)  # the first spacecraft at this sample instant
             for publisher, name in active:
                 publisher.publish(data[name])
+            self._published += len(active)
             if self._paced and active:
                 self._unacked += 1
                 if self._unacked >= ACK_EVERY:
