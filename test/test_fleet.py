@@ -330,3 +330,19 @@ def test_entity_calls_against_the_simulators_state(ros_process, namespace, rclpy
     assert np.allclose([after.x, after.y, after.z], [0.0, 0.0, 0.25], atol=1e-12)
     other = f.call('get_entity_state', entity='wingman').state
     assert other.pose.orientation == states['wingman'].pose.orientation
+
+
+@pytest.mark.parametrize('params, reason', [
+    (['--params-file', FORMATION, '-p', 'lockstep:=true', '-p', 'publish_clock:=true'],
+     'lockstep: holds the control instants of one spacecraft; a scene with spacecraft '
+     '(leader, wingman, tumbler) runs without it'),
+    (['-p', 'spacecraft:=[one, 9lives]'], "spacecraft name '9lives' is invalid"),
+])
+def test_a_fleet_the_node_cannot_run_stops_it_with_the_reason(ros_process, namespace,
+                                                              params, reason):
+    sim = ros_process(venv_exe('simulator'), '--ros-args', '-r', f'__ns:={namespace}',
+                      *params)
+    assert sim.wait(120) == 2, sim.output()[-3000:]
+    out = sim.output()
+    assert reason in out and 'Traceback' not in out, out[-3000:]
+
