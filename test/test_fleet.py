@@ -332,6 +332,70 @@ def test_entity_calls_against_the_simulators_state(ros_process, namespace, rclpy
     assert other.pose.orientation == states['wingman'].pose.orientation
 
 
+def test_reset_spawned_brings_back_the_scenes_spacecraft(ros_process, namespace, rclpy_node):
+    from simulation_interfaces.msg import Result, SimulatorFeatures
+    f = Fleet(ros_process, namespace, rclpy_node)
+    scene = ['leader', 'leader/wheel_1', 'leader/wheel_2', 'leader/wheel_3', 'wingman',
+             'tumbler']
+    assert f.entities() == scene
+    assert SimulatorFeatures.SIMULATION_RESET_SPAWNED in set(
+        f.call('get_simulator_features').features.features)
+    assert f.spawn('extra').result.result == Result.RESULT_OK
+    assert f.call('delete_entity', entity='wingman').result.result == Result.RESULT_OK
+    assert f.entities() == [e for e in scene if e != 'wingman'] + ['extra']
+    client = rclpy_node.create_client(f.srv.ResetSimulation,
+                                      f'{namespace}/attitude_simulator/reset_simulation')
+    got = _call(rclpy_node, client, f.srv.ResetSimulation.Request(
+        scope=f.srv.ResetSimulation.Request.SCOPE_SPAWNED))
+    assert got.result.result == Result.RESULT_OK
+    assert 'removed extra' in got.result.error_message and 'back: wingman' in \
+        got.result.error_message
+    assert f.entities() == scene  # in the scene's order
+    wingman = f.listen('wingman')
+    f.wait(lambda: wingman, 'the wingman publishing again')
+
+
+def test_an_empty_simulation_steps_its_clock(ros_process, namespace, rclpy_node):
+    """All deleted, paused, stepped 8 sample periods: /clock advances exactly 8 periods,
+    one message each (an empty simulation still keeps time; /clock's history is 10 deep, so
+    a longer burst may lose messages on the way)."""
+    import simulation_interfaces.srv as srv
+    from rosgraph_msgs.msg import Clock
+    from simulation_interfaces.msg import Result, SimulationState
+    sim = ros_process(venv_exe('simulator'), '--ros-args', '-r', f'__ns:={namespace}',
+                      '-p', 'spacecraft:=[solo]', '-p', 'publish_clock:=true',
+                      '-p', 'publish_rate:=10.0')
+    base = f'{namespace}/attitude_simulator'
+    clock = []
+    rclpy_node.create_subscription(Clock, '/clock', clock.append, 1000)
+
+    def call(cls, name, request):
+        return _call(rclpy_node, rclpy_node.create_client(cls, f'{base}/{name}'), request)
+    assert spin_until(rclpy_node, lambda: len(clock) >= 2, 60.0), sim.output()[-2000:]
+    assert call(srv.DeleteEntity, 'delete_entity', srv.DeleteEntity.Request(entity='solo')) \
+        .result.result == Result.RESULT_OK
+    k = len(clock)
+    assert spin_until(rclpy_node, lambda: len(clock) >= k + 2, 30.0)  # time runs on, empty
+    request = srv.SetSimulationState.Request()
+    request.state.state = SimulationState.STATE_PAUSED
+    assert call(srv.SetSimulationState, 'set_simulation_state', request).result.result == \
+        Result.RESULT_OK
+    spin_until(rclpy_node, lambda: False, 1.0)  # what was in flight
+    n = len(clock)
+    assert call(srv.StepSimulation, 'step_simulation', srv.StepSimulation.Request(steps=8)) \
+        .result.result == Result.RESULT_OK
+    assert spin_until(rclpy_node, lambda: len(clock) >= n + 8, 30.0)
+    spin_until(rclpy_node, lambda: False, 0.5)
+    t = [m.clock.sec * NS + m.clock.nanosec for m in clock[n - 1:]]
+    assert len(t) == 9 and all(b - a == NS // 10 for a, b in zip(t, t[1:])), t
+    # more steps than one engine call's 16 in one request: the last /clock is 20 periods on
+    assert call(srv.StepSimulation, 'step_simulation', srv.StepSimulation.Request(steps=20)) \
+        .result.result == Result.RESULT_OK
+    last = t[-1] + 20 * NS // 10
+    assert spin_until(rclpy_node, lambda: clock[-1].clock.sec * NS + clock[-1].clock.nanosec
+                      == last, 30.0), clock[-1]
+
+
 @pytest.mark.parametrize('params, reason', [
     (['--params-file', FORMATION, '-p', 'lockstep:=true', '-p', 'publish_clock:=true'],
      'lockstep: holds the control instants of one spacecraft; a scene with spacecraft '

@@ -121,3 +121,21 @@ class Fleet:
         names = ', '.join(c.frames[1] for c in self._crafts.values()) or 'none: all deleted'
         self._commands.reject('unknown_spacecraft', source, f'frame_id {header.frame_id!r} '
                               f'is no spacecraft\'s body frame (they are: {names})')
+
+    def restore_scene(self):
+        """The scene's spacecraft again: the spawned ones removed, deleted ones of the scene
+        back in their initial state (from now); a text saying what changed."""
+        self._catch_up()
+        removed = [c.entity for c in self.crafts if c.name in self._spawned]
+        for craft in self.crafts:
+            if craft.name in self._spawned:
+                self._remove(craft.name)
+        back = [n for n in self._scene_names if n not in self._crafts]
+        for name in back:
+            self._add(name, self.t_ns)
+        self._crafts = {n: self._crafts[n] for n in self._scene_names}
+        text = (f'removed {", ".join(removed) or "nothing spawned"}'
+                + (f'; back: {", ".join(back)}' if back else ''))
+        self._log.info(f'the scene\'s spacecraft again: {text}')
+        return text
+

@@ -9,8 +9,10 @@ Gazebo serves ``/gz_server/...``):
   to the initial state and paused) and QUITTING (the node exits).
 * ``step_simulation``: while paused, advance N steps. A step is one sample period
   (1/``publish_rate``), and each step publishes its sample.
-* ``reset_simulation``: the body back to its initial state. Sim time keeps running, so
+* ``reset_simulation``: the bodies back to their initial state. Sim time keeps running, so
   stamps and /clock stay monotonic, and SCOPE_TIME alone is refused as unsupported.
+  SCOPE_SPAWNED (and ALL): the scene's spacecraft again, spawned ones removed, deleted
+  ones of the scene back.
 * ``simulate_steps`` (action ``SimulateSteps``, ``sim_steps``): as ``step_simulation``,
   with feedback after each step and cancellation.
 * ``get_entities`` / ``get_entities_states`` / ``get_entity_info`` / ``get_entity_state``:
@@ -70,7 +72,7 @@ class SimulationServices:
                 'ENTITY_STATE_SETTING', 'ENTITY_INFO_GETTING', 'ENTITY_CATEGORIES',
                 'ENTITY_TAGS', 'AVAILABLE_WORLDS', 'WORLD_LOADING', 'WORLD_RESOURCE_STRING',
                 'WORLD_INFO_GETTING', 'WORLD_TAGS', 'SPAWNING', 'SPAWNING_RESOURCE_STRING',
-                'DELETING')
+                'DELETING', 'SIMULATION_RESET_SPAWNED')
 
     def __init__(self, sim):
         from . import sim_spawn as spawn  # simulation_interfaces: only where installed
@@ -164,12 +166,14 @@ class SimulationServices:
         if scope == ResetSimulation.Request.SCOPE_TIME:
             return _result(response, Result.RESULT_FEATURE_UNSUPPORTED,
                            'sim time is not reset: stamps and /clock stay monotonic')
-        if scope & ResetSimulation.Request.SCOPE_STATE or scope in (
-                ResetSimulation.Request.SCOPE_DEFAULT, ResetSimulation.Request.SCOPE_ALL):
+        every = scope == ResetSimulation.Request.SCOPE_DEFAULT  # = SCOPE_ALL
+        done = []
+        if every or scope & ResetSimulation.Request.SCOPE_SPAWNED:
+            done.append(self.sim.restore_scene())  # spawned out, deleted ones back
+        if every or scope & ResetSimulation.Request.SCOPE_STATE:
             self.sim.reset()
-        return _result(response, Result.RESULT_OK,
-                       'state reset; sim time keeps running' if scope != 4 else
-                       'nothing spawned to remove')
+            done.append('state reset; sim time keeps running')
+        return _result(response, Result.RESULT_OK, '; '.join(done))
 
     # ------------------------------------------------------------------ entities
     def _find(self, name):

@@ -131,8 +131,9 @@ class Simulator(Fleet, Holds, Node):
         self._crafts = {}  # name ('' = unnamed) -> Spacecraft, in the order they came
         self._spawned = {}  # name -> its own values (BODY_KEYS), for spawned spacecraft
         self._idle_ns = 0  # sim time while there is no spacecraft
+        self._scene_names = names or ['']  # what reset_simulation's SCOPE_SPAWNED restores
         try:
-            for name in names or ['']:
+            for name in self._scene_names:
                 self._add(name, 0)
         except ValueError as exc:
             raise SceneError(str(exc)) from None
@@ -251,9 +252,10 @@ class Simulator(Fleet, Holds, Node):
 
     def _idle(self, until_ns):
         """No spacecraft: sim time runs on (stamps, /clock) from sample instant to sample
-        instant, LIVE_BLOCK at most per call."""
+        instant; as fast as possible (no end), LIVE_BLOCK of them per call."""
         p = self._period_ns
-        end = min(until_ns // p, self._idle_ns // p + LIVE_BLOCK) * p
+        end = until_ns // p * p if until_ns < sys.maxsize else \
+            (self._idle_ns // p + LIVE_BLOCK) * p
         while self._idle_ns < end:
             self._idle_ns = (self._idle_ns // p + 1) * p
             self._tick_clock(self._idle_ns)
