@@ -355,6 +355,33 @@ def test_reset_spawned_brings_back_the_scenes_spacecraft(ros_process, namespace,
     f.wait(lambda: wingman, 'the wingman publishing again')
 
 
+def test_a_failing_spacecraft_is_named_and_deleting_it_lets_the_others_run(
+        ros_process, namespace, rclpy_node):
+    """A spawned body whose state overflows (|w| = 1e200 rad/s) stops the simulation: its
+    own status is ERROR, the others' WARN (held); deleted, the others run on."""
+    from simulation_interfaces.msg import Result
+    f = Fleet(ros_process, namespace, rclpy_node)
+    att = f.listen('leader')
+    f.wait(lambda: len(att) >= 2, 'the formation running')
+    wild = f.spawn('wild', resource_string='/**/attitude_simulator:\n  ros__parameters:\n'
+                   '    initial_angular_velocity: [1.0e200, 1.0e200, 0.0]\n')
+    assert wild.result.result == Result.RESULT_OK
+
+    def stopped():
+        got = f.status('wild')
+        return got is not None and got[0].level == b'\x02'
+    f.wait(stopped, 'the wild spacecraft\'s fault')
+    assert 'wild/integrator failed' in f.status()[0].message and f.status()[0].level == b'\x02'
+    assert f.status('leader')[0].level == b'\x01' and 'held' in f.status('leader')[0].message
+    n = len(att)
+    spin_until(rclpy_node, lambda: False, 1.0)
+    assert len(att) <= n + 1  # stopped (one sample may have been in flight)
+    assert f.call('delete_entity', entity='wild').result.result == Result.RESULT_OK
+    n = len(att)
+    f.wait(lambda: len(att) >= n + 5, 'the others running on')
+    f.wait(lambda: f.status()[0].level == b'\x00', 'the simulation OK again')
+
+
 def test_an_empty_simulation_steps_its_clock(ros_process, namespace, rclpy_node):
     """All deleted, paused, stepped 8 sample periods: /clock advances exactly 8 periods,
     one message each (an empty simulation still keeps time; /clock's history is 10 deep, so

@@ -104,6 +104,7 @@ class Fleet:
         """Take ``craft`` out of the simulation (its topics leave the graph)."""
         self._catch_up()
         self._remove(craft.name)
+        self._clear_fault()  # the one that failed deleted: the others run on
         self._log.info(f'spacecraft {craft.entity} deleted at t = {self.t_ns / NS:.6g} s ('
                        f'{len(self._crafts) or "none"} left'
                        + (': the simulation runs on, empty)' if not self._crafts else ')'))

@@ -86,9 +86,14 @@ def diagnostics(sim) -> DiagnosticArray:
     if not single:
         for c in crafts:
             e = c.engine
+            if c.fault:
+                level, text = 'ERROR', f'stopped: {c.fault}'
+            elif sim._fault:
+                level, text = 'WARN', 'held: another spacecraft stopped the simulation'
+            else:
+                level, text = 'OK', 'finished' if e.finished else 'running'
             status.append(diagnostic_status(
-                f'{name}: {c.entity}', hardware, 'ERROR' if sim._fault else 'OK',
-                f'{"finished" if e.finished else "running"}, t = {e.t:.3f} s, integrator '
+                f'{name}: {c.entity}', hardware, level, f'{text}, t = {e.t:.3f} s, integrator '
                 f'{e.method}', {**e.diagnostics(), **c.commands.counts()}))
     array = DiagnosticArray(status=status)
     array.header.stamp.sec, array.header.stamp.nanosec = divmod(sim.stamp_ns(t_ns), NS)

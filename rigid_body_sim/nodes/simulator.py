@@ -227,10 +227,10 @@ class Simulator(Fleet, Holds, Node):
                     block = craft.engine.advance(target, deadline if single else None,
                                                  max_samples=LIVE_BLOCK if single else None)
                 except IntegrationError as exc:
-                    return self._set_fault(f'{craft.prefix}integrator failed: {exc}')
+                    return self._set_fault(f'{craft.prefix}integrator failed: {exc}', craft)
                 except Exception as exc:  # noqa: BLE001 - never die with a traceback on bad input
                     return self._set_fault(f'{craft.prefix}physics error: '
-                                           f'{type(exc).__name__}: {exc}')
+                                           f'{type(exc).__name__}: {exc}', craft)
                 self._publish(craft, block, late)
                 if craft.engine.method != craft.method:
                     craft.method = e = craft.engine.method
@@ -422,7 +422,8 @@ class Simulator(Fleet, Holds, Node):
         craft = craft or self.crafts[0]
         self._catch_up()
         craft.engine.set_state(attitude, angular_velocity)
-        self._fault = None
+        craft.fault = None
+        self._clear_fault()
         self._log.info(f'{craft.prefix}state set at t = {craft.engine.t:.6g} s')
         self._new_run()
 
@@ -474,7 +475,8 @@ class Simulator(Fleet, Holds, Node):
     def _on_reset(self, request, response):
         for craft in self._crafts.values():
             craft.engine.reset()
-        self._fault = None
+            craft.fault = None
+        self._clear_fault()
         response.success = True
         e = self.engine
         response.message = (f'reset to the initial state at t = {e.t:.6g} s; integrator '
@@ -519,8 +521,16 @@ class Simulator(Fleet, Holds, Node):
             self._warn_method()  # the engine checked the method again
 
     # ------------------------------------------------------------------ status
-    def _set_fault(self, reason: str):
+    def _clear_fault(self):
+        """The simulation runs again once no spacecraft is left in a fault."""
+        if not any(c.fault for c in self._crafts.values()):
+            self._fault = None
+
+    def _set_fault(self, reason: str, craft=None):
+        """Stop the simulation (every spacecraft), ``craft`` the one that failed."""
         self._fault = reason
+        if craft is not None:
+            craft.fault = reason
         self._log.error(f'simulation stopped: {reason}; fix parameters and call ~/reset')
         self._publish_diagnostics()
 
