@@ -40,7 +40,6 @@ from dataclasses import replace
 
 from rclpy.duration import Duration
 from rclpy.node import Node
-from rclpy.parameter import Parameter
 
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import Vector3Stamped, WrenchStamped
@@ -51,11 +50,12 @@ from ..engine import NS, fleet, lockstep, specs
 from ..physics import IntegrationError
 from ..scene import SceneError, params_files_record
 from .commands import CommandFilter
-from .common import (changed_values, check_overrides, declare_parameters,
+from .common import (check_overrides, declare_parameters,
                      overridden_warnings, qos_profile, validate_update)
 from .process import events_executor, run_node
 from .usage import ros_arguments
 from .sim_services import AVAILABLE as SIM_SERVICES, SimulationServices
+from .sim_control import Control
 from .sim_fleet import Fleet, check_parameters
 from .sim_holds import Holds
 from .sim_status import diagnostics, summary
@@ -73,15 +73,11 @@ LIVE_BLOCK = 16              # samples per engine call (each is published before
 SUBSCRIBER_REFRESH_S = 0.25  # how often matched-subscriber counts are re-read
 MAX_LAG_S = 1.0              # behind the wall-clock target by more: drop the backlog
 PILOT_SLICE_S = 0.002        # least time for auto's pilot per loop turn (as fast as possible)
-QUIT_GRACE_S = 0.5           # a quit request's reply goes out before the node goes away
-# parameters after whose change the engine configures its method again
-NUMERICS = {'integrator', 'step', 'accuracy', 'publish_rate', 'duration', 'dissipation.model',
-            'dissipation.coefficient'}
 ACK_EVERY = STATE_DEPTH // 2  # as fast as possible: wait for acknowledgements this often
 ACK_TIMEOUT = Duration(seconds=1.0)  # then go on (a subscriber that hangs stalls no run)
 
 
-class Simulator(Fleet, Holds, Node):
+class Simulator(Control, Fleet, Holds, Node):
     """The ``attitude_simulator`` node.
 
     Build, then call :meth:`run` (or drive :meth:`run_once`).
@@ -382,73 +378,6 @@ class Simulator(Fleet, Holds, Node):
         """Every spacecraft reached the duration (an empty simulation runs until stopped)."""
         return bool(self._crafts) and all(c.engine.finished for c in self._crafts.values())
 
-    # ------------------------------------------------------------------ simulation control
-    @property
-    def engine(self):
-        """The first spacecraft's engine (the only one's, without a fleet); None if empty."""
-        return next(iter(self._crafts.values())).engine if self._crafts else None
-
-    @property
-    def frames(self):
-        """(frame_id, child_frame_id): the inertial and the unnamed spacecraft's body frame."""
-        return self._p['frame_id'], self._p['child_frame_id']
-
-    def pause(self):
-        """Stop advancing sim time (what was due runs first)."""
-        if not self.paused:
-            self._catch_up()
-            self.paused = True
-
-    def play(self):
-        """Advance again, paced from now."""
-        self.paused = False
-        self._anchor()
-
-    def step(self, n: int):
-        """While paused: advance ``n`` sample periods, publishing each sample; a problem
-        text, or None."""
-        if self._fault or self.finished:
-            return f'cannot step: {self._fault or "the run reached its duration"}'
-        p = self._period_ns
-        self._advance((self.t_ns // p + n) * p, float('inf'), late=False)
-        return self._fault
-
-    def reset(self):
-        self._on_reset(None, Trigger.Response())
-
-    def set_state(self, attitude, angular_velocity, craft=None):
-        """A spacecraft (default: the first) in a new state now (attitude body → frame_id,
-        ω body frame)."""
-        craft = craft or self.crafts[0]
-        self._catch_up()
-        craft.engine.set_state(attitude, angular_velocity)
-        craft.fault = None
-        self._clear_fault()
-        self._log.info(f'{craft.prefix}state set at t = {craft.engine.t:.6g} s')
-        self._new_run()
-
-    @property
-    def parameters(self) -> dict:
-        """The parameters' values now (a copy)."""
-        return dict(self._p)
-
-    def load_values(self, values: dict):
-        """Set ``values`` ({name: value}) at once, as a params file would at start-up, then
-        reset to the initial state they give (load_world); a problem text, or None (then
-        nothing changed)."""
-        if values:
-            result = self.set_parameters_atomically([
-                Parameter(k, self.get_parameter(k).type_, v) for k, v in values.items()])
-            if not result.successful:
-                return result.reason
-        self.reset()
-        return None
-
-    def quit(self):
-        """End the run loop shortly: the reply to the request still reaches the caller."""
-        self._log.info('quitting on request (set_simulation_state QUITTING)')
-        self._quit_at = time.monotonic() + QUIT_GRACE_S
-
     # ------------------------------------------------------------------ inputs
     def _on_command(self, craft, header, vector, source):
         engine = craft.engine
@@ -471,54 +400,6 @@ class Simulator(Fleet, Holds, Node):
             craft.engine.apply_actuator_command(msg.data)
         except ValueError as exc:
             craft.warn_actuator(self._log, exc)
-
-    def _on_reset(self, request, response):
-        for craft in self._crafts.values():
-            craft.engine.reset()
-            craft.fault = None
-        self._clear_fault()
-        response.success = True
-        e = self.engine
-        response.message = (f'reset to the initial state at t = {e.t:.6g} s; integrator '
-                            f'{e.method} ({e.reason})') if len(self._crafts) == 1 else (
-            f'reset {len(self._crafts)} spacecraft to their initial states at t = '
-            f'{self.t_ns / NS:.6g} s')
-        self._log.info(response.message)
-        self._new_run()
-        return response
-
-    def _new_run(self):
-        """A reset or a set state: counted in diagnostics (``resets``), published now, before
-        the new state's first sample, so that subscribers (the viewer) see the count change
-        before that sample."""
-        self._resets += 1
-        self._publish_diagnostics()
-
-    def _apply_parameters(self, params):
-        changed = changed_values(self._specs, self._p, params)
-        if not changed:
-            return
-        self._catch_up()  # what was due runs under the old values
-        stamp_now = self.stamp_ns(self.t_ns)
-        self._p.update(changed)
-        for name, craft in self._crafts.items():
-            craft.set_values(self._values(name))
-        self._commands.params = self._p
-        self._period_ns = self._sample_period()
-        if 'real_time_factor' in changed or 'publish_clock' in changed:
-            self._base_stamp(stamp_now)  # stamps stay continuous across the change
-        if any(k.split('.')[-1] in ('inertia', 'initial_attitude', 'initial_angular_velocity')
-               for k in changed):
-            self._log.info('inertia and initial state take effect on ~/reset')
-        if self._p['publish_clock'] and self._clock_pub is None:
-            self._clock_pub = self.create_publisher(Clock, '/clock', qos_profile('reliable'))
-        self._anchor()
-        self._refresh_subscribers()
-        self._next_diag_wall = time.monotonic()
-        self._log.info('parameters changed: ' + ', '.join(f'{k}={v}' for k, v in changed.items())
-                       + f' -> {summary(self)}')
-        if any(k.split('.', 1)[-1] in NUMERICS or k in NUMERICS for k in changed):
-            self._warn_method()  # the engine checked the method again
 
     # ------------------------------------------------------------------ status
     def _clear_fault(self):
