@@ -51,6 +51,24 @@ def test_bad_fleet_scenes_fail_with_the_key_and_reason(tmp_path, text, reason):
     assert reason in str(info.value), str(info.value)
 
 
+def test_an_engine_started_later_samples_on_the_same_grid_from_its_start():
+    """A spawned spacecraft's engine (start_ns): its first sample is the first grid instant
+    at or after its start, its state there the one it started with, advanced by the time
+    between (torque-free, so the closed form; and a start on the grid is sampled at once)."""
+    from rigid_body_sim.engine import Engine, EngineConfig
+    config = EngineConfig.from_parameters({'publish_rate': 10.0, 'integrator': 'exact',
+                                           'initial_angular_velocity': [0.0, 0.0, 0.5]})
+    late = Engine(config, start_ns=1_234_000_000)
+    assert late.t_ns == 1_234_000_000
+    block = late.advance(2_000_000_000)
+    assert list(block.t_ns) == [1_300_000_000 + k * 100_000_000 for k in range(8)]
+    # a spin about z: the angle at the first sample is 0.5 rad/s x 0.066 s from identity
+    q = block.values(0)[0:4]
+    assert np.allclose(q, [0, 0, np.sin(0.5 * 0.066 / 2), np.cos(0.5 * 0.066 / 2)], atol=1e-12)
+    on_grid = Engine(config, start_ns=1_300_000_000).advance(1_300_000_000)
+    assert list(on_grid.t_ns) == [1_300_000_000]
+
+
 def test_offline_run_refuses_a_fleet_scene():
     from rigid_body_sim.offline import engine_for
     with pytest.raises(SceneError, match='declares spacecraft .*leader.*simulator node'):
