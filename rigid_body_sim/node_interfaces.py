@@ -52,7 +52,9 @@ _SIM = 'simulation_interfaces/srv/'
 
 SIMULATOR = NodeInterfaces('attitude_simulator', 'simulator', (
     'Integrates the rigid body against the wall clock (or as fast as possible) and publishes '
-    'its state; every message of one sample carries the same sim-time stamp.'), (
+    'its state; every message of one sample carries the same sim-time stamp. With '
+    'spacecraft, each one\'s topics are these under <name>/ (/tf, /clock and /diagnostics '
+    'stay shared; torque_command and wrench_command here route by frame_id).'), (
     Topic('pub', 'attitude', 'geometry_msgs/msg/QuaternionStamped',
           'rotation child_frame_id -> frame_id (x, y, z, w)'),
     Topic('pub', 'pose', 'geometry_msgs/msg/PoseStamped',
@@ -118,6 +120,11 @@ SIMULATOR = NodeInterfaces('attitude_simulator', 'simulator', (
     Service('~/load_world', _SIM + 'LoadWorld',
             'switch scenes live (refused if start-up-only parameters differ)', SIM_INTERFACES),
     Service('~/get_current_world', _SIM + 'GetCurrentWorld', 'the scene loaded last',
+            SIM_INTERFACES),
+    Service('~/spawn_entity', _SIM + 'SpawnEntity', 'a spacecraft at run time (name, '
+            'attitude from initial_pose, body from a scene uri or resource_string)',
+            SIM_INTERFACES),
+    Service('~/delete_entity', _SIM + 'DeleteEntity', 'a spacecraft, with its wheels and CMGs',
             SIM_INTERFACES),
 ))
 

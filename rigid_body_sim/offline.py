@@ -143,6 +143,9 @@ def engine_for(scene: SceneFile, duration=None, integrator=None, step=None, accu
     method's step longer than the sample (or control) period, which the engine would
     otherwise shorten to that period without a word."""
     p = effective_parameters(scene, duration, integrator, step, accuracy)
+    if scene.spacecraft:
+        raise SceneError(f'{scene.path}: declares spacecraft ({", ".join(scene.spacecraft)}); '
+                         'an offline run takes one: run it with the simulator node')
     if not p['duration'] > 0:
         raise SceneError(f'{scene.path}: an offline run needs duration > 0 (scene has '
                          f'{p["duration"]:g}); use --duration')

@@ -31,6 +31,8 @@ class SceneFile:
     path: str
     simulator: Dict[str, Any] = field(default_factory=dict)
     controller: Dict[str, Any] = field(default_factory=dict)
+    # several spacecraft (engine/fleet.py): {name: its own values (<name>.<key>, prefix off)}
+    spacecraft: Dict[str, Dict[str, Any]] = field(default_factory=dict)
 
     @property
     def controlled(self) -> bool:
@@ -130,7 +132,7 @@ def load(scene: str, overrides=(), namespace: str = '/') -> SceneFile:
     ``/attitude_controller`` would. Values are checked with the nodes' parameter specs
     (``engine.specs``) without importing ROS; an unknown key, a section that names neither
     node, or a bad value fails with the file, the section, the key and the reason."""
-    from .engine import EngineConfig, specs
+    from .engine import EngineConfig, fleet, specs
     from .param_spec import coerce_all
     from . import params_file
     path = resolve(scene)
@@ -139,6 +141,15 @@ def load(scene: str, overrides=(), namespace: str = '/') -> SceneFile:
     sim_names = {s.name for s in specs.SIMULATOR} | set(META_KEYS)
     ctl_names = {s.name for s in specs.CONTROLLER} | set(META_KEYS)
     try:
+        # the spacecraft's own keys (<name>.<key>) are the simulator's too
+        crafts = params_file.node_parameters(path, sim_node).get('spacecraft')
+        try:
+            names = [] if crafts is None else fleet.check_names(
+                [n for n in fleet.SPEC.coerce(crafts.value) if n])
+        except ValueError as exc:
+            raise SceneError(f'{path}: {crafts.section}: {exc}') from None
+        craft_specs = fleet.craft_specs(names)
+        sim_names |= {s.name for s in craft_specs}
         file_sections = params_file.sections(path)
         for section, _ in file_sections:
             if not (params_file.matches(section, sim_node)
@@ -189,13 +200,22 @@ def load(scene: str, overrides=(), namespace: str = '/') -> SceneFile:
                 raise SceneError(f'{where}: {exc}') from None
         return coerce_all(node_specs, own, node)
 
-    sim = values(sim_raw, sim_names, specs.SIMULATOR, sim_node)
+    sim = values(sim_raw, sim_names, specs.SIMULATOR + tuple(craft_specs), sim_node)
     ctl = values(ctl_raw, ctl_names, specs.CONTROLLER, ctl_node) if controlled else {}
     try:
+        # a key a spacecraft leaves out is the node-level value (not the default)
+        own = {n: {k: sim[f'{n}.{k}'] for k in fleet.BODY_KEYS if f'{n}.{k}' in sim_raw}
+               for n in names}
+        sim = fleet.node_values(sim)
+        for craft in names:  # each spacecraft's engine, as the simulator node builds it
+            try:
+                EngineConfig.from_parameters({**sim, **own[craft]})
+            except ValueError as exc:
+                raise ValueError(f'spacecraft {craft}: {exc}') from None
         EngineConfig.from_parameters(sim, ctl or None)
     except ValueError as exc:
         raise SceneError(f'{path}: {exc}') from None
-    return SceneFile(name, description, path, sim, ctl)
+    return SceneFile(name, description, path, sim, ctl, own)
 
 
 def add_arguments(parser):

@@ -19,7 +19,7 @@ from rigid_body_sim.scene import list_scenes, load
 
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 CONFIG = os.path.join(REPO, 'config')
-SCENES = sorted(name for name, _, _ in list_scenes())
+SCENES = sorted(name for name, _, _ in list_scenes() if not load(name).spacecraft)  # one body
 
 
 def _cli(capsys, *args):

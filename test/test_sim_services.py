@@ -55,8 +55,9 @@ def test_play_pause_step_state_reset_quit(ros_process, namespace, rclpy_node):
             SimulatorFeatures.ENTITY_CATEGORIES, SimulatorFeatures.AVAILABLE_WORLDS,
             SimulatorFeatures.WORLD_LOADING, SimulatorFeatures.WORLD_INFO_GETTING,
             SimulatorFeatures.WORLD_RESOURCE_STRING} <= set(features)
+    assert {SimulatorFeatures.SPAWNING, SimulatorFeatures.DELETING} <= set(features)  # fleet
     # what is not served is not claimed
-    assert not {SimulatorFeatures.SPAWNING, SimulatorFeatures.DELETING,
+    assert not {SimulatorFeatures.SPAWNING_ENTITIES,
                 SimulatorFeatures.ENTITY_BOUNDS, SimulatorFeatures.WORLD_UNLOADING,
                 SimulatorFeatures.SIMULATION_RESET_TIME,
                 SimulatorFeatures.NAMED_POSES} & set(features)

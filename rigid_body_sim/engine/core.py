@@ -52,11 +52,13 @@ class Engine:
     the scene's accuracy and check its step's stability (:meth:`_check_method`) into
     ``method_warnings`` for the front end to show or refuse (the CLI and the live node
     do; the benchmarks run bad steps on purpose and skip the pilot's cost).
+    ``start_ns``: the sim time the body starts at (a spacecraft spawned into a running
+    simulation); its samples stay on the grid of multiples of the sample period.
     """
 
     def __init__(self, config: EngineConfig, blocking_selection: bool = True,
                  block_size: int = 1024, compiled_loop: bool = True,
-                 check_method: bool = False):
+                 check_method: bool = False, start_ns: int = 0):
         self.config = config
         self.check_method = check_method
         self.method_warnings = []  # [(verdict 'warn' | 'refuse', message)], fixed methods
@@ -81,8 +83,9 @@ class Engine:
         self._integ, self._retired_nfev = None, 0  # evaluations of methods replaced since
         self.selection_cpu = 0.0
         self.selected = None  # auto's last Selection (method, step, predicted error, pilot)
-        self._next_sample = 0
-        self._start(0)
+        p = config.sample_period_ns
+        self._next_sample = -(-int(start_ns) // p) * p  # the first grid instant from the start
+        self._start(int(start_ns))
 
     # ------------------------------------------------------------------ state
     def _start(self, t_ns: int):

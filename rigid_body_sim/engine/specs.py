@@ -91,6 +91,11 @@ SIMULATOR = (
               'command after which the simulator reports that it is paused (it keeps '
               'waiting, never guesses)', kind='float', unit='s', low=0.0, high=1e6,
               low_open=True),
+    # [''], not []: rclpy types an empty list as a byte array, and then refuses a list of names
+    ParamSpec('spacecraft', [''], 'names of the spacecraft this simulator runs, each with its '
+              'topics under <name>/ and its own values under <name>.<key> (engine/fleet.py); '
+              'none (empty names are ignored) = one unnamed spacecraft in the node\'s '
+              'namespace', kind='string_array', read_only=True),
 ) + ACTUATORS + sensor_specs.SIMULATOR  # wheels and CMGs (actuator_specs); seed, sensors.*
 
 # What the simulator node declares besides SIMULATOR: the scene it runs, for a recording's

@@ -7,9 +7,10 @@ diagnostics) and warned about (throttled per reason); it is never applied.
 import math
 import time
 
-# lockstep_*: with lockstep, a command whose stamp is not the held control instant's
+# lockstep_*: with lockstep, a command whose stamp is not the held control instant's;
+# unknown_spacecraft: on the simulator's own topic, a frame_id naming no spacecraft
 REJECT_REASONS = ('non_finite', 'wrong_frame', 'future_stamp', 'stale_stamp', 'lockstep_stale',
-                  'lockstep_unexpected')
+                  'lockstep_unexpected', 'unknown_spacecraft')
 WARN_THROTTLE_S = 2.0
 
 

@@ -156,7 +156,7 @@ def check_overrides(node, specs: Sequence[ParamSpec], argv=None) -> None:
     problems, seen = [], set(cli)
     for path in files:
         try:
-            problems += params_file.unknown_keys(path, fqn, own, SHARED)
+            problems += params_file.unknown_keys(path, fqn, own, SHARED | own)
             seen.update(params_file.node_parameters(path, fqn))
         except params_file.ParamsFileError as exc:
             problems.append(str(exc))
@@ -172,16 +172,20 @@ def check_overrides(node, specs: Sequence[ParamSpec], argv=None) -> None:
         raise ValueError('; '.join(problems))
 
 
-def declare_parameters(node, specs: Sequence[ParamSpec], argv=None) -> Dict[str, Any]:
+def declare_parameters(node, specs: Sequence[ParamSpec], argv=None,
+                       check: bool = True) -> Dict[str, Any]:
     """Declare ``specs`` on ``node`` (overrides from params files apply) and return coerced values.
 
     Raises ValueError with a readable reason if an override is not a parameter of the
     node, or has the wrong type or range (naming the params file and section it came
     from). Call before registering on-set callbacks, or they see the declarations too.
+    ``check``: False when the caller declares in parts and has run :func:`check_overrides`
+    on them all (the simulator's spacecraft keys).
     """
-    check_overrides(node, specs, argv)
-    for line in overridden_warnings(node, argv):
-        node.get_logger().warning(line)
+    if check:
+        check_overrides(node, specs, argv)
+        for line in overridden_warnings(node, argv):
+            node.get_logger().warning(line)
     files = ros_arguments(argv)[0]
     values = {}
     for spec in specs:

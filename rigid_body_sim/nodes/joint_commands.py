@@ -95,13 +95,14 @@ class JointCommands:
     (``apply_actuator_command``; its ``actuators`` hold the last command); ``ready()``
     before each command: False drops it (the run stopped), else what was due has run."""
 
-    def __init__(self, node, engine, qos, ready=lambda: True):
+    def __init__(self, node, engine, qos, ready=lambda: True, prefix=''):
         from sensor_msgs.msg import JointState
         self._engine, self._ready = engine, ready
         self.rejections = Rejections(node, REJECT_REASONS, 'joint_commands_rejected',
                                      'the last valid command is held')
         self.accepted = 0
-        self.subscription = node.create_subscription(JointState, TOPIC, self.on_command, qos)
+        self.subscription = node.create_subscription(JointState, prefix + TOPIC,
+                                                     self.on_command, qos)
 
     def counts(self) -> dict:
         return {'joint_commands_accepted': self.accepted, **self.rejections.counts()}

@@ -1,20 +1,21 @@
-"""The simulator's entities for simulation_interfaces: the spacecraft and its actuators.
+"""The simulator's entities for simulation_interfaces: its spacecraft and their actuators.
 
-* The spacecraft, named after ``child_frame_id`` (category ROBOT, tag ``spacecraft``). Its
-  state: the attitude in ``frame_id`` and the angular velocity in ``frame_id`` (or in the
-  body frame when the request names ``child_frame_id``); position stays zero.
-* Each reaction wheel, ``<child_frame_id>/<joint name>`` (the joint names of
+* Each spacecraft (category ROBOT, tag ``spacecraft``): named after ``child_frame_id``
+  when it is the unnamed one of a scene without ``spacecraft``, else by its name. Its
+  state: the attitude in ``frame_id`` and the angular velocity in ``frame_id`` (or in its
+  body frame when the request names that frame); position stays zero.
+* Each reaction wheel, ``<spacecraft>/<joint name>`` (the joint names of
   ``wheel_states``; category DYNAMIC_OBJECT, tags ``actuator``, ``reaction_wheel``). Its
-  state is in the body frame (header ``child_frame_id``): orientation identity (the
-  wheel's spin angle is not simulated: it changes no torque) and angular velocity the
-  wheel's speed relative to the body along its spin axis, in rad/s.
-* Each CMG, ``<child_frame_id>/<gimbal joint name>`` (tags ``actuator``, ``cmg``): in the
+  state is in the body frame: orientation identity (the wheel's spin angle is not
+  simulated: it changes no torque) and angular velocity the wheel's speed relative to the
+  body along its spin axis, in rad/s.
+* Each CMG, ``<spacecraft>/<gimbal joint name>`` (tags ``actuator``, ``cmg``): in the
   body frame, the orientation is the rotation by the gimbal angle about the gimbal axis
   (identity at the scene's zero angle) and the angular velocity is the gimbal rate along
   that axis.
 
-Pure functions of the engine's state and the frames: the services (``sim_services``) turn
-them into messages.
+Pure functions of the spacecraft's engines (``nodes/spacecraft.py``: ``entity``,
+``engine``): the services (``sim_services``) turn them into messages.
 """
 import re
 from typing import List, NamedTuple, Optional, Tuple
@@ -34,32 +35,37 @@ class Entity(NamedTuple):
     category: int
     description: str
     tags: Tuple[str, ...]
+    craft: object      # the spacecraft it belongs to (nodes/spacecraft.py)
 
 
-def entities(engine, body_frame: str) -> List[Entity]:
-    """The entities now, spacecraft first, then wheels, then CMGs."""
-    out = [Entity(body_frame, BODY, 0, ROBOT, 'the spacecraft (rigid body); pose: attitude',
-                  ('spacecraft',))]
-    a = engine.config.actuators
-    if a is not None:
-        out += [Entity(f'{body_frame}/{n}', WHEEL, i, DYNAMIC_OBJECT,
+def entities(crafts) -> List[Entity]:
+    """The entities now: each spacecraft, then its wheels, then its CMGs."""
+    out = []
+    for craft in crafts:
+        body = craft.entity
+        out.append(Entity(body, BODY, 0, ROBOT, 'spacecraft (rigid body); pose: attitude',
+                          ('spacecraft',), craft))
+        a = craft.engine.config.actuators
+        if a is None:
+            continue
+        out += [Entity(f'{body}/{n}', WHEEL, i, DYNAMIC_OBJECT,
                        'reaction wheel; twist: speed relative to the body about its spin '
-                       'axis (body frame)', ('actuator', 'reaction_wheel'))
+                       'axis (body frame)', ('actuator', 'reaction_wheel'), craft)
                 for i, n in enumerate(a.wheel_names)]
-        out += [Entity(f'{body_frame}/{n}', CMG, i, DYNAMIC_OBJECT,
+        out += [Entity(f'{body}/{n}', CMG, i, DYNAMIC_OBJECT,
                        'control moment gyro; pose: gimbal angle about the gimbal axis, '
-                       'twist: gimbal rate (body frame)', ('actuator', 'cmg'))
+                       'twist: gimbal rate (body frame)', ('actuator', 'cmg'), craft)
                 for i, n in enumerate(a.cmg_names)]
     return out
 
 
-def find(engine, body_frame: str, name: str) -> Optional[Entity]:
+def find(crafts, name: str) -> Optional[Entity]:
     """The entity called ``name`` (a leading ``/`` is ignored), or None."""
     name = name[1:] if name.startswith('/') else name
-    return next((e for e in entities(engine, body_frame) if e.name == name), None)
+    return next((e for e in entities(crafts) if e.name == name), None)
 
 
-def matching(engine, body_frame: str, pattern: str, categories, tags, all_tags: bool):
+def matching(crafts, pattern: str, categories, tags, all_tags: bool):
     """Entities whose name matches the regular expression ``pattern`` (searched, as POSIX
     regexec does; empty: all), whose category is one of ``categories`` (empty: any) and
     which carry any (``all_tags``: all) of ``tags`` (empty: no tag filter). ValueError
@@ -71,7 +77,7 @@ def matching(engine, body_frame: str, pattern: str, categories, tags, all_tags: 
             from None
     wanted = set(tags)
     out = []
-    for e in entities(engine, body_frame):
+    for e in entities(crafts):
         if regex is not None and not regex.search(e.name):
             continue
         if categories and e.category not in categories:
@@ -82,10 +88,11 @@ def matching(engine, body_frame: str, pattern: str, categories, tags, all_tags: 
     return out
 
 
-def state(engine, entity: Entity, body_frame_twist: bool = False):
+def state(entity: Entity, body_frame_twist: bool = False):
     """(frame, attitude (x, y, z, w), angular velocity (3,)) of ``entity`` now: the body's
     in the inertial frame (``frame`` None), or with the twist in the body frame when
     ``body_frame_twist``; an actuator's in the body frame (``frame`` 'body')."""
+    engine = entity.craft.engine
     if entity.kind == BODY:
         q, w = engine.attitude, engine.angular_velocity
         return ('body' if body_frame_twist else None), q, (w if body_frame_twist else

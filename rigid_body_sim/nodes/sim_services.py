@@ -9,21 +9,25 @@ Gazebo serves ``/gz_server/...``):
   to the initial state and paused) and QUITTING (the node exits).
 * ``step_simulation``: while paused, advance N steps. A step is one sample period
   (1/``publish_rate``), and each step publishes its sample.
-* ``reset_simulation``: the body back to its initial state. Sim time keeps running, so
+* ``reset_simulation``: the bodies back to their initial state. Sim time keeps running, so
   stamps and /clock stay monotonic, and SCOPE_TIME alone is refused as unsupported.
+  SCOPE_SPAWNED (and ALL): the scene's spacecraft again, spawned ones removed, deleted
+  ones of the scene back.
 * ``simulate_steps`` (action ``SimulateSteps``, ``sim_steps``): as ``step_simulation``,
   with feedback after each step and cancellation.
 * ``get_entities`` / ``get_entities_states`` / ``get_entity_info`` / ``get_entity_state``:
-  the spacecraft, named after ``child_frame_id``, and its wheels and CMGs (``sim_entities``
-  says what their states hold); filters by regular expression, category and tags.
-* ``set_entity_state``: the spacecraft. Its pose is the attitude in ``frame_id``. Its
-  twist is the angular velocity in ``frame_id``, or in the body frame when the request's
-  header names ``child_frame_id``.
+  the spacecraft (the unnamed one named after ``child_frame_id``, the others by name) and
+  their wheels and CMGs (``sim_entities`` says what their states hold); filters by regular
+  expression, category and tags.
+* ``set_entity_state``: a spacecraft. Its pose is the attitude in ``frame_id``. Its
+  twist is the angular velocity in ``frame_id``, or in its body frame when the request's
+  header names that frame.
+* ``spawn_entity`` / ``delete_entity``: spacecraft at run time (``sim_spawn``).
 * ``get_available_worlds`` / ``load_world`` / ``get_current_world``: the scenes
   (``sim_worlds``), switched live when the node can.
 
-Not served, and not listed as features: spawning and deleting (one spacecraft per node),
-named poses, bounds, setting entity info, unloading a world.
+Not served, and not listed as features: spawning several at once (SpawnEntities), named
+poses, bounds, setting entity info, unloading a world.
 
 They exist where the interface package is installed: a full Jazzy install
 (``ros-jazzy-simulation-interfaces``), or the venv, which builds it at setup.
@@ -43,7 +47,7 @@ try:
                                            GetEntitiesStates, GetEntityInfo, GetEntityState,
                                            GetSimulationState, GetSimulatorFeatures, LoadWorld,
                                            ResetSimulation, SetEntityState, SetSimulationState,
-                                           StepSimulation)
+                                           StepSimulation, SpawnEntity, DeleteEntity)
     AVAILABLE = True
 except ImportError:  # pragma: no cover - depends on the installation
     AVAILABLE = False
@@ -67,9 +71,11 @@ class SimulationServices:
                 'STEP_SIMULATION_MULTIPLE', 'STEP_SIMULATION_ACTION', 'ENTITY_STATE_GETTING',
                 'ENTITY_STATE_SETTING', 'ENTITY_INFO_GETTING', 'ENTITY_CATEGORIES',
                 'ENTITY_TAGS', 'AVAILABLE_WORLDS', 'WORLD_LOADING', 'WORLD_RESOURCE_STRING',
-                'WORLD_INFO_GETTING', 'WORLD_TAGS')
+                'WORLD_INFO_GETTING', 'WORLD_TAGS', 'SPAWNING', 'SPAWNING_RESOURCE_STRING',
+                'DELETING', 'SIMULATION_RESET_SPAWNED')
 
     def __init__(self, sim):
+        from . import sim_spawn as spawn  # simulation_interfaces: only where installed
         self.sim = sim
         self.state = SimulationState.STATE_PLAYING
         self.world = None  # the World loaded by load_world
@@ -86,7 +92,9 @@ class SimulationServices:
                 (SetEntityState, 'set_entity_state', self._set_entity),
                 (GetAvailableWorlds, 'get_available_worlds', self._available_worlds),
                 (LoadWorld, 'load_world', self._load_world),
-                (GetCurrentWorld, 'get_current_world', self._current_world)):
+                (GetCurrentWorld, 'get_current_world', self._current_world),
+                (SpawnEntity, 'spawn_entity', lambda req, res: spawn.spawn(sim, req, res)),
+                (DeleteEntity, 'delete_entity', lambda req, res: spawn.delete(sim, req, res))):
             sim.create_service(srv, f'~/{name}', self._guarded(handler))
         from .sim_steps import StepsAction  # rclpy.action: only with the interfaces
         self.steps_action = StepsAction(self)
@@ -108,8 +116,9 @@ class SimulationServices:
     def _features(self, request, response):
         response.features.features = [getattr(SimulatorFeatures, f) for f in self.FEATURES]
         response.features.custom_info = (
-            'one spacecraft per node (entity named after child_frame_id), its wheels and CMGs '
-            '(<child_frame_id>/<joint>); a step is one sample period (1/publish_rate); reset '
+            'spacecraft (the unnamed one named after child_frame_id, the others by name; '
+            'spawned and deleted at run time, resource: a scene), their wheels and CMGs '
+            '(<spacecraft>/<joint>); a step is one sample period (1/publish_rate); reset '
             'keeps sim time; worlds are scenes (config/*.yaml), loaded live when their '
             'start-up-only parameters match the running node\'s')
         return response
@@ -157,28 +166,30 @@ class SimulationServices:
         if scope == ResetSimulation.Request.SCOPE_TIME:
             return _result(response, Result.RESULT_FEATURE_UNSUPPORTED,
                            'sim time is not reset: stamps and /clock stay monotonic')
-        if scope & ResetSimulation.Request.SCOPE_STATE or scope in (
-                ResetSimulation.Request.SCOPE_DEFAULT, ResetSimulation.Request.SCOPE_ALL):
+        every = scope == ResetSimulation.Request.SCOPE_DEFAULT  # = SCOPE_ALL
+        done = []
+        if every or scope & ResetSimulation.Request.SCOPE_SPAWNED:
+            done.append(self.sim.restore_scene())  # spawned out, deleted ones back
+        if every or scope & ResetSimulation.Request.SCOPE_STATE:
             self.sim.reset()
-        return _result(response, Result.RESULT_OK,
-                       'state reset; sim time keeps running' if scope != 4 else
-                       'nothing spawned to remove')
+            done.append('state reset; sim time keeps running')
+        return _result(response, Result.RESULT_OK, '; '.join(done))
 
     # ------------------------------------------------------------------ entities
     def _find(self, name):
         """(entity, None) or (None, the reason it is not there)."""
-        entity = entities.find(self.sim.engine, self.sim.frames[1], name)
+        entity = entities.find(self.sim.crafts, name)
         if entity is None:
-            names = [e.name for e in entities.entities(self.sim.engine, self.sim.frames[1])]
-            return None, f'no entity {name!r}: the entities are {", ".join(names)}'
+            names = [e.name for e in entities.entities(self.sim.crafts)]
+            return None, f'no entity {name!r}: the entities are {", ".join(names) or "none"}'
         return entity, None
 
     def _fill_state(self, msg, entity, body_twist=False):
-        e, (world, body) = self.sim.engine, self.sim.frames
-        frame, q, w = entities.state(e, entity, body_twist)
+        world, body = entity.craft.frames
+        frame, q, w = entities.state(entity, body_twist)
         msg.header.frame_id = body if frame == 'body' else world
-        msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(self.sim.stamp_ns(e.t_ns),
-                                                                1_000_000_000)
+        msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(
+            self.sim.stamp_ns(entity.craft.engine.t_ns), 1_000_000_000)
         o = msg.pose.orientation
         o.x, o.y, o.z, o.w = (float(v) for v in q)
         a = msg.twist.angular
@@ -192,7 +203,7 @@ class SimulationServices:
                 'bounds filters are not supported (ENTITY_BOUNDS): entities have no extent'
         try:
             found = entities.matching(
-                self.sim.engine, self.sim.frames[1], filters.filter,
+                self.sim.crafts, filters.filter,
                 [c.category for c in filters.categories], list(filters.tags.tags),
                 filters.tags.filter_mode == TagsFilter.FILTER_MODE_ALL)
         except ValueError as exc:
@@ -225,18 +236,16 @@ class SimulationServices:
         self._fill_state(response.state, entity)
         return _result(response, Result.RESULT_OK)
 
-    def _entity_problem(self, name):
-        body = self.sim.frames[1]
-        if name not in (body, '/' + body):
-            return f'no entity {name!r} to set: the spacecraft is {body!r} (child_frame_id); ' \
-                'wheel and CMG states follow from their commands'
-        return None
-
     def _set_entity(self, request, response):
-        problem = self._entity_problem(request.entity)
-        if problem:
-            return _result(response, Result.RESULT_NOT_FOUND, problem)
-        world, body = self.sim.frames
+        entity = entities.find(self.sim.crafts, request.entity)
+        if entity is None or entity.kind != entities.BODY:
+            names = [c.entity for c in self.sim.crafts]
+            return _result(response, Result.RESULT_NOT_FOUND,
+                           f'no spacecraft {request.entity!r} to set: the spacecraft are '
+                           f'{", ".join(names) or "none"}; wheel and CMG states follow from '
+                           'their commands')
+        craft = entity.craft
+        world, body = craft.frames
         st = request.state
         frame = st.header.frame_id.lstrip('/')
         if frame not in ('', world, body):
@@ -250,7 +259,7 @@ class SimulationServices:
             q = rotation.validated(list(q), 'pose.orientation')
             if frame != body:  # twist observed in the world frame: into the body frame
                 w = rotation.rotate(rotation.conjugate(q), w)
-            self.sim.set_state(q, w)
+            self.sim.set_state(q, w, craft)
         except ValueError as exc:
             return _result(response, SetEntityState.Response.INVALID_POSE, str(exc))
         return _result(response, Result.RESULT_OK)
