@@ -15,6 +15,7 @@ from ..physics import Dissipation, RigidBody, rotation
 from ..sensors.specs import SensorSettings, check_feedback
 from . import specs
 from .actuators import ActuatorConfig
+from .environment_specs import EnvironmentSettings, environment_from_parameters
 from ..param_spec import coerce_all
 
 NS = 1_000_000_000
@@ -69,6 +70,8 @@ class EngineConfig:
     control: the in-process control law, or None (commands come from outside).
     actuators: reaction wheels / CMGs (``actuators``), or None: the plain rigid body.
     sensors: the simulated gyro / star tracker (``sensors.specs``), or None.
+    environment: the orbit and the environment's torques (``environment_specs``), or None:
+        the free body, nothing evaluated.
     """
     body: RigidBody
     dissipation: Dissipation
@@ -85,6 +88,7 @@ class EngineConfig:
     integrator_options: Mapping = field(default_factory=dict)
     actuators: Optional[ActuatorConfig] = None
     sensors: Optional[SensorSettings] = None  # None: no sensor simulated (nothing built)
+    environment: Optional[EnvironmentSettings] = None
 
     @property
     def duration(self) -> float:
@@ -137,6 +141,7 @@ class EngineConfig:
             raise ValueError('dissipation.model: the gyrostat (wheels/CMGs) integrator has no '
                              'dissipation; set it to none with actuators')
         sensors = SensorSettings.from_parameters(p)
+        environment = environment_from_parameters(p)
         if ctl is not None:
             check_feedback(sensors, ctl.feedback, ctl.estimator_bandwidth)
         config = cls(body, dissipation, q, w, integrator=p['integrator'], step=p['step'],
@@ -144,5 +149,6 @@ class EngineConfig:
                      sample_period_ns=seconds_to_ns(1.0 / p['publish_rate'], 'sample period'),
                      duration_ns=int(round(p['duration'] * NS)), max_torque=p['max_torque'],
                      command_timeout_ns=seconds_to_ns(p['command_timeout'], 'command_timeout'),
-                     control=ctl, actuators=actuators, sensors=sensors)
+                     control=ctl, actuators=actuators, sensors=sensors,
+                     environment=environment)
         return config.replace(**overrides) if overrides else config

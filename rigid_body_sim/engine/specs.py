@@ -9,6 +9,7 @@ from .. import control
 from ..physics import DISSIPATION_MODELS
 from ..physics.integrators import BODY_ONLY
 from .actuator_specs import ACTUATORS
+from .environment_specs import ENVIRONMENT
 from ..sensors import specs as sensor_specs
 from ..param_spec import ParamSpec
 
@@ -86,7 +87,8 @@ SIMULATOR = (
               'command after which the simulator reports that it is paused (it keeps '
               'waiting, never guesses)', kind='float', unit='s', low=0.0, high=1e6,
               low_open=True),
-) + ACTUATORS + sensor_specs.SIMULATOR  # wheels and CMGs (actuator_specs); seed, sensors.*
+) + ACTUATORS + sensor_specs.SIMULATOR + ENVIRONMENT  # wheels and CMGs (actuator_specs); seed,
+# sensors.*; the orbit and the environment's torques (environment_specs)
 
 # What the simulator node declares besides SIMULATOR: the scene it runs, for a recording's
 # run record (nodes/recorder.py stores them, with the keys of the offline run's record).

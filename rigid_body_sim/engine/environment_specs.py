@@ -1,0 +1,97 @@
+"""The orbit and the environment's torques: their parameters and the typed settings built
+from them (no ROS). Keys as orbit tools name them; see docs/physics.md#the-orbit.
+
+A scene without ``orbit.model`` (``none``) builds nothing here: the free body of today.
+"""
+from dataclasses import dataclass
+from datetime import datetime, timezone
+import math
+from typing import Optional
+
+from ..param_spec import ParamSpec
+from ..physics import orbit as orbit_models
+
+ENVIRONMENT = (
+    ParamSpec('orbit.model', 'none', 'the orbit: none (no orbit, no environment), kepler '
+              '(two-body), j2 (two-body with J2\'s secular drift of node, periapsis and mean '
+              'anomaly) or sgp4 (from orbit.tle)', kind='string', choices=orbit_models.MODELS,
+              read_only=True),
+    ParamSpec('orbit.semi_major_axis', 7.0e6, 'semi-major axis at sim time 0 (kepler, j2)',
+              kind='float', unit='m', low=0.0, low_open=True, read_only=True,
+              note='the perigee a(1 - e) must lie above the Earth\'s surface'),
+    ParamSpec('orbit.eccentricity', 0.0, 'eccentricity (kepler, j2)', kind='float', low=0.0,
+              high=1.0, high_open=True, read_only=True),
+    ParamSpec('orbit.inclination', 0.0, 'inclination to the world frame\'s x-y plane (kepler, '
+              'j2)', kind='float', unit='rad', low=0.0, high=math.pi, read_only=True),
+    ParamSpec('orbit.raan', 0.0, 'right ascension of the ascending node (kepler, j2)',
+              kind='float', unit='rad', read_only=True),
+    ParamSpec('orbit.argument_of_periapsis', 0.0, 'argument of periapsis (kepler, j2)',
+              kind='float', unit='rad', read_only=True),
+    ParamSpec('orbit.true_anomaly', 0.0, 'true anomaly at sim time 0 (kepler, j2)',
+              kind='float', unit='rad', read_only=True),
+    ParamSpec('orbit.tle', [''], 'two-line element set (the two lines) for sgp4; TEME is '
+              'taken as the world frame', kind='string_array', read_only=True),
+    ParamSpec('epoch', '', 'UTC instant of sim time 0, ISO 8601 (2026-03-20T12:00:00Z); '
+              'empty: the TLE\'s epoch with sgp4, unused otherwise', kind='string',
+              read_only=True),
+    ParamSpec('environment.gravity_gradient', False, 'the gravity-gradient torque 3 mu/r^3 '
+              'c x (I c) along the orbit (needs orbit.model)', kind='bool', read_only=True),
+)
+
+
+@dataclass(frozen=True, eq=False)
+class EnvironmentSettings:
+    """The orbit (None: none) and which environment torques act."""
+    orbit: Optional[orbit_models.Orbit] = None
+    gravity_gradient: bool = False
+    epoch: Optional[datetime] = None
+
+    @property
+    def terms(self):
+        """Names of the environment's torques in the model (for ``auto``'s reason)."""
+        return ('gravity gradient',) if self.gravity_gradient else ()
+
+
+def parse_epoch(text: str) -> Optional[datetime]:
+    """The UTC datetime of an ISO 8601 text (Z or an offset; none: UTC); None if empty.
+    ValueError naming ``epoch`` otherwise."""
+    if not text:
+        return None
+    try:
+        moment = datetime.fromisoformat(text.strip().replace('Z', '+00:00'))
+    except ValueError:
+        raise ValueError(f'epoch {text!r} is not an ISO 8601 date and time '
+                         '(e.g. 2026-03-20T12:00:00Z)') from None
+    if moment.tzinfo is None:
+        moment = moment.replace(tzinfo=timezone.utc)
+    return moment.astimezone(timezone.utc)
+
+
+def environment_from_parameters(p) -> Optional[EnvironmentSettings]:
+    """The settings from coerced parameter values, None for the free body (orbit.model
+    none, no environment torque). ValueError naming the key and the reason."""
+    model, gg = p['orbit.model'], p['environment.gravity_gradient']
+    epoch = parse_epoch(p['epoch'])
+    if model == 'none':
+        if gg:
+            raise ValueError('environment.gravity_gradient: needs an orbit (orbit.model '
+                             'kepler, j2 or sgp4)')
+        return None
+    if model == 'sgp4':
+        lines = [line for line in p['orbit.tle'] if line.strip()]
+        if not lines:
+            raise ValueError('orbit.tle: orbit.model sgp4 needs the two lines of a TLE')
+        try:
+            orbit = orbit_models.from_tle(lines, epoch)
+        except ValueError as exc:
+            raise ValueError(f'orbit.tle: {exc}') from None
+        return EnvironmentSettings(orbit, gg, epoch)
+    a, e = p['orbit.semi_major_axis'], p['orbit.eccentricity']
+    if a * (1.0 - e) <= orbit_models.RADIUS:
+        raise ValueError(f'orbit.semi_major_axis: the perigee a(1 - e) = '
+                         f'{a * (1.0 - e) / 1e3:.6g} km is below the Earth\'s surface '
+                         f'(R = {orbit_models.RADIUS / 1e3:.6g} km)')
+    cls = orbit_models.J2Orbit if model == 'j2' else orbit_models.KeplerOrbit
+    orbit = cls(a, e, p['orbit.inclination'], p['orbit.raan'],
+                p['orbit.argument_of_periapsis'], p['orbit.true_anomaly'])
+    return EnvironmentSettings(orbit, gg, epoch)
