@@ -23,6 +23,9 @@ from scipy.integrate import DOP853, solve_ivp
 
 from rigid_body_sim.physics import Dissipation, Dynamics, IntegrationError, create, dynamics_kernel
 from rigid_body_sim.physics.integrators import dop853_dense, dop853_kernel
+from rigid_body_sim.physics.orbit import kernel as orbit_kernel
+
+OFF = orbit_kernel.off()  # the free body: no environment's torque
 
 MOMENTS = np.array([1.0, 2.0, 3.0])
 Q0 = np.array([0.1, -0.2, 0.3, 0.9]) / np.linalg.norm([0.1, -0.2, 0.3, 0.9])
@@ -38,7 +41,8 @@ def scipy_rhs(model, coefficient, tau):
 
     def rhs(_, y):
         dq, dm = np.empty(4), np.empty(3)
-        dynamics_kernel._rates(y[:4], y[4:], MOMENTS, tau, code, coefficient, dq, dm)
+        dynamics_kernel._rates(y[:4], y[4:], MOMENTS, tau, code, coefficient, dq, dm, 0.0,
+                               OFF)
         return np.concatenate((dq, dm))
     return rhs
 
@@ -152,7 +156,7 @@ def test_a_call_ending_on_a_step_end_returns_that_state_and_steps_on():
     (no interpolation, no evaluation); the next call steps on from it, and the run still
     equals solve_ivp(t_eval) there and after."""
     rtol, atol = 1e-10, 1e-12
-    args = (MOMENTS, 2, 0.2, rtol, atol)
+    args = (MOMENTS, 2, 0.2, rtol, atol, 0.0, OFF)
     memory = np.zeros(dop853_dense.MEMORY)
     y, *_, clock, _ = dop853_dense.views(memory)
     q, m = Q0.copy(), M0.copy()

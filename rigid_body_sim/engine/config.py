@@ -11,11 +11,12 @@ from typing import Mapping, Optional
 import numpy as np
 
 from .. import control
-from ..physics import Dissipation, RigidBody, rotation
+from ..physics import Dissipation, RigidBody, get_integrator, rotation
 from ..sensors.specs import SensorSettings, check_feedback
 from . import specs
 from .actuators import ActuatorConfig
-from .environment_specs import EnvironmentSettings, environment_from_parameters
+from .environment_specs import (EnvironmentSettings, environment_from_parameters,
+                                initial_state_in_world)
 from ..param_spec import coerce_all
 
 NS = 1_000_000_000
@@ -110,13 +111,19 @@ class EngineConfig:
 
     def torque_rate(self) -> float:
         """Rate scale (1/s) of the torque ``auto`` must expect: the in-process control
-        law's bandwidth, else that of the largest command, √(√3·max_torque/I_min)."""
+        law's bandwidth, else that of the largest command, √(√3·max_torque/I_min); with the
+        gravity gradient at least its own, √(3μ/r_p³ · (I_max − I_min)/I_min)."""
         if self.control is not None:
             cfg = self.control.config
             i = cfg.body.principal_moments
-            return float(max(np.max(np.sqrt(cfg.kp_principal / i)), np.max(cfg.kd_principal / i),
+            rate = float(max(np.max(np.sqrt(cfg.kp_principal / i)), np.max(cfg.kd_principal / i),
                              np.max(cfg.rate_gain_principal / i)))
-        return math.sqrt(math.sqrt(3.0) * self.max_torque / self.body.principal_moments.min())
+        else:
+            rate = math.sqrt(math.sqrt(3.0) * self.max_torque / self.body.principal_moments.min())
+        env = self.environment
+        if env is not None and env.gravity_gradient:
+            rate = max(rate, env.gravity_gradient_rate(self.body.principal_moments))
+        return rate
 
     def replace(self, **changes) -> 'EngineConfig':
         return replace(self, **changes)
@@ -142,6 +149,17 @@ class EngineConfig:
                              'dissipation; set it to none with actuators')
         sensors = SensorSettings.from_parameters(p)
         environment = environment_from_parameters(p)
+        q, w = initial_state_in_world(environment, p['initial_attitude_frame'], q, w)
+        if environment is not None and environment.gravity_gradient:
+            if actuators is not None:
+                raise ValueError('environment.gravity_gradient: not integrated with wheels or '
+                                 'CMGs yet (the gyrostat method has no environment torque); '
+                                 'remove the actuators or the term')
+            if p['integrator'] != specs.AUTO and \
+                    not get_integrator(p['integrator']).environment:
+                raise ValueError(f'integrator: {p["integrator"]} does not integrate '
+                                 'environment.gravity_gradient; use auto, a splitting, rk4, '
+                                 'euler or dop853')
         if ctl is not None:
             check_feedback(sensors, ctl.feedback, ctl.estimator_bandwidth)
         config = cls(body, dissipation, q, w, integrator=p['integrator'], step=p['step'],

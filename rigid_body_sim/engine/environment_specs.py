@@ -8,8 +8,12 @@ from datetime import datetime, timezone
 import math
 from typing import Optional
 
+import numpy as np
+from scipy.spatial.transform import Rotation
+
 from ..param_spec import ParamSpec
 from ..physics import orbit as orbit_models
+from ..physics.orbit import frames, kernel as orbit_kernel
 
 ENVIRONMENT = (
     ParamSpec('orbit.model', 'none', 'the orbit: none (no orbit, no environment), kepler '
@@ -34,6 +38,11 @@ ENVIRONMENT = (
     ParamSpec('epoch', '', 'UTC instant of sim time 0, ISO 8601 (2026-03-20T12:00:00Z); '
               'empty: the TLE\'s epoch with sgp4, unused otherwise', kind='string',
               read_only=True),
+    ParamSpec('initial_attitude_frame', 'world', 'frame of initial_attitude and '
+              'initial_angular_velocity: world (inertial), or lvlh: the orbit frame at sim '
+              'time 0 (x along the velocity, z to nadir), the rate relative to it',
+              kind='string', choices=('world', 'lvlh'), read_only=True,
+              note='lvlh needs orbit.model'),
     ParamSpec('environment.gravity_gradient', False, 'the gravity-gradient torque 3 mu/r^3 '
               'c x (I c) along the orbit (needs orbit.model)', kind='bool', read_only=True),
 )
@@ -51,6 +60,22 @@ class EnvironmentSettings:
         """Names of the environment's torques in the model (for ``auto``'s reason)."""
         return ('gravity gradient',) if self.gravity_gradient else ()
 
+    def elements(self, t: float):
+        """The kernels' element array (``physics.orbit.kernel``) near sim time t with the
+        environment's torques switched on, None if none acts (the free body)."""
+        if not self.gravity_gradient:
+            return None
+        elements = self.orbit.elements(t)
+        elements[orbit_kernel.ON] = 1.0
+        return elements
+
+    def gravity_gradient_rate(self, moments) -> float:
+        """The gravity gradient's rate scale (1/s) at perigee: √(3μ/r³ · (I_max − I_min)/
+        I_min), the fastest libration it can drive (``auto``'s torque rate)."""
+        r = self.orbit.perigee_radius
+        return math.sqrt(3.0 * orbit_models.MU / r ** 3 * (max(moments) - min(moments))
+                         / min(moments))
+
 
 def parse_epoch(text: str) -> Optional[datetime]:
     """The UTC datetime of an ISO 8601 text (Z or an offset; none: UTC); None if empty.
@@ -65,6 +90,23 @@ def parse_epoch(text: str) -> Optional[datetime]:
     if moment.tzinfo is None:
         moment = moment.replace(tzinfo=timezone.utc)
     return moment.astimezone(timezone.utc)
+
+
+def initial_state_in_world(settings: Optional[EnvironmentSettings], frame: str, attitude,
+                           angular_velocity):
+    """(attitude body → world, ω body) from an initial state given in ``frame``: for lvlh,
+    the attitude relative to the orbit frame at t = 0 and the rate relative to it (so
+    zeros hold the body fixed in LVLH). ValueError naming the key without an orbit."""
+    if frame == 'world':
+        return attitude, angular_velocity
+    if settings is None:
+        raise ValueError('initial_attitude_frame: lvlh needs an orbit (orbit.model kepler, '
+                         'j2 or sgp4)')
+    r, v = settings.orbit.state(0.0)
+    lvlh = Rotation.from_quat(frames.lvlh_attitude(r, v))
+    body = lvlh * Rotation.from_quat(attitude)
+    w = np.asarray(angular_velocity, float) + body.inv().apply(frames.lvlh_rate(r, v))
+    return body.as_quat(), w
 
 
 def environment_from_parameters(p) -> Optional[EnvironmentSettings]:

@@ -9,12 +9,19 @@ state is not finite (-1 if none), so the caller raises IntegrationError with the
 step and time. Compiled by ``jit`` (see that module); plain Python under
 NUMBA_DISABLE_JIT=1.
 
+The environment's torques (the gravity gradient along the orbit) depend on the attitude
+and the time: the loops take ``t0`` (s, the time of their first step) and ``env``, the
+orbit's element array (``orbit.kernel``; env[ON] = 0 for the free body: nothing is
+evaluated, the results are those of the loops without it, bit for bit).
+
 Dissipation models: 0 none, 1 double bracket (α), 2 viscous (c); see ``dynamics``. Code 3
 is the double bracket by its exact flow (``splitting2_lstable``).
 """
 import math
 
-from .jit import inline, jit
+from .jit import depends_on, inline, jit
+from .orbit import kernel as orbit_kernel
+from .orbit.kernel import add_gravity_gradient
 
 MODEL_CODES = {'none': 0, 'double_bracket': 1, 'viscous': 2}
 
@@ -183,8 +190,9 @@ def _dissipate(m, t, moments, model, coefficient, symmetric):
 
 
 @jit
-def _rates(q, m, moments, tau, model, coefficient, dq, dm):
-    """dq = ½ q ⊗ (Ω, 0); dm = m × Ω + τ + dissipation (principal frame)."""
+def _rates(q, m, moments, tau, model, coefficient, dq, dm, t, env):
+    """dq = ½ q ⊗ (Ω, 0); dm = m × Ω + τ + dissipation + the environment's torque at time
+    t (principal frame)."""
     o0 = m[0] / moments[0]
     o1 = m[1] / moments[1]
     o2 = m[2] / moments[2]
@@ -207,6 +215,10 @@ def _rates(q, m, moments, tau, model, coefficient, dq, dm):
         dm[0] -= coefficient * o0
         dm[1] -= coefficient * o1
         dm[2] -= coefficient * o2
+    add_gravity_gradient(q, t, env, moments, dm)
+
+
+_rates = depends_on(_rates, orbit_kernel)  # it embeds the orbit's kernel (jit.depends_on)
 
 
 @jit

@@ -39,7 +39,7 @@ class GyrostatStrang(Integrator):
         # (splitting.py _ORDER: smallest, largest, intermediate)
         self._split_axes = np.argsort(dynamics.moments, kind='stable')[[0, 2, 1]]
 
-    def _kernel(self, q, m, h, n, tau, has_tau):
+    def _kernel(self, q, m, h, n, tau, has_tau, t0=0.0):
         failed = self.actuators.run(q, m, h, n, self.dynamics.moments, self._split_axes,
                                     tau if has_tau else None)
         self.nfev += n if failed < 0 else failed + 1
