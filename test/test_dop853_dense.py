@@ -23,9 +23,8 @@ from scipy.integrate import DOP853, solve_ivp
 
 from rigid_body_sim.physics import Dissipation, Dynamics, IntegrationError, create, dynamics_kernel
 from rigid_body_sim.physics.integrators import dop853_dense, dop853_kernel
-from rigid_body_sim.physics.orbit import kernel as orbit_kernel
 
-OFF = orbit_kernel.off()  # the free body: no environment's torque
+OFF = None  # the free body: no environment's torque
 
 MOMENTS = np.array([1.0, 2.0, 3.0])
 Q0 = np.array([0.1, -0.2, 0.3, 0.9]) / np.linalg.norm([0.1, -0.2, 0.3, 0.9])
@@ -41,8 +40,7 @@ def scipy_rhs(model, coefficient, tau):
 
     def rhs(_, y):
         dq, dm = np.empty(4), np.empty(3)
-        dynamics_kernel._rates(y[:4], y[4:], MOMENTS, tau, code, coefficient, dq, dm, 0.0,
-                               OFF)
+        dynamics_kernel._rates(y[:4], y[4:], MOMENTS, tau, code, coefficient, dq, dm)
         return np.concatenate((dq, dm))
     return rhs
 

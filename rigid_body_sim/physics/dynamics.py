@@ -56,9 +56,9 @@ class Dynamics:
     scale of the dissipation's stiffness and of its path from the minor to the major axis.
 
     ``environment``: the orbit's element array (``orbit.kernel`` layout) whose torques act
-    (the gravity gradient when environment[ON] is 1); None: the free body (an array with
-    ON = 0, which the loops skip). The methods that integrate it read it from here and see
-    it changed in place (an SGP4 orbit re-anchored at each interval)."""
+    (the gravity gradient, environment[ON] = 1); None: the free body (the loops are then
+    compiled without the term). The methods that integrate it read it from here and see it
+    changed in place (an SGP4 orbit re-anchored at each interval)."""
     moments: np.ndarray
     dissipation: Dissipation = Dissipation()
     environment: Optional[np.ndarray] = None
@@ -71,20 +71,19 @@ class Dynamics:
         i_min, i_max = float(moments.min()), float(moments.max())
         object.__setattr__(self, 'inverse_moment_spread', 1.0 / i_min - 1.0 / i_max)
         object.__setattr__(self, '_inverse_min', 1.0 / i_min)
-        if self.environment is None:
-            object.__setattr__(self, 'environment', orbit_kernel.off())
 
     @property
     def gravity_gradient(self) -> bool:
         """Whether the gravity-gradient torque acts (an orbit with the term switched on)."""
-        return bool(self.environment[orbit_kernel.ON] != 0.0)
+        return self.environment is not None and bool(self.environment[orbit_kernel.ON] != 0)
 
     def environment_torque(self, q, t: float):
         """The environment's torque at attitude q (principal → inertial) and time t,
         principal frame, N·m (zeros for the free body)."""
         out = np.zeros(3)
-        orbit_kernel.gravity_gradient(np.asarray(q, float), float(t), self.environment,
-                                      self.moments, out)
+        if self.environment is not None:
+            orbit_kernel.gravity_gradient(np.asarray(q, float), float(t), self.environment,
+                                          self.moments, out)
         return out
 
     def angular_velocity(self, m):

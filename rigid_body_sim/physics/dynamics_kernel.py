@@ -11,8 +11,9 @@ NUMBA_DISABLE_JIT=1.
 
 The environment's torques (the gravity gradient along the orbit) depend on the attitude
 and the time: the loops take ``t0`` (s, the time of their first step) and ``env``, the
-orbit's element array (``orbit.kernel``; env[ON] = 0 for the free body: nothing is
-evaluated, the results are those of the loops without it, bit for bit).
+orbit's element array (``orbit.kernel``), or None for the free body: numba then prunes
+every ``if env is not None`` branch, so the free body's loops are compiled as they were
+before the orbit existed (same code, same results bit for bit, same cost).
 
 Dissipation models: 0 none, 1 double bracket (α), 2 viscous (c); see ``dynamics``. Code 3
 is the double bracket by its exact flow (``splitting2_lstable``).
@@ -21,7 +22,6 @@ import math
 
 from .jit import depends_on, inline, jit
 from .orbit import kernel as orbit_kernel
-from .orbit.kernel import add_gravity_gradient
 
 MODEL_CODES = {'none': 0, 'double_bracket': 1, 'viscous': 2}
 
@@ -190,9 +190,8 @@ def _dissipate(m, t, moments, model, coefficient, symmetric):
 
 
 @jit
-def _rates(q, m, moments, tau, model, coefficient, dq, dm, t, env):
-    """dq = ½ q ⊗ (Ω, 0); dm = m × Ω + τ + dissipation + the environment's torque at time
-    t (principal frame)."""
+def _rates(q, m, moments, tau, model, coefficient, dq, dm):
+    """dq = ½ q ⊗ (Ω, 0); dm = m × Ω + τ + dissipation (principal frame)."""
     o0 = m[0] / moments[0]
     o1 = m[1] / moments[1]
     o2 = m[2] / moments[2]
@@ -215,10 +214,22 @@ def _rates(q, m, moments, tau, model, coefficient, dq, dm, t, env):
         dm[0] -= coefficient * o0
         dm[1] -= coefficient * o1
         dm[2] -= coefficient * o2
-    add_gravity_gradient(q, t, env, moments, dm)
 
 
-_rates = depends_on(_rates, orbit_kernel)  # it embeds the orbit's kernel (jit.depends_on)
+@jit
+def _environment(q, t, env, moments, dm):
+    """dm += the environment's torque at time t (the gravity gradient, ``orbit.kernel``).
+    The loops call it after ``_rates`` under ``if env is not None``: for the free body
+    (env None) numba prunes the branch, so their code is what it was before the orbit
+    existed (a parameter of ``_rates`` instead kept LLVM from inlining it: rk4's step
+    3-4× slower with the term off)."""
+    gx, gy, gz = orbit_kernel.gravity_gradient_torque(q, t, env, moments)
+    dm[0] += gx
+    dm[1] += gy
+    dm[2] += gz
+
+
+_environment = depends_on(_environment, orbit_kernel)  # it embeds the orbit's kernel
 
 
 @jit

@@ -47,7 +47,8 @@ from scipy.integrate._ivp import dop853_coefficients as _coefficients
 
 from .. import dynamics_kernel
 from . import dop853_kernel
-from .dop853_kernel import DIM, N_STAGES, NON_FINITE, OK, _initial_step, _rhs, attempt
+from .dop853_kernel import (DIM, N_STAGES, NON_FINITE, OK, _initial_step, _rhs,
+                            _rhs_environment, attempt)
 from ..dynamics_kernel import _finite
 from ..jit import COMPILED, depends_on, jit
 from ..orbit import kernel as orbit_kernel
@@ -96,7 +97,9 @@ def _build(y_old, y, f, h, K, F, moments, tau, model, coefficient, A_EXTRA, D, t
                 y_stage[i] += K[j, i] * a
         for i in range(DIM):
             y_stage[i] = y_old[i] + y_stage[i] * h
-        _rhs(y_stage, K[s], moments, tau, model, coefficient, t_old + C_EXTRA[e] * h, env)
+        _rhs(y_stage, K[s], moments, tau, model, coefficient)
+        if env is not None:
+            _rhs_environment(y_stage, K[s], t_old + C_EXTRA[e] * h, env, moments)
     for i in range(DIM):
         delta = y[i] - y_old[i]
         F[0, i] = delta
@@ -164,7 +167,9 @@ def advance(q, m, span, tau, memory, moments, model, coefficient, rtol, atol, t0
             h_abs = 0.0
         clock[0] = 0.0  # no step in progress: the current point is y
         clock[1] = 0.0
-        _rhs(y, f, moments, tau, model, coefficient, t0, env)
+        _rhs(y, f, moments, tau, model, coefficient)
+        if env is not None:
+            _rhs_environment(y, f, t0, env, moments)
         nfev += 1
         if not (_finite(y[:4], y[4:]) and _finite(f[:4], f[4:])):
             clock[3] = 0.0  # no memory left: the next call starts afresh
@@ -239,5 +244,5 @@ def warm():
     q = np.array([0.0, 0.0, 0.0, 1.0])
     m = np.array([0.1, 1.0, 0.2])
     advance(q, m, 1e-3, np.zeros(3), np.zeros(MEMORY), np.array([1.0, 2.0, 3.0]), 1, 0.1,
-            1e-10, 1e-12, 0.0, orbit_kernel.off())
+            1e-10, 1e-12, 0.0, None)
     return COMPILED

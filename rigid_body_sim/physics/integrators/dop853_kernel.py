@@ -22,7 +22,7 @@ import numpy as np
 from scipy.integrate._ivp import dop853_coefficients as _coefficients
 
 from .. import dynamics_kernel
-from ..dynamics_kernel import _finite, _rates
+from ..dynamics_kernel import _environment, _finite, _rates
 from ..jit import COMPILED, depends_on, jit
 from ..orbit import kernel as orbit_kernel
 
@@ -50,9 +50,16 @@ REASONS = {NON_FINITE: 'state became non-finite (the method diverged)',
 
 
 @jit
-def _rhs(y, out, moments, tau, model, coefficient, t, env):
-    """out = dy/dt at y and time t, both (7,) = (q, m)."""
-    _rates(y[:4], y[4:], moments, tau, model, coefficient, out[:4], out[4:], t, env)
+def _rhs(y, out, moments, tau, model, coefficient):
+    """out = dy/dt at y, both (7,) = (q, m), without the environment's torque."""
+    _rates(y[:4], y[4:], moments, tau, model, coefficient, out[:4], out[4:])
+
+
+@jit
+def _rhs_environment(y, out, t, env, moments):
+    """out[4:] += the environment's torque at y and time t (callers test env for None, so
+    the free body's code is what it was: see dynamics_kernel)."""
+    _environment(y[:4], t, env, moments, out[4:])
 
 
 @jit
@@ -72,7 +79,9 @@ def _initial_step(y, f, span, moments, tau, model, coefficient, rtol, atol, y1, 
     h0 = min(h0, span)
     for i in range(DIM):
         y1[i] = y[i] + h0 * f[i]
-    _rhs(y1, f1, moments, tau, model, coefficient, t + h0, env)
+    _rhs(y1, f1, moments, tau, model, coefficient)
+    if env is not None:
+        _rhs_environment(y1, f1, t + h0, env, moments)
     if h0 == 0.0:  # |f| overflowed the scale: no guess; the caller starts at its floor
         return 0.0
     d2 = 0.0
@@ -101,7 +110,9 @@ def _rk_step(y, h, K, y_stage, y_new, moments, tau, model, coefficient, A, B, t,
                 y_stage[i] += K[j, i] * a
         for i in range(DIM):
             y_stage[i] = y[i] + y_stage[i] * h
-        _rhs(y_stage, K[s], moments, tau, model, coefficient, t + NODES[s] * h, env)
+        _rhs(y_stage, K[s], moments, tau, model, coefficient)
+        if env is not None:
+            _rhs_environment(y_stage, K[s], t + NODES[s] * h, env, moments)
     for i in range(DIM):
         y_new[i] = 0.0
     for j in range(N_STAGES):
@@ -110,7 +121,9 @@ def _rk_step(y, h, K, y_stage, y_new, moments, tau, model, coefficient, A, B, t,
             y_new[i] += K[j, i] * b
     for i in range(DIM):
         y_new[i] = y[i] + h * y_new[i]
-    _rhs(y_new, K[N_STAGES], moments, tau, model, coefficient, t + h, env)
+    _rhs(y_new, K[N_STAGES], moments, tau, model, coefficient)
+    if env is not None:
+        _rhs_environment(y_new, K[N_STAGES], t + h, env, moments)
 
 
 @jit
@@ -198,7 +211,9 @@ def integrate(y, f, span, h_abs, fresh, moments, tau, model, coefficient, rtol, 
     y_stage = np.empty(DIM)
     y_new = np.empty(DIM)
     if fresh:
-        _rhs(y, f, moments, tau, model, coefficient, t0, env)
+        _rhs(y, f, moments, tau, model, coefficient)
+        if env is not None:
+            _rhs_environment(y, f, t0, env, moments)
         nfev += 1
     if not (_finite(y[:4], y[4:]) and _finite(f[:4], f[4:])):
         return NON_FINITE, 0.0, h_abs, nfev
@@ -226,7 +241,7 @@ def integrate(y, f, span, h_abs, fresh, moments, tau, model, coefficient, rtol, 
 
 
 # numba's disk cache checks only this file; each of these embeds dynamics_kernel._rates or _finite
-for _kernel in (_rhs, _initial_step, _rk_step, attempt, integrate):
+for _kernel in (_rhs, _rhs_environment, _initial_step, _rk_step, attempt, integrate):
     depends_on(_kernel, dynamics_kernel, orbit_kernel)
 
 
@@ -234,5 +249,5 @@ def warm():
     """Compile (or load from the cache) the kernel on representative arguments."""
     y = np.array([0.0, 0.0, 0.0, 1.0, 0.1, 1.0, 0.2])
     integrate(y, np.empty(DIM), 1e-3, 0.0, True, np.array([1.0, 2.0, 3.0]), np.zeros(3), 1,
-              0.1, 1e-10, 1e-12, *TABLEAU, 0.0, orbit_kernel.off())
+              0.1, 1e-10, 1e-12, *TABLEAU, 0.0, None)
     return COMPILED

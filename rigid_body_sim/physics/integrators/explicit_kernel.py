@@ -1,13 +1,13 @@
 """The explicit Runge–Kutta methods' compiled loops (``explicit.py``'s classes), in the
 conventions of ``dynamics_kernel``.
 Each loop takes ``t0`` (the time of its first step, s) and ``env`` (the orbit's element
-array, ``orbit.kernel``): the environment's torque is a term of the right-hand side,
-evaluated at each stage's instant.
+array, ``orbit.kernel``, or None for the free body): the environment's torque is a term of
+the right-hand side, evaluated at each stage's instant.
 """
 import numpy as np
 
 from .. import dynamics_kernel
-from ..dynamics_kernel import _finite, _normalise, _rates
+from ..dynamics_kernel import _environment, _finite, _normalise, _rates
 from ..jit import COMPILED, depends_on, jit
 from ..orbit import kernel as orbit_kernel
 
@@ -25,7 +25,9 @@ def euler_steps(q, m, h, n, moments, tau, model, coefficient, scratch, t0, env):
     dq = scratch[0]
     dm = scratch[1, :3]
     for k in range(n):
-        _rates(q, m, moments, tau, model, coefficient, dq, dm, t0 + k * h, env)
+        _rates(q, m, moments, tau, model, coefficient, dq, dm)
+        if env is not None:
+            _environment(q, t0 + k * h, env, moments, dm)
         for i in range(4):
             q[i] += h * dq[i]
         for i in range(3):
@@ -50,22 +52,30 @@ def rk4_steps(q, m, h, n, moments, tau, model, coefficient, scratch, t0, env):
     ms = scratch[9, :3]
     for k in range(n):
         t = t0 + k * h
-        _rates(q, m, moments, tau, model, coefficient, k1q, k1m, t, env)
+        _rates(q, m, moments, tau, model, coefficient, k1q, k1m)
+        if env is not None:
+            _environment(q, t, env, moments, k1m)
         for i in range(4):
             qs[i] = q[i] + 0.5 * h * k1q[i]
         for i in range(3):
             ms[i] = m[i] + 0.5 * h * k1m[i]
-        _rates(qs, ms, moments, tau, model, coefficient, k2q, k2m, t + 0.5 * h, env)
+        _rates(qs, ms, moments, tau, model, coefficient, k2q, k2m)
+        if env is not None:
+            _environment(qs, t + 0.5 * h, env, moments, k2m)
         for i in range(4):
             qs[i] = q[i] + 0.5 * h * k2q[i]
         for i in range(3):
             ms[i] = m[i] + 0.5 * h * k2m[i]
-        _rates(qs, ms, moments, tau, model, coefficient, k3q, k3m, t + 0.5 * h, env)
+        _rates(qs, ms, moments, tau, model, coefficient, k3q, k3m)
+        if env is not None:
+            _environment(qs, t + 0.5 * h, env, moments, k3m)
         for i in range(4):
             qs[i] = q[i] + h * k3q[i]
         for i in range(3):
             ms[i] = m[i] + h * k3m[i]
-        _rates(qs, ms, moments, tau, model, coefficient, k4q, k4m, t + h, env)
+        _rates(qs, ms, moments, tau, model, coefficient, k4q, k4m)
+        if env is not None:
+            _environment(qs, t + h, env, moments, k4m)
         for i in range(4):
             q[i] += (h / 6.0) * (k1q[i] + 2.0 * k2q[i] + 2.0 * k3q[i] + k4q[i])
         for i in range(3):
@@ -86,7 +96,6 @@ def warm():
     q = np.array([0.0, 0.0, 0.0, 1.0])
     m = np.array([0.1, 1.0, 0.2])
     moments = np.array([1.0, 2.0, 3.0])
-    env = orbit_kernel.off()
-    rk4_run(q, m, 1e-3, 1, moments, np.zeros(3), 0, 0.0, 0.0, env)
-    euler_run(q, m, 1e-3, 1, moments, np.zeros(3), 0, 0.0, 0.0, env)
+    rk4_run(q, m, 1e-3, 1, moments, np.zeros(3), 0, 0.0, 0.0, None)
+    euler_run(q, m, 1e-3, 1, moments, np.zeros(3), 0, 0.0, 0.0, None)
     return COMPILED

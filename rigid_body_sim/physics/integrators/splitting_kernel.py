@@ -63,13 +63,12 @@ def splitting_run(q, m, h, n, weights, axes, moments, tau, has_tau, model, coeff
     m ← m + (wh/2)·τ(q, t), evaluated at the kick's instant (Touma & Wisdom 1994). Time
     advances with the free flow (a b c b a), so in a stage starting at t the first kick
     is at t and the second at t + wh: the composition stays symmetric in the extended
-    phase space and keeps its order. The first step starts at ``t0`` (s).
+    phase space and keeps its order. The first step starts at ``t0`` (s); ``env`` None
+    (the free body) prunes the kicks from the compiled code.
     Returns (first non-finite step or -1, evaluations)."""
     a = axes[0]
     b = axes[1]
     c = axes[2]
-    gg = env[orbit_kernel.ON] != 0.0
-    kick = np.zeros(3)
     evals = 0
     for k in range(n):
         if not inner:
@@ -82,10 +81,11 @@ def splitting_run(q, m, h, n, weights, axes, moments, tau, has_tau, model, coeff
             if has_tau:
                 for i in range(3):
                     m[i] = m[i] + (0.5 * hw) * tau[i]
-            if gg:
-                orbit_kernel.gravity_gradient(q, t, env, moments, kick)
-                for i in range(3):
-                    m[i] = m[i] + (0.5 * hw) * kick[i]
+            if env is not None:
+                gx, gy, gz = orbit_kernel.gravity_gradient_torque(q, t, env, moments)
+                m[0] = m[0] + (0.5 * hw) * gx
+                m[1] = m[1] + (0.5 * hw) * gy
+                m[2] = m[2] + (0.5 * hw) * gz
             _axis_flow(q, m, a, 0.5 * hw, moments)
             _axis_flow(q, m, b, 0.5 * hw, moments)
             _axis_flow(q, m, c, hw, moments)
@@ -95,10 +95,11 @@ def splitting_run(q, m, h, n, weights, axes, moments, tau, has_tau, model, coeff
             if has_tau:
                 for i in range(3):
                     m[i] = m[i] + (0.5 * hw) * tau[i]
-            if gg:
-                orbit_kernel.gravity_gradient(q, t, env, moments, kick)
-                for i in range(3):
-                    m[i] = m[i] + (0.5 * hw) * kick[i]
+            if env is not None:
+                gx, gy, gz = orbit_kernel.gravity_gradient_torque(q, t, env, moments)
+                m[0] = m[0] + (0.5 * hw) * gx
+                m[1] = m[1] + (0.5 * hw) * gy
+                m[2] = m[2] + (0.5 * hw) * gz
             if inner:
                 evals += _dissipate(m, 0.5 * hw, moments, model, coefficient, True)
         if not inner:
@@ -120,7 +121,6 @@ def splitting_bodies(q, m, lo, hi, h, n, weights, axes, moments, tau, has_tau, m
     run only the steps before it: only an earlier failure can change the answer."""
     qs = np.empty(4)
     ms = np.empty(3)
-    env = np.zeros(orbit_kernel.SIZE)  # a batch runs free of the environment (one body only)
     failed = -1
     failed_body = -1
     limit = n
@@ -132,7 +132,7 @@ def splitting_bodies(q, m, lo, hi, h, n, weights, axes, moments, tau, has_tau, m
             ms[j] = m[i, j]
         bad, used = splitting_run(qs, ms, h, limit, weights, axes, moments,
                                   tau[i % tau.shape[0]], has_tau, model, coefficient,
-                                  inner[i % inner.shape[0]], 0.0, env)
+                                  inner[i % inner.shape[0]], 0.0, None)
         for j in range(4):
             q[i, j] = qs[j]
         for j in range(3):
@@ -157,5 +157,5 @@ def warm():
     for inner in (False, True):
         splitting_run(q, m, 1e-3, 1, np.array([1.0]), np.array([0, 2, 1]),
                       np.array([1.0, 2.0, 3.0]), np.zeros(3), False, 1, 0.1, inner, 0.0,
-                      orbit_kernel.off())
+                      None)
     return COMPILED

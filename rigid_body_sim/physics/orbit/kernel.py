@@ -1,12 +1,12 @@
 """The orbit as the compiled loops see it: an element set in one float array, evaluated at
 any instant, and the gravity-gradient torque it gives.
 
-``env`` (float64, SIZE): [ON] 1 when the gravity gradient acts (0: the free body, nothing
-is evaluated); [MU] μ; then the osculating or mean elements of a conic at time [T0] — [A]
-semi-major axis (m), [E] eccentricity, [INC] inclination, [RAAN] node, [ARGP] argument
-of periapsis, [M0] mean anomaly (rad) — and their secular rates [RAAN_RATE],
-[ARGP_RATE], [M_RATE] (rad/s: the two-body n for Kepler, J2's drifts for ``j2``).
-``orbit.py`` builds it; SGP4 re-anchors an osculating set at each interval.
+``env`` (float64, SIZE): [ON] 1 when the gravity gradient acts; [MU] μ; then the
+osculating or mean elements of a conic at time [T0] — [A] semi-major axis (m), [E]
+eccentricity, [INC] inclination, [RAAN] node, [ARGP] argument of periapsis, [M0] mean
+anomaly (rad) — and their secular rates [RAAN_RATE], [ARGP_RATE], [M_RATE] (rad/s: the
+two-body n for Kepler, J2's drifts for ``j2``). ``orbit.py`` builds it; SGP4 re-anchors
+an osculating set at each interval. The free body passes None instead.
 
 Plain numerical Python compiled by ``jit`` (NUMBA_DISABLE_JIT=1 runs it as Python).
 """
@@ -14,7 +14,7 @@ import math
 
 import numpy as np
 
-from ..jit import COMPILED, inline, jit
+from ..jit import jit
 
 ON, MU, A, E, INC, RAAN, ARGP, M0, T0, RAAN_RATE, ARGP_RATE, M_RATE, SIZE = range(13)
 KEPLER_TOL = 1e-15   # |ΔE| (rad) that ends Newton's iteration
@@ -23,8 +23,8 @@ TWO_PI = 2.0 * math.pi
 
 
 def off():
-    """The environment array of the free body: nothing acts (a fresh one each call: the
-    loops never write it, but an integrator may re-anchor its own)."""
+    """A fresh element array of zeros (ON = 0), for an orbit to fill. The free body passes
+    None to the loops instead (numba then compiles them without the term)."""
     return np.zeros(SIZE)
 
 
@@ -96,16 +96,16 @@ def radial(env, t):
     return x / r, y / r, z / r, r
 
 
-@inline
-def add_gravity_gradient(q, t, env, moments, dm):
-    """dm += τ_gg = 3μ/r³ · ĉ × (I ĉ), ĉ the radial unit vector in the principal frame
-    (q: principal → inertial, so ĉ = q⁻¹ r̂ q), at time t. Nothing when env[ON] is 0."""
-    if env[ON] == 0.0:
-        return
+@jit
+def gravity_gradient_torque(q, t, env, moments):
+    """τ_gg = 3μ/r³ · ĉ × (I ĉ) (principal frame, N·m) as three floats, ĉ the radial unit
+    vector in the principal frame (q: principal → inertial, so ĉ = q⁻¹ r̂ q), at time t.
+    Callers test env[ON] first, so the free body's loops only pay that test: called out of
+    line, this stays out of the small rate functions LLVM inlines (inlined, it made rk4's
+    step 6× slower even with the term off)."""
     ux, uy, uz, r = radial(env, t)
     x, y, z, w = q[0], q[1], q[2], q[3]
-    # ĉ = Rᵀ r̂, R the rotation of the unit quaternion q (normalised here: the RK loops'
-    # stages are not unit)
+    # ĉ = Rᵀ r̂, R the rotation of q normalised here (the RK loops' stages are not unit)
     s = 1.0 / (x * x + y * y + z * z + w * w)
     c0 = ((1.0 - 2.0 * s * (y * y + z * z)) * ux + 2.0 * s * (x * y + w * z) * uy
           + 2.0 * s * (x * z - w * y) * uz)
@@ -117,25 +117,15 @@ def add_gravity_gradient(q, t, env, moments, dm):
     i0 = moments[0] * c0
     i1 = moments[1] * c1
     i2 = moments[2] * c2
-    dm[0] += k * (c1 * i2 - c2 * i1)
-    dm[1] += k * (c2 * i0 - c0 * i2)
-    dm[2] += k * (c0 * i1 - c1 * i0)
+    return k * (c1 * i2 - c2 * i1), k * (c2 * i0 - c0 * i2), k * (c0 * i1 - c1 * i0)
 
 
 @jit
 def gravity_gradient(q, t, env, moments, out):
     """τ_gg (principal frame, N·m) into out (3,): zero when env[ON] is 0."""
-    out[0] = 0.0
-    out[1] = 0.0
-    out[2] = 0.0
-    add_gravity_gradient(q, t, env, moments, out)
-
-
-def warm():
-    """Compile (or load from the cache) the orbit's kernels."""
-    env = off()
-    env[ON], env[MU], env[A] = 1.0, 3.986004418e14, 7e6
-    out = np.zeros(6)
-    state_at(env, 0.0, out)
-    gravity_gradient(np.array([0.0, 0.0, 0.0, 1.0]), 0.0, env, np.ones(3), out[:3])
-    return COMPILED
+    if env[ON] == 0.0:
+        out[0] = 0.0
+        out[1] = 0.0
+        out[2] = 0.0
+        return
+    out[0], out[1], out[2] = gravity_gradient_torque(q, t, env, moments)
