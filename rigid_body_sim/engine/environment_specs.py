@@ -38,6 +38,9 @@ ENVIRONMENT = (
     ParamSpec('epoch', '', 'UTC instant of sim time 0, ISO 8601 (2026-03-20T12:00:00Z); '
               'empty: the TLE\'s epoch with sgp4, unused otherwise', kind='string',
               read_only=True),
+    ParamSpec('orbit.frame_id', 'lvlh', 'the orbit frame\'s tf name (LVLH; the simulator '
+              'node publishes frame_id -> it and the orbit topic with it)', kind='string',
+              read_only=True),
     ParamSpec('initial_attitude_frame', 'world', 'frame of initial_attitude and '
               'initial_angular_velocity: world (inertial), or lvlh: the orbit frame at sim '
               'time 0 (x along the velocity, z to nadir), the rate relative to it',

@@ -49,6 +49,7 @@ from .process import events_executor, run_node
 from .usage import ros_arguments
 from .sim_services import AVAILABLE as SIM_SERVICES, SimulationServices
 from .sensor_messages import SensorMessages, sensors_summary
+from .orbit_messages import OrbitPublishers
 from .state_messages import StateMessages
 
 try:  # /tf only where tf2_msgs exists (a full ROS install); the PyPI venv has none
@@ -123,6 +124,13 @@ class Simulator(Node):
             self._sensor_msgs = SensorMessages(self._engine.config.sensors, *self.frames)
             self._sensor_pubs = {name: pub(type(msg), name, state_qos)
                                  for name, msg in self._sensor_msgs.topics()}
+        self._orbit = None  # the orbit's topics, for a scene with one (orbit_messages)
+        if self._engine.config.environment is not None:
+            try:
+                self._orbit = OrbitPublishers(self, self._engine.config, self._p, state_qos,
+                                              qos_profile('reliable', 100), TFMessage)
+            except ValueError as exc:
+                raise SceneError(str(exc)) from None
         self._clock_pub = None
         if self._p['publish_clock']:
             self._clock_pub = pub(Clock, '/clock', qos_profile('reliable'))
@@ -239,6 +247,8 @@ class Simulator(Node):
                 self._clock_pub.publish(self._clock_msg)
             for publisher, name in self._active:
                 publisher.publish(data[name])
+            if self._orbit is not None:
+                self._orbit.publish(block, i, self.stamp_ns(t_ns))
             if self._paced and self._active:
                 self._unacked += 1
                 if self._unacked >= ACK_EVERY:
