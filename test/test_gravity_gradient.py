@@ -300,3 +300,15 @@ def test_sgp4_orbit_drives_the_gradient_and_its_failure_stops_the_run():
     with pytest.raises(IntegrationError, match=r'SGP4 error \d'):
         list(engine.run())
     assert 'SGP4 error' in engine.fault and engine.t > 0
+
+
+def test_diagnostics_report_no_drift_where_the_environment_acts():
+    """|L| and T change under the gravity gradient: that is physics, not drift."""
+    _, p = lvlh_start([0.3, 0.2, 0.1], integrator='splitting4', step=10.0, duration=600.0,
+                      publish_rate=0.1)
+    engine, _ = run(p)
+    d = engine.diagnostics()
+    for key in ('kinetic_energy_drift', 'angular_momentum_norm_drift',
+                'angular_momentum_inertial_drift'):
+        assert d[key] == 'n/a (environment torque: gravity gradient)', (key, d[key])
+    assert d['energy_dissipated'] == 0.0
