@@ -19,13 +19,16 @@ REFERENCE = os.path.join(os.path.dirname(os.path.abspath(__file__)), 'data',
 FIXED = ('splitting2', 'splitting4', 'splitting6', 'rk4', 'euler', 'dop853',
          'implicit_midpoint', 'splitting2_lstable', 'exact')
 # (key, scene, overrides, --set): every method on a dissipative scene (Explorer 1), the
-# closed form (torque-free), a law in the compiled closed loop (auto and rk4)
+# closed form (torque-free), a law in the compiled closed loop (auto and rk4), the
+# gyrostat (wheels, CMGs)
 CASES = ([(f'explorer1-{m}', 'explorer1', {'duration': 1.0, 'integrator': m, 'step': 1e-3},
            ['publish_rate=20.0']) for m in FIXED]
          + [('tennis_racket-auto', 'tennis_racket', {'duration': 5.0}, ['publish_rate=10.0']),
             ('slew-auto', 'slew', {'duration': 3.0}, ['publish_rate=20.0']),
             ('detumble-rk4', 'detumble', {'duration': 3.0, 'integrator': 'rk4', 'step': 2e-3},
-             ['publish_rate=20.0'])])
+             ['publish_rate=20.0']),
+            ('wheel_slew-gyrostat', 'wheel_slew', {'duration': 3.0}, ['publish_rate=20.0']),
+            ('cmg_slew-gyrostat', 'cmg_slew', {'duration': 3.0}, ['publish_rate=20.0'])])
 
 
 def samples(scene, overrides, sets):

@@ -312,3 +312,46 @@ def test_diagnostics_report_no_drift_where_the_environment_acts():
                 'angular_momentum_inertial_drift'):
         assert d[key] == 'n/a (environment torque: gravity gradient)', (key, d[key])
     assert d['energy_dissipated'] == 0.0
+
+
+def test_with_reaction_wheels_the_gyrostat_kicks_with_the_gradient():
+    """Three orthogonal wheels of equal rotor inertia started with zero absolute momentum
+    and never commanded: their momentum stays zero and Σ J a aᵀ = J·1 adds no gradient
+    torque (ĉ × ĉ = 0), so the gyrostat with the gravity gradient is the rigid body with
+    it: the same librating trajectory as splitting2's at the same step."""
+    o, p = lvlh_start([0.1, 0.2, 0.05], integrator='splitting2', step=5.0, duration=3000.0,
+                      publish_rate=0.02)
+    _, rigid = run(p)
+    w = p['initial_angular_velocity']
+    wheels = dict(p, **{'actuators.wheels.axes': [1.0, 0, 0, 0, 1.0, 0, 0, 0, 1.0],
+                        'actuators.wheels.inertia': [0.05],
+                        'actuators.wheels.initial_speed': [-w[0], -w[1], -w[2]]})
+    engine, gyro = run(wheels)
+    assert INTEGRATORS[engine.method].requires_actuators
+    np.testing.assert_allclose(gyro.q, rigid.q, atol=1e-12)
+    np.testing.assert_allclose(gyro.m, rigid.m, atol=1e-12 * np.abs(rigid.m).max())
+    assert np.abs(relative_angles(o, gyro)).max() > 0.05  # it librated
+
+
+def test_a_wheels_rotor_adds_its_inertia_to_the_gradient():
+    """One wheel on x (rotor J): the gradient acts on diag(I) + J x xᵀ."""
+    from rigid_body_sim.engine.actuators import ActuatorConfig, Actuators
+    from rigid_body_sim.param_spec import coerce_all
+    from rigid_body_sim.engine import specs
+    from rigid_body_sim.physics import RigidBody
+    from rigid_body_sim.physics.orbit import kernel
+    values = coerce_all(specs.SIMULATOR, {'actuators.wheels.axes': [1.0, 0.0, 0.0],
+                                          'actuators.wheels.inertia': [0.5]})
+    body = RigidBody.from_inertia(list(INERTIA))
+    act = Actuators(ActuatorConfig.from_parameters(values), body)
+    full = act._mass_inertia(body.principal_moments)
+    np.testing.assert_allclose(full, np.diag(INERTIA) + np.diag([0.5, 0.0, 0.0]))
+    o = orbit.KeplerOrbit(A, 0.0, 0.3, 0.0, 0.0, 0.0)
+    env = o.elements()
+    env[kernel.ON] = 1.0
+    q = Rotation.from_rotvec([0.4, -0.2, 0.9]).as_quat()
+    r, _ = o.state(100.0)
+    c = Rotation.from_quat(q).as_matrix().T @ (r / np.linalg.norm(r))
+    expected = 3 * orbit.MU / np.linalg.norm(r) ** 3 * np.cross(c, full @ c)
+    np.testing.assert_allclose(kernel.gravity_gradient_torque_full(q, 100.0, env, full),
+                               expected, rtol=1e-12)

@@ -151,10 +151,6 @@ class EngineConfig:
         environment = environment_from_parameters(p)
         q, w = initial_state_in_world(environment, p['initial_attitude_frame'], q, w)
         if environment is not None and environment.gravity_gradient:
-            if actuators is not None:
-                raise ValueError('environment.gravity_gradient: not integrated with wheels or '
-                                 'CMGs yet (the gyrostat method has no environment torque); '
-                                 'remove the actuators or the term')
             if p['integrator'] != specs.AUTO and \
                     not get_integrator(p['integrator']).environment:
                 raise ValueError(f'integrator: {p["integrator"]} does not integrate '

@@ -17,6 +17,7 @@ from builtin_interfaces.msg import Time
 from geometry_msgs.msg import TransformStamped, WrenchStamped
 from nav_msgs.msg import Odometry
 
+from ..engine.actuators import mass_inertia
 from ..engine.specs import frame_id_problem
 from ..physics import rotation
 from ..physics.orbit import frames
@@ -39,6 +40,8 @@ class OrbitMessages:
         self.odometry = Odometry()
         self.transform = TransformStamped()
         self.torque = WrenchStamped() if config.environment.gravity_gradient else None
+        # the whole mass distribution (wheel rotors included), principal frame
+        self._inertia = mass_inertia(config.actuators, config.body)
         for msg in (self.odometry, self.transform) + ((self.torque,) if self.torque else ()):
             msg.header.stamp = self.stamp
         self.set_frames(frame_id, child_frame_id, orbit_frame_id)
@@ -71,19 +74,19 @@ class OrbitMessages:
             (axes.T @ frames.lvlh_rate(r, v)).tolist()
         if self.torque is not None:
             tau = self.config.body.to_body(gravity_gradient(
-                self.config.environment.orbit.mu, self.config.body.principal_moments,
-                block.q[i], r))
+                self.config.environment.orbit.mu, self._inertia, block.q[i], r))
             w = self.torque.wrench.torque
             w.x, w.y, w.z = (float(c) for c in tau)
 
 
-def gravity_gradient(mu: float, moments, q_principal, r) -> np.ndarray:
+def gravity_gradient(mu: float, inertia, q_principal, r) -> np.ndarray:
     """τ = 3μ/r³ ĉ × (I ĉ) (principal frame, N·m), ĉ the radial unit vector in the
-    principal frame, for attitude ``q_principal`` (principal → inertial) at position r."""
+    principal frame, for attitude ``q_principal`` (principal → inertial) at position r;
+    ``inertia`` (3, 3) in the principal frame."""
     r = np.asarray(r, float)
     rn = float(np.linalg.norm(r))
     c = rotation.rotate(rotation.conjugate(np.asarray(q_principal, float)), r / rn)
-    return 3.0 * mu / rn ** 3 * np.cross(c, moments * c)
+    return 3.0 * mu / rn ** 3 * np.cross(c, inertia @ c)
 
 
 class OrbitPublishers:

@@ -97,15 +97,12 @@ def radial(env, t):
 
 
 @jit
-def gravity_gradient_torque(q, t, env, moments):
-    """τ_gg = 3μ/r³ · ĉ × (I ĉ) (principal frame, N·m) as three floats, ĉ the radial unit
-    vector in the principal frame (q: principal → inertial, so ĉ = q⁻¹ r̂ q), at time t.
-    Callers test env[ON] first, so the free body's loops only pay that test: called out of
-    line, this stays out of the small rate functions LLVM inlines (inlined, it made rk4's
-    step 6× slower even with the term off)."""
+def radial_in_body(q, t, env):
+    """(ĉ x, y, z, 3μ/r³): the radial unit vector at time t in the frame of q (principal →
+    inertial, so ĉ = q⁻¹ r̂ q; q normalised here: the RK loops' stages are not unit) and
+    the gradient's factor."""
     ux, uy, uz, r = radial(env, t)
     x, y, z, w = q[0], q[1], q[2], q[3]
-    # ĉ = Rᵀ r̂, R the rotation of q normalised here (the RK loops' stages are not unit)
     s = 1.0 / (x * x + y * y + z * z + w * w)
     c0 = ((1.0 - 2.0 * s * (y * y + z * z)) * ux + 2.0 * s * (x * y + w * z) * uy
           + 2.0 * s * (x * z - w * y) * uz)
@@ -113,10 +110,29 @@ def gravity_gradient_torque(q, t, env, moments):
           + 2.0 * s * (y * z + w * x) * uz)
     c2 = (2.0 * s * (x * z + w * y) * ux + 2.0 * s * (y * z - w * x) * uy
           + (1.0 - 2.0 * s * (x * x + y * y)) * uz)
-    k = 3.0 * env[MU] / (r * r * r)
+    return c0, c1, c2, 3.0 * env[MU] / (r * r * r)
+
+
+@jit
+def gravity_gradient_torque(q, t, env, moments):
+    """τ_gg = 3μ/r³ · ĉ × (I ĉ) (principal frame, N·m) as three floats, I = diag(moments),
+    at time t. Callers test env for None first, so the free body's loops are compiled
+    without it (see dynamics_kernel)."""
+    c0, c1, c2, k = radial_in_body(q, t, env)
     i0 = moments[0] * c0
     i1 = moments[1] * c1
     i2 = moments[2] * c2
+    return k * (c1 * i2 - c2 * i1), k * (c2 * i0 - c0 * i2), k * (c0 * i1 - c1 * i0)
+
+
+@jit
+def gravity_gradient_torque_full(q, t, env, inertia):
+    """The same for a full inertia matrix (3, 3) in the frame of q: a gyrostat's whole mass
+    distribution, its wheels' rotors included."""
+    c0, c1, c2, k = radial_in_body(q, t, env)
+    i0 = inertia[0, 0] * c0 + inertia[0, 1] * c1 + inertia[0, 2] * c2
+    i1 = inertia[1, 0] * c0 + inertia[1, 1] * c1 + inertia[1, 2] * c2
+    i2 = inertia[2, 0] * c0 + inertia[2, 1] * c1 + inertia[2, 2] * c2
     return k * (c1 * i2 - c2 * i1), k * (c2 * i0 - c0 * i2), k * (c0 * i1 - c1 * i0)
 
 
