@@ -172,6 +172,7 @@ RECORDED_BY_DEFAULT = [
     'angular_momentum_body', 'kinetic_energy', 'imu', 'torque_command', 'wrench_command',
     'attitude_target', '/diagnostics', '/tf', 'gyro', 'star_tracker',
     'wheel_states', 'gimbal_states', 'actuator_command',  # scenes with wheels / CMGs
+    'orbit', 'environment_torque',  # scenes with an orbit (as offline bags carry them)
 ]
 
 # Their types, the nodes' own: the recorder subscribes to them before their publishers exist.

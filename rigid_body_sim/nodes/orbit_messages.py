@@ -16,10 +16,12 @@ import numpy as np
 from builtin_interfaces.msg import Time
 from geometry_msgs.msg import TransformStamped, WrenchStamped
 from nav_msgs.msg import Odometry
+from rclpy.serialization import serialize_message
 
 from ..engine.actuators import mass_inertia
 from ..engine.specs import frame_id_problem
 from ..physics import rotation
+from .state_messages import type_name
 from ..physics.orbit import frames
 
 NS = 1_000_000_000
@@ -57,6 +59,9 @@ class OrbitMessages:
         out = (('orbit', self.odometry),)
         return out + ((('environment_torque', self.torque),) if self.torque else ())
 
+    def topic_types(self):
+        return [(name, type_name(msg)) for name, msg in self.topics()]
+
     def fill(self, block, i: int, stamp_ns: int):
         """Write sample ``i`` of a SampleBlock (its time, and the attitude for the torque)."""
         self.stamp.sec, self.stamp.nanosec = divmod(int(stamp_ns), NS)
@@ -77,6 +82,12 @@ class OrbitMessages:
                 self.config.environment.orbit.mu, self._inertia, block.q[i], r))
             w = self.torque.wrench.torque
             w.x, w.y, w.z = (float(c) for c in tau)
+
+
+    def serialized(self, block, i: int, stamp_ns: int):
+        """[(topic, CDR bytes)] of sample ``i`` (offline bags: the live node's topics)."""
+        self.fill(block, i, stamp_ns)
+        return [(name, serialize_message(msg)) for name, msg in self.topics()]
 
 
 def gravity_gradient(mu: float, inertia, q_principal, r) -> np.ndarray:
