@@ -23,6 +23,8 @@ STAR_TRACKER = 'sensors.star_tracker'
 SIM_INTERFACES = 'simulation_interfaces installed'
 FEEDBACK_TRUTH = 'feedback: truth'
 FEEDBACK_SENSORS = 'feedback: sensors'
+ORBIT = 'orbit.model'
+GRAVITY_GRADIENT = 'environment.gravity_gradient'
 
 
 class Topic(NamedTuple):
@@ -60,7 +62,13 @@ SIMULATOR = NodeInterfaces('attitude_simulator', 'simulator', (
     Topic('pub', 'pose', 'geometry_msgs/msg/PoseStamped',
           'the attitude, for Foxglove\'s 3D panel'),
     Topic('pub', 'transform', 'geometry_msgs/msg/TransformStamped', 'the attitude as a transform'),
-    Topic('pub', '/tf', 'tf2_msgs/msg/TFMessage', 'frame_id -> child_frame_id, every sample'),
+    Topic('pub', '/tf', 'tf2_msgs/msg/TFMessage', 'frame_id -> child_frame_id, every sample; '
+          'with an orbit also frame_id -> orbit.frame_id (LVLH, rotation only)'),
+    Topic('pub', 'orbit', 'nav_msgs/msg/Odometry', 'position [m] and LVLH orientation in '
+          'frame_id; inertial velocity [m/s] and LVLH rate [rad/s] resolved in '
+          'orbit.frame_id (child_frame_id)', ORBIT),
+    Topic('pub', 'environment_torque', 'geometry_msgs/msg/WrenchStamped',
+          'gravity-gradient torque, body frame [N*m]', GRAVITY_GRADIENT),
     Topic('pub', 'odometry', 'nav_msgs/msg/Odometry',
           'pose in frame_id, angular velocity in child_frame_id'),
     Topic('pub', 'angular_velocity', 'geometry_msgs/msg/Vector3Stamped', 'body frame [rad/s]'),
@@ -174,6 +182,7 @@ RECORDED_BY_DEFAULT = [
     'angular_momentum_body', 'kinetic_energy', 'imu', 'torque_command', 'wrench_command',
     'attitude_target', '/diagnostics', '/tf', 'gyro', 'star_tracker',
     'wheel_states', 'gimbal_states', 'actuator_command',  # scenes with wheels / CMGs
+    'orbit', 'environment_torque',  # scenes with an orbit (as offline bags carry them)
 ]
 
 # Their types, the nodes' own: the recorder subscribes to them before their publishers exist.

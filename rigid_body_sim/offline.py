@@ -267,6 +267,14 @@ class BagSink:
             self.sensors = SensorMessages(settings, p['frame_id'], p['child_frame_id'])
             for topic, type_name in self.sensors.topic_types():
                 self.writer.add_topic(f'/{topic}', type_name)
+        self.orbit = None  # the orbit's topics, for a scene with an orbit (as live)
+        config = EngineConfig.from_parameters(p)
+        if config.environment is not None:
+            from .nodes.orbit_messages import OrbitMessages
+            self.orbit = OrbitMessages(config, p['frame_id'], p['child_frame_id'],
+                                       p['orbit.frame_id'])
+            for topic, name in self.orbit.topic_types():
+                self.writer.add_topic(f'/{topic}', name)
         self.msgs.prepare()  # the encoder's templates now, not in the first sample's time
         self.record = run_record(scene, parameters or scene.simulator, extra)
         self.writer.add_run_configuration(self.record)
@@ -282,6 +290,10 @@ class BagSink:
             records = [(int(block.t_ns[i]), topic, data) for i in range(len(block))
                        for topic, data in self.msgs.serialized(block, i, int(block.t_ns[i]))]
             records += self.sensors.serialized(block.sensors)
+            if self.orbit is not None:
+                records += [(int(block.t_ns[i]), topic, data) for i in range(len(block))
+                            for topic, data in self.orbit.serialized(block, i,
+                                                                     int(block.t_ns[i]))]
             for ns, topic, data in sorted(records, key=lambda r: r[0]):  # stable: time order
                 write(f'/{topic}', data, ns, ns)
             return
@@ -289,6 +301,9 @@ class BagSink:
             ns = int(block.t_ns[i])
             for topic, data in self.msgs.serialized(block, i, ns):
                 write(f'/{topic}', data, ns, ns)
+            if self.orbit is not None:
+                for topic, data in self.orbit.serialized(block, i, ns):
+                    write(f'/{topic}', data, ns, ns)
 
     def close(self):
         self.writer.close()

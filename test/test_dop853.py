@@ -18,6 +18,8 @@ from rigid_body_sim.physics import (Dissipation, Dynamics, IntegrationError, cre
 from rigid_body_sim.physics.integrators import dop853_kernel
 from rigid_body_sim.physics.exact import TorqueFreeSolution
 
+OFF = None  # the free body: no environment's torque
+
 pytestmark = pytest.mark.fast  # make check
 
 I_STD = np.array([2.0, 1.0, 2.0 / 3.0])
@@ -49,7 +51,8 @@ def test_takes_scipys_steps_on_the_same_rhs(model, rtol):
     ref = solve_ivp(rhs, (0.0, 5.0), y0, method='DOP853', rtol=rtol, atol=atol)
     y, f = y0.copy(), np.empty(7)
     status, t, _, nfev = dop853_kernel.integrate(y, f, 5.0, 0.0, True, MOMENTS, TAU, code,
-                                                 coefficient, rtol, atol, *dop853_kernel.TABLEAU)
+                                                 coefficient, rtol, atol, *dop853_kernel.TABLEAU,
+                                                 0.0, OFF)
     assert (status, t, nfev) == (dop853_kernel.OK, 5.0, ref.nfev)
     tol = max(1e-12, 1e-8 * rtol)
     np.testing.assert_allclose(y, ref.y[:, -1], rtol=0, atol=tol)
@@ -72,7 +75,7 @@ def test_accuracy_and_order_against_the_exact_solution():
         for k in range(int(round(20.0 / h))):
             status, t, _, n = dop853_kernel.integrate(y, f, h, h, k == 0, I_STD, np.zeros(3),
                                                       0, 0.0, 1e3, 1e3,
-                                                      *dop853_kernel.TABLEAU)
+                                                      *dop853_kernel.TABLEAU, 0.0, OFF)
             assert (status, t) == (dop853_kernel.OK, h)
             nfev += n
         assert nfev == 1 + 12 * int(round(20.0 / h))  # one step per call

@@ -24,6 +24,8 @@ from scipy.integrate import DOP853, solve_ivp
 from rigid_body_sim.physics import Dissipation, Dynamics, IntegrationError, create, dynamics_kernel
 from rigid_body_sim.physics.integrators import dop853_dense, dop853_kernel
 
+OFF = None  # the free body: no environment's torque
+
 MOMENTS = np.array([1.0, 2.0, 3.0])
 Q0 = np.array([0.1, -0.2, 0.3, 0.9]) / np.linalg.norm([0.1, -0.2, 0.3, 0.9])
 M0, TAU = np.array([0.3, 0.6, 2.7]), np.array([0.01, -0.02, 0.005])
@@ -152,7 +154,7 @@ def test_a_call_ending_on_a_step_end_returns_that_state_and_steps_on():
     (no interpolation, no evaluation); the next call steps on from it, and the run still
     equals solve_ivp(t_eval) there and after."""
     rtol, atol = 1e-10, 1e-12
-    args = (MOMENTS, 2, 0.2, rtol, atol)
+    args = (MOMENTS, 2, 0.2, rtol, atol, 0.0, OFF)
     memory = np.zeros(dop853_dense.MEMORY)
     y, *_, clock, _ = dop853_dense.views(memory)
     q, m = Q0.copy(), M0.copy()

@@ -87,6 +87,10 @@ def test_running_nodes_match_the_table(ros_process, rclpy_node, namespace, tmp_p
           '--params-file', 'config/gyro_pointing.yaml']),
         (ni.VIEWER, ns_truth, (),
          [venv_exe('viewer'), '--ros-args', '-r', f'__ns:={ns_truth}', '-p', 'port:=0']),
+        (ni.SIMULATOR, ns_truth + '_orbit',  # an orbit with the gravity gradient
+         (ni.ORBIT, ni.GRAVITY_GRADIENT) + ((ni.SIM_INTERFACES,) if AVAILABLE else ()),
+         [venv_exe('simulator'), '--ros-args', '-r', f'__ns:={ns_truth}_orbit',
+          '--params-file', 'config/gravity_gradient.yaml']),
     ]
     import os
     repo = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))

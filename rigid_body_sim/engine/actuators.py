@@ -232,17 +232,25 @@ class Actuators:
         self.rate_cmd[:] = v[c.wheels:]
 
     # ------------------------------------------------------------------ stepping
-    def run(self, q, m, h, n, moments, split_axes, tau_ext_p):
+    def run(self, q, m, h, n, moments, split_axes, tau_ext_p, t0=0.0, env=None):
         """n steps of size h on (q, m) in place with the actuators; first non-finite step
-        or -1. ``tau_ext_p``: external torque, principal frame, or None."""
+        or -1. ``tau_ext_p``: external torque, principal frame, or None; ``env``: the
+        orbit's element array (the gravity gradient from t0 on), or None."""
         c = self.config
         ext = np.zeros(3) if tau_ext_p is None else np.asarray(tau_ext_p, float)
+        inertia = _NO_INERTIA if env is None else self._mass_inertia(moments)
         return gk.gyrostat_run(
             q, m, self.hw, self.delta, h, n, moments, split_axes, ext, tau_ext_p is not None,
             self.wa, c.inertia, c.max_torque, c.max_speed, c.friction, self.u_cmd,
             self.g, self.s0, c.momentum, c.max_rate, c.angle_limit, self.rate_cmd,
             self.allocate, self.tau_des, self.pinv, c.sr_gain, c.sr_scale, self.u, self.rate,
-            self.status)
+            self.status, t0, env, inertia)
+
+    def _mass_inertia(self, moments):
+        """``mass_inertia`` of this body and its wheels (principal frame), built once."""
+        if getattr(self, '_inertia', None) is None:
+            self._inertia = mass_inertia(self.config, self.body)
+        return self._inertia
 
     # ------------------------------------------------------------------ observables
     def momentum_principal(self) -> np.ndarray:
@@ -297,3 +305,17 @@ class Actuators:
                         'gimbal_angle_limited_kicks': int(s[gk.ST_GIMBAL_ANGLE_SAT]),
                         'cmg_singularity_measure': self.singularity()})
         return out
+
+
+def mass_inertia(config: ActuatorConfig, body) -> np.ndarray:
+    """The whole mass distribution's inertia (3, 3, principal frame), for the gravity
+    gradient: the body's (which excludes the rotors' spin-axis inertia, Hughes' form) plus
+    each wheel rotor's J a aᵀ (CMG rotors: their momentum only, no inertia modelled)."""
+    full = np.diag(np.asarray(body.principal_moments, float))
+    if config is not None and config.wheels:
+        wa = body.to_principal(config.axes)
+        full = full + (wa.T * config.inertia) @ wa
+    return full
+
+
+_NO_INERTIA = np.eye(3)  # passed when no orbit acts (the loop never reads it then)

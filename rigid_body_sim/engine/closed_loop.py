@@ -30,6 +30,7 @@ from ..physics import IntegrationError
 from ..physics import dynamics_kernel
 from ..physics.integrators import explicit_kernel, splitting_kernel
 from ..physics.jit import depends_on, jit
+from ..physics.orbit import kernel as orbit_kernel
 from . import specs
 from .config import NS
 from .sources import NEVER
@@ -60,9 +61,10 @@ def closed_loop_run(state, ticks, reals, spec, body, law, block, out):
     Every event at ``T_NS`` has been processed by the caller; the state ends at the last
     event processed (a law instant and a sample at one instant: the law first, as the
     engine's event loop does). ``spec`` = (weights, split_axes) of the method
-    (``ticks[METHOD]``: its ``loop_code``); ``body`` = (moments, axes, p2b): the simulated
-    body; ``law`` = (target, axes, moments, kp, kd, kw, inertia) and ``reals``' law
-    entries: the controller's model of it (its own ``inertia`` parameter), as
+    (``ticks[METHOD]``: its ``loop_code``); ``body`` = (moments, axes, p2b, env): the
+    simulated body and its environment (``orbit.kernel``'s array; ON = 0: none);
+    ``law`` = (target, axes, moments, kp, kd, kw, inertia) and ``reals``' law entries:
+    the controller's model of it (its own ``inertia`` parameter), as
     :class:`control.AttitudeController` uses.
 
     ``tau_body`` (in/out): the held body-frame torque (zeros = none). ``out`` (int64, 9):
@@ -72,7 +74,7 @@ def closed_loop_run(state, ticks, reals, spec, body, law, block, out):
     q, m, tau_body, tau_p = state
     t_out, q_out, m_out, tau_out = block
     weights, split_axes = spec
-    moments, axes, p2b = body
+    moments, axes, p2b, env = body
     target, law_axes, law_moments, kp, kd, kw, inertia = law
     limit_ns = ticks[LIMIT_NS]
     control_ns = ticks[CONTROL_NS]
@@ -119,19 +121,20 @@ def closed_loop_run(state, ticks, reals, spec, body, law, block, out):
         # equal steps no longer than h_max, split as Engine._integrate splits them
         n = max(1, int(math.ceil(span / (h_max * 1e9) - 1e-9)))
         h = span / (n * 1e9)
+        t0 = t / 1e9  # as Engine._integrate: the environment's torques see the same instants
         if method == 0:
             failed, e = splitting_kernel.splitting_run(
                 q, m, h, n, weights, split_axes, moments, tau_p, has_tau, model, coefficient,
                 splitting_kernel.inner_dissipation(m, h, weights, moments, model,
-                                                   coefficient))
+                                                   coefficient), t0, env)
             evals += e
         elif method == 1:
             failed = explicit_kernel.rk4_steps(q, m, h, n, moments, tau_p, model, coefficient,
-                                               scratch)
+                                               scratch, t0, env)
             evals += 4 * (n if failed < 0 else failed + 1)
         else:
             failed = explicit_kernel.euler_steps(q, m, h, n, moments, tau_p, model, coefficient,
-                                                 scratch)
+                                                 scratch, t0, env)
             evals += n if failed < 0 else failed + 1
         if failed >= 0:
             out[0] = t
@@ -212,7 +215,7 @@ def closed_loop_run(state, ticks, reals, spec, body, law, block, out):
 
 # it calls the step loops and the law from their own files (see jit.depends_on)
 closed_loop_run = depends_on(closed_loop_run, splitting_kernel, explicit_kernel,
-                             dynamics_kernel, control_kernel)
+                             dynamics_kernel, control_kernel, orbit_kernel)
 
 
 def advance(engine, state: State, law, builder, until_ns: int, cap: int) -> Optional[Stretch]:
@@ -227,8 +230,8 @@ def advance(engine, state: State, law, builder, until_ns: int, cap: int) -> Opti
     c = engine.config
     integ = engine.integrator
     code = None if integ is None else integ.loop_code  # the method's own
-    if engine.selection_pending or code is None:
-        return None
+    if engine.selection_pending or code is None or engine.orbit_anchored:
+        return None  # (an SGP4 orbit is re-anchored at every interval: event by event)
     limit = min(engine.end_ns, engine.command.next_event(), until_ns + 1)
     if law is not None:
         if (engine.command.torque is not None or engine.command.expiry != NEVER
@@ -286,7 +289,8 @@ def advance(engine, state: State, law, builder, until_ns: int, cap: int) -> Opti
     body = engine.body
     h = closed_loop_run(
         (q, m, tau, tau_p), ticks, reals, (spec[0], spec[1]),
-        (engine.dynamics.moments, body.principal_axes, body.principal_to_body), law_arrays,
+        (engine.dynamics.moments, body.principal_axes, body.principal_to_body,
+         engine.dynamics.environment), law_arrays,
         builder.columns(cap), out)
     next_control, mode, free, steps, evals, failed, rows, t_end, next_sample = \
         (int(v) for v in out)

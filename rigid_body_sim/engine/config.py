@@ -11,10 +11,12 @@ from typing import Mapping, Optional
 import numpy as np
 
 from .. import control
-from ..physics import Dissipation, RigidBody, rotation
+from ..physics import Dissipation, RigidBody, get_integrator, rotation
 from ..sensors.specs import SensorSettings, check_feedback
 from . import specs
 from .actuators import ActuatorConfig
+from .environment_specs import (EnvironmentSettings, environment_from_parameters,
+                                initial_state_in_world)
 from ..param_spec import coerce_all
 
 NS = 1_000_000_000
@@ -79,6 +81,8 @@ class EngineConfig:
         torque the offline run's in-process law gives and chooses as it does; 0 = unknown.
     actuators: reaction wheels / CMGs (``actuators``), or None: the plain rigid body.
     sensors: the simulated gyro / star tracker (``sensors.specs``), or None.
+    environment: the orbit and the environment's torques (``environment_specs``), or None:
+        the free body, nothing evaluated.
     """
     body: RigidBody
     dissipation: Dissipation
@@ -96,6 +100,7 @@ class EngineConfig:
     actuators: Optional[ActuatorConfig] = None
     sensors: Optional[SensorSettings] = None  # None: no sensor simulated (nothing built)
     law_bandwidth: float = 0.0  # 1/s: an outside controller's, when its gains are known
+    environment: Optional[EnvironmentSettings] = None
 
     @property
     def duration(self) -> float:
@@ -118,12 +123,18 @@ class EngineConfig:
     def torque_rate(self) -> float:
         """Rate scale (1/s) of the torque ``auto`` must expect: the control law's
         bandwidth (in process, or ``law_bandwidth`` of an outside one whose gains are
-        known), else that of the largest command, √(√3·max_torque/I_min)."""
+        known), else that of the largest command, √(√3·max_torque/I_min); with the
+        gravity gradient at least its own, √(3μ/r_p³ · (I_max − I_min)/I_min)."""
         if self.control is not None:
-            return self.control.bandwidth()
-        if self.law_bandwidth > 0.0:
-            return self.law_bandwidth
-        return math.sqrt(math.sqrt(3.0) * self.max_torque / self.body.principal_moments.min())
+            rate = self.control.bandwidth()
+        elif self.law_bandwidth > 0.0:
+            rate = self.law_bandwidth
+        else:
+            rate = math.sqrt(math.sqrt(3.0) * self.max_torque / self.body.principal_moments.min())
+        env = self.environment
+        if env is not None and env.gravity_gradient:
+            rate = max(rate, env.gravity_gradient_rate(self.body.principal_moments))
+        return rate
 
     def replace(self, **changes) -> 'EngineConfig':
         return replace(self, **changes)
@@ -148,6 +159,14 @@ class EngineConfig:
             raise ValueError('dissipation.model: the gyrostat (wheels/CMGs) integrator has no '
                              'dissipation; set it to none with actuators')
         sensors = SensorSettings.from_parameters(p)
+        environment = environment_from_parameters(p)
+        q, w = initial_state_in_world(environment, p['initial_attitude_frame'], q, w)
+        if environment is not None and environment.gravity_gradient:
+            if p['integrator'] != specs.AUTO and \
+                    not get_integrator(p['integrator']).environment:
+                raise ValueError(f'integrator: {p["integrator"]} does not integrate '
+                                 'environment.gravity_gradient; use auto, a splitting, rk4, '
+                                 'euler or dop853')
         if ctl is not None:
             check_feedback(sensors, ctl.feedback, ctl.estimator_bandwidth)
         config = cls(body, dissipation, q, w, integrator=p['integrator'], step=p['step'],
@@ -155,5 +174,6 @@ class EngineConfig:
                      sample_period_ns=seconds_to_ns(1.0 / p['publish_rate'], 'sample period'),
                      duration_ns=int(round(p['duration'] * NS)), max_torque=p['max_torque'],
                      command_timeout_ns=seconds_to_ns(p['command_timeout'], 'command_timeout'),
-                     control=ctl, actuators=actuators, sensors=sensors)
+                     control=ctl, actuators=actuators, sensors=sensors,
+                     environment=environment)
         return config.replace(**overrides) if overrides else config

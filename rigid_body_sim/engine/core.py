@@ -24,6 +24,7 @@ import numpy as np
 from ..physics import INTEGRATORS, Dynamics, IntegrationError, create, rotation
 from ..physics.exact import TorqueFreeSolution
 from ..physics.auto import select, selecting
+from ..physics.orbit import OrbitError
 from . import closed_loop, health, sensing
 from .actuators import Actuators
 from .config import NS, EngineConfig
@@ -93,7 +94,7 @@ class Engine:
         self.body = self._builder.body = c.body
         # principal frame = body frame (diagonal inertia): skip the frame conversions at events
         self._aligned = bool(np.array_equal(c.body.principal_axes, np.eye(3)))
-        self.dynamics = Dynamics(self.body.principal_moments, c.dissipation)
+        self.dynamics = self._dynamics(c)
         self._q = self.body.attitude_to_principal(c.attitude)
         self._m = self.body.principal_moments * self.body.to_principal(c.angular_velocity)
         # wheels / CMGs: the gyrostat path (scenes without them build nothing of it)
@@ -112,6 +113,39 @@ class Engine:
         self.method = None
         self._choose()
         self._set_baseline()
+
+    def _dynamics(self, c: EngineConfig) -> Dynamics:
+        """The body's dynamics: dissipation, and the environment's torques along the orbit
+        when the scene names them (``environment_specs``)."""
+        return Dynamics(self.body.principal_moments, c.dissipation,
+                        None if c.environment is None else c.environment.elements(0.0))
+
+    @property
+    def orbit_anchored(self) -> bool:
+        """Whether the environment's orbit is re-anchored at each interval (SGP4's
+        osculating conic, ``Sgp4Orbit.elements``), so steps run interval by interval."""
+        env = self.config.environment
+        return env is not None and env.gravity_gradient and env.orbit.anchored
+
+    def _anchor_orbit(self, t_ns: int, t_end: int):
+        """The osculating conic at the interval's midpoint (its error grows as the square of
+        the distance from it) into the dynamics' element array, in place (the integrators
+        hold it); an adaptive method starts afresh on it, its steps kept inside the
+        interval. IntegrationError with the time and SGP4's code if SGP4 fails."""
+        try:
+            self.dynamics.environment[:] = self.config.environment.elements(
+                (t_ns + t_end) / (2 * NS))
+        except OrbitError as exc:
+            self.fault = str(exc)
+            raise IntegrationError(self.method, self.step_max, exc.t, exc.reason) from None
+        if self._integ.adaptive:
+            self._integ.reset()
+
+    @property
+    def environment_terms(self) -> tuple:
+        """Names of the environment's torques in the model ('gravity gradient'), () if none."""
+        env = self.config.environment
+        return () if env is None else env.terms
 
     def reset(self):
         """Back to the configured initial state (inertia and initial state as configured
@@ -191,6 +225,9 @@ class Engine:
         if name != self.method or options:
             self._retired_nfev += self._integ.nfev if self._integ else 0
             self._integ = create(name, self.dynamics, **options)
+        terms = self.environment_terms
+        if terms and not reason.startswith('auto'):  # auto's reason names them itself
+            reason = f'{reason}; model: free body + {" + ".join(terms)}'
         self.method, self.reason = name, reason
         self.step_max = float(h_max)
         self._anchor = None
@@ -210,11 +247,15 @@ class Engine:
                       **dict(c.integrator_options))
             self.method_warnings = self._check_method() if self.check_method else []
             return
-        torque = self._torque_seen
+        # the environment's torques act from the start, as a torque the pilot cannot foresee
+        terms = self.environment_terms
+        torque = self._torque_seen or bool(terms)
         # the budget covers the rest of the run (what went before was exact or is done)
         left = (self.end_ns - self.t_ns) / NS if c.duration_ns > 0 else 0.0
-        kw = dict(torque=torque, accuracy=c.accuracy, duration=left, max_step=c.event_spacing(),
-                  torque_rate=c.torque_rate() if torque else 0.0, dynamics=self.dynamics)
+        kw = dict(torque=self._torque_seen, accuracy=c.accuracy, duration=left,
+                  max_step=c.event_spacing(),
+                  torque_rate=c.torque_rate() if torque else 0.0, dynamics=self.dynamics,
+                  environment=terms)
         state = (self.body, c.dissipation, self.attitude, self.angular_velocity)
         if not torque and not c.dissipation.active:
             sel = select(*state, **kw)
@@ -293,7 +334,7 @@ class Engine:
         take effect on :meth:`reset`; dissipation, numerics and limits at once."""
         old, self.config = self.config, config
         if config.dissipation != old.dissipation:
-            self.dynamics = Dynamics(self.body.principal_moments, config.dissipation)
+            self.dynamics = self._dynamics(config)
             self.method = None  # rebuild the integrator on the new dynamics
             self._set_baseline()
         if config.sample_period_ns != old.sample_period_ns:
@@ -343,7 +384,7 @@ class Engine:
     # ------------------------------------------------------------------ stepping
     def _free_exact(self) -> bool:
         return (self.method == 'exact' and self._tau_p is None
-                and not self.dynamics.dissipation.active)
+                and not self.dynamics.dissipation.active and not self.dynamics.gravity_gradient)
 
     def _anchored(self):
         if self._anchor is None:
@@ -362,6 +403,8 @@ class Engine:
         # equal steps no longer than step_max (to 1 ppb: a step given as span/n stays n steps)
         n = max(1, math.ceil(span / (self.step_max * NS) - 1e-9))
         h = span / (n * NS)
+        if self.orbit_anchored:
+            self._anchor_orbit(self.t_ns, t_end)
         self._q, self._m = self._integ.run(self._q, self._m, h, n, self._tau_p, self.t_ns / NS)
         self.steps += n
 

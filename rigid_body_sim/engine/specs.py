@@ -9,6 +9,7 @@ from .. import control
 from ..physics import DISSIPATION_MODELS
 from ..physics.integrators import BODY_ONLY
 from .actuator_specs import ACTUATORS
+from .environment_specs import ENVIRONMENT
 from ..sensors import specs as sensor_specs
 from ..param_spec import ParamSpec
 
@@ -96,7 +97,8 @@ SIMULATOR = (
               'topics under <name>/ and its own values under <name>.<key> (engine/fleet.py); '
               'none (empty names are ignored) = one unnamed spacecraft in the node\'s '
               'namespace', kind='string_array', read_only=True),
-) + ACTUATORS + sensor_specs.SIMULATOR  # wheels and CMGs (actuator_specs); seed, sensors.*
+) + ACTUATORS + sensor_specs.SIMULATOR + ENVIRONMENT  # wheels and CMGs (actuator_specs); seed,
+# sensors.*; the orbit and the environment's torques (environment_specs)
 
 # What the simulator node declares besides SIMULATOR: the scene it runs, for a recording's
 # run record (nodes/recorder.py stores them, with the keys of the offline run's record).

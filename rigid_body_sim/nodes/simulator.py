@@ -280,6 +280,8 @@ class Simulator(Control, Fleet, Holds, Node):
             new = self._tick_clock(t_ns)  # the first spacecraft at this sample instant
             for publisher, name in active:
                 publisher.publish(data[name])
+            if craft.orbit is not None:
+                craft.orbit.publish(block, i, self.stamp_ns(t_ns))
             self._published += len(active)
             if self._paced and active:
                 self._unacked += 1

@@ -18,6 +18,8 @@ from std_msgs.msg import Float64MultiArray
 
 from ..engine import Engine, EngineConfig, lockstep
 from .commands import CommandFilter
+from .common import qos_profile
+from .orbit_messages import OrbitPublishers
 from .joint_commands import JointCommands
 from .sensor_messages import SensorMessages
 from .state_messages import StateMessages
@@ -65,6 +67,14 @@ class Spacecraft:
             self.sensor_msgs = SensorMessages(self.engine.config.sensors, *self.frames)
             self.sensor_pubs = {name: pub(type(msg), self.prefix + name, state_qos)
                                 for name, msg in self.sensor_msgs.topics()}
+        self.orbit = None  # the orbit's topics, for a scene with one (orbit_messages)
+        if self.engine.config.environment is not None:
+            tf_type = None
+            if tf is not None:  # /tf exists where tf2_msgs does (a full ROS install)
+                from tf2_msgs.msg import TFMessage as tf_type
+            self.orbit = OrbitPublishers(node, self.engine.config, values, state_qos,
+                                         qos_profile('reliable', 100), tf_type,
+                                         prefix=self.prefix)
         self.active, self.active_names = [], frozenset()
         self.commands = CommandFilter(node, values)
         sub = node.create_subscription
@@ -129,6 +139,8 @@ class Spacecraft:
             node.destroy_publisher(p)
         for s in self.command_subs:
             node.destroy_subscription(s)
+        if self.orbit is not None:
+            self.orbit.destroy(node)
         self.pubs, self.sensor_pubs, self.command_subs, self.active = [], {}, [], []
         self.active_names = frozenset()
 

@@ -9,10 +9,12 @@ Angular momentum (not ω) is the state because |m| is the Casimir of the Lie–P
 structure that the splitting integrators keep exactly.
 """
 from dataclasses import dataclass
+from typing import Optional
 
 import numpy as np
 
 from . import rotation
+from .orbit import kernel as orbit_kernel
 
 DISSIPATION_MODELS = ('none', 'double_bracket', 'viscous')
 
@@ -51,9 +53,15 @@ class Dynamics:
     """Right-hand side and invariants for principal moments ``moments`` (3,), kg·m².
 
     ``inverse_moment_spread`` = 1/I_min − 1/I_max (1/(kg·m²)), set from the moments: the
-    scale of the dissipation's stiffness and of its path from the minor to the major axis."""
+    scale of the dissipation's stiffness and of its path from the minor to the major axis.
+
+    ``environment``: the orbit's element array (``orbit.kernel`` layout) whose torques act
+    (the gravity gradient, environment[ON] = 1); None: the free body (the loops are then
+    compiled without the term). The methods that integrate it read it from here and see it
+    changed in place (an SGP4 orbit re-anchored at each interval)."""
     moments: np.ndarray
     dissipation: Dissipation = Dissipation()
+    environment: Optional[np.ndarray] = None
 
     def __post_init__(self):
         moments = np.asarray(self.moments, float).reshape(3)
@@ -63,6 +71,20 @@ class Dynamics:
         i_min, i_max = float(moments.min()), float(moments.max())
         object.__setattr__(self, 'inverse_moment_spread', 1.0 / i_min - 1.0 / i_max)
         object.__setattr__(self, '_inverse_min', 1.0 / i_min)
+
+    @property
+    def gravity_gradient(self) -> bool:
+        """Whether the gravity-gradient torque acts (an orbit with the term switched on)."""
+        return self.environment is not None and bool(self.environment[orbit_kernel.ON] != 0)
+
+    def environment_torque(self, q, t: float):
+        """The environment's torque at attitude q (principal → inertial) and time t,
+        principal frame, N·m (zeros for the free body)."""
+        out = np.zeros(3)
+        if self.environment is not None:
+            orbit_kernel.gravity_gradient(np.asarray(q, float), float(t), self.environment,
+                                          self.moments, out)
+        return out
 
     def angular_velocity(self, m):
         """Ω = m / I, principal frame, rad/s."""

@@ -9,12 +9,19 @@ state is not finite (-1 if none), so the caller raises IntegrationError with the
 step and time. Compiled by ``jit`` (see that module); plain Python under
 NUMBA_DISABLE_JIT=1.
 
+The environment's torques (the gravity gradient along the orbit) depend on the attitude
+and the time: the loops take ``t0`` (s, the time of their first step) and ``env``, the
+orbit's element array (``orbit.kernel``), or None for the free body: numba then prunes
+every ``if env is not None`` branch, so the free body's loops are compiled as they were
+before the orbit existed (same code, same results bit for bit, same cost).
+
 Dissipation models: 0 none, 1 double bracket (α), 2 viscous (c); see ``dynamics``. Code 3
 is the double bracket by its exact flow (``splitting2_lstable``).
 """
 import math
 
-from .jit import inline, jit
+from .jit import depends_on, inline, jit
+from .orbit import kernel as orbit_kernel
 
 MODEL_CODES = {'none': 0, 'double_bracket': 1, 'viscous': 2}
 
@@ -207,6 +214,22 @@ def _rates(q, m, moments, tau, model, coefficient, dq, dm):
         dm[0] -= coefficient * o0
         dm[1] -= coefficient * o1
         dm[2] -= coefficient * o2
+
+
+@jit
+def _environment(q, t, env, moments, dm):
+    """dm += the environment's torque at time t (the gravity gradient, ``orbit.kernel``).
+    The loops call it after ``_rates`` under ``if env is not None``: for the free body
+    (env None) numba prunes the branch, so their code is what it was before the orbit
+    existed (a parameter of ``_rates`` instead kept LLVM from inlining it: rk4's step
+    3-4× slower with the term off)."""
+    gx, gy, gz = orbit_kernel.gravity_gradient_torque(q, t, env, moments)
+    dm[0] += gx
+    dm[1] += gy
+    dm[2] += gz
+
+
+_environment = depends_on(_environment, orbit_kernel)  # it embeds the orbit's kernel
 
 
 @jit

@@ -31,7 +31,7 @@ def _body(n):
 
     def run():
         splitting_kernel.splitting_run(Q0.copy(), M0.copy(), H, n, weights, AXES, MOMENTS, TAU,
-                                       True, 0, 0.0, False)
+                                       True, 0, 0.0, False, 0.0, None)
     run()
     return best_of(run)
 

@@ -148,7 +148,7 @@ def _free_choice(moments, max_step, m):
 def selecting(body: RigidBody, dissipation: Dissipation, attitude, angular_velocity, *,
               torque: bool, accuracy: float, duration: float, max_step: float,
               torque_rate: float = 0.0, prior_only: bool = False,
-              dynamics: Dynamics = None):
+              dynamics: Dynamics = None, environment: tuple = ()):
     """Generator form of :func:`select`: yields often (every few ms of pilot work) so that a
     caller can interleave the selection with its own work; its return value is the Selection.
 
@@ -163,7 +163,11 @@ def selecting(body: RigidBody, dissipation: Dissipation, attitude, angular_veloc
         prior_only: the a-priori choice only (no pilot, returns at once).
         dynamics: the body's ``Dynamics`` with this dissipation if the caller has one (else
             built here).
+        environment: names of the environment's torques in the model ('gravity gradient'):
+            torques from the start (``torque`` is implied), asked of the methods that
+            integrate them only (``Integrator.environment``), named in the reason.
     """
+    commanded, torque = torque, torque or bool(environment)
     if not (accuracy > 0 and math.isfinite(accuracy)):
         raise ValueError(f'accuracy must be a positive attitude error in rad, got {accuracy}')
     if not (max_step > 0 and math.isfinite(max_step)):
@@ -179,7 +183,8 @@ def selecting(body: RigidBody, dissipation: Dissipation, attitude, angular_veloc
     if s.omega == 0.0:
         return Selection('splitting2', max_step, 'body at rest, no torque: any step is exact',
                          0.0, s.run_cost(CANDIDATES[0], max_step))
-    usable = [c for c in CANDIDATES if s.applicable(c, torque)]
+    usable = [c for c in CANDIDATES if s.applicable(c, torque)
+              and (c.environment or not environment)]
     adaptive = [c for c in usable if c.adaptive]  # set by a tolerance, not a step
     usable = [c for c in usable if not c.adaptive]
     if not torque:  # a method another one supersedes is not asked (Candidate.supersedes)
@@ -222,8 +227,9 @@ def selecting(body: RigidBody, dissipation: Dissipation, attitude, angular_veloc
         if err > accuracy:
             why.append(f'{c.name} cannot promise {accuracy:g} rad even at rtol '
                        f'{rtol:.0e}')
-    effects = [e for e, on in (('commanded torque', torque), (f'{dissipation.model} dissipation',
-                                                                dissipation.active)) if on]
+    effects = [e for e, on in (('commanded torque', commanded),
+                               (f'{dissipation.model} dissipation', dissipation.active))
+               if on] + list(environment)
     head = (f'{" + ".join(effects)} → cheapest method meeting {accuracy:g} rad over '
             f'{horizon:g} s; Ω = {s.omega:.3g} rad/s; {s.costs.source}')
     prior = 'a priori (k·(hΩ)^p·ΩT): ' + ', '.join(why)

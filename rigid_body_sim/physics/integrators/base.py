@@ -75,6 +75,7 @@ class Candidate:
     adaptive: bool = False
     name: str = ''
     stages: float = 0.0
+    environment: bool = False  # the class's ``environment``: auto asks it with those torques
 
 
 # The kinds of dynamics a method's order is stated for (``Integrator.orders``), as the tests
@@ -117,6 +118,10 @@ class Integrator:
             sites iterating the registry skip it elsewhere.
         kernel_modules: modules of its compiled loops, each with ``warm()``
             (``rigid_body_sim.compiled.warm`` warms the registry's).
+        environment: it integrates the environment's torques (the gravity gradient along
+            the orbit, ``Dynamics.environment``) for one body: a term of its right-hand
+            side (Runge–Kutta, dop853) or a kick at fixed attitude at the kick's instant
+            (the splittings). Built on a dynamics with them, the others refuse.
         nfev: right-hand-side evaluations (or equivalent sub-flows) so far.
     """
     name: ClassVar[str] = ''
@@ -132,12 +137,25 @@ class Integrator:
     auto: ClassVar[Optional[Candidate]] = None
     requires_actuators: ClassVar[bool] = False
     kernel_modules: ClassVar[tuple] = ()
+    environment: ClassVar[bool] = False
 
     def __init__(self, dynamics: Dynamics, **options):
         if options:
             raise TypeError(f'{self.name} takes no options {sorted(options)}')
+        if dynamics.gravity_gradient and not self.environment:
+            raise ValueError(f'integrator {self.name} does not integrate the gravity-gradient '
+                             'torque (environment.gravity_gradient); use auto or a splitting, '
+                             'rk4, euler or dop853')
         self.dynamics = dynamics
         self.nfev = 0
+
+    def _one_body_only(self, q, t):
+        """IntegrationError if a batch (q (..., 4), N > 1 bodies) meets the environment's
+        torques: only the one-body loops evaluate them."""
+        if np.ndim(q) > 1 and self.dynamics.gravity_gradient:
+            raise IntegrationError(self.name, 0.0, t, 'the environment\'s torques (gravity '
+                                   'gradient) are integrated for one body at a time, not a '
+                                   'batch')
 
     def step(self, q, m, h: float, torque: Optional[np.ndarray] = None, t: float = 0.0):
         """Advance (q, m) by h seconds; returns new arrays. Raises IntegrationError."""
@@ -183,7 +201,7 @@ class Integrator:
         q = np.array(q, dtype=float)
         m = np.array(m, dtype=float)
         tau = np.zeros(3) if torque is None else np.array(torque, dtype=float).reshape(3)
-        failed = kernel(q, m, float(h), int(n), tau, torque is not None)
+        failed = kernel(q, m, float(h), int(n), tau, torque is not None, float(t0))
         if failed >= 0:
             raise IntegrationError(self.name, h, t0 + (failed + 1) * h,
                                    'state became non-finite (the method diverged)')

@@ -31,6 +31,7 @@ class DOP853(Integrator):
     auto = Candidate((0.47, 0.48), 2.0, call=(3.0, 3.0), growth='drift', adaptive=True,
                      coupled_only=True, geometric=False)
     kernel_modules = (dop853_kernel, dop853_dense)
+    environment = True  # a term of the right-hand side, at each stage's instant
     adaptive = True
     stability = 'adaptive; step shrinks under stiff dissipation (cost grows with stiffness)'
 
@@ -55,6 +56,7 @@ class DOP853(Integrator):
     def run(self, q, m, h, n, torque=None, t0=0.0):
         """One body: one integration over n·h (h is an output interval, not a step)."""
         if np.ndim(q) != 1 or np.ndim(m) != 1:
+            self._one_body_only(q, t0)
             return super().run(q, m, h, n, torque, t0)
         if not (np.isfinite(h) and h > 0.0):
             raise IntegrationError(self.name, h, t0, 'step must be finite and positive')
@@ -63,6 +65,7 @@ class DOP853(Integrator):
     def _step(self, q, m, h, torque, t):
         if q.ndim == 1 and m.ndim == 1:
             return self._advance(q, m, h, torque, t)
+        self._one_body_only(q, t)
         return self._scipy_step(q, m, h, torque, t)
 
     def _advance(self, q, m, span, torque, t0):
@@ -71,7 +74,8 @@ class DOP853(Integrator):
         tau = self._zero if torque is None else np.asarray(torque, dtype=float).reshape(3)
         status, t, h, nfev = dop853_dense.advance(q, m, float(span), tau, self._memory,
                                                   self._moments, self._model,
-                                                  self._coefficient, self.rtol, self.atol)
+                                                  self._coefficient, self.rtol, self.atol,
+                                                  float(t0), self.dynamics.environment)
         self.nfev += nfev
         if status != dop853_kernel.OK:
             self.reset()  # the state is garbage: start afresh next time

@@ -20,8 +20,11 @@ interpolated) state at that time, keeping the proposed step; any other state sta
 afresh (initial step selection, as solve_ivp would). q is returned normalised; the raw y
 stays internal.
 
-Local time: positions are measured from the start of the step in progress (``clock``),
-so no absolute time enters; the system is autonomous (the torque is held over a call).
+Local time: positions are measured from the start of the step in progress (``clock``);
+the held torque is constant over a call. Absolute time enters only through the
+environment's torques (``env``): the call's start is at ``t0``, so the step in progress
+ends at t0 + (its length − the last output's position), and every stage is evaluated at
+its own instant.
 
 Measured (CPU of the run loop; evaluations = the integrator's nfev), landing on every
 output → dense output:
@@ -44,16 +47,19 @@ from scipy.integrate._ivp import dop853_coefficients as _coefficients
 
 from .. import dynamics_kernel
 from . import dop853_kernel
-from .dop853_kernel import DIM, N_STAGES, NON_FINITE, OK, _initial_step, _rhs, attempt
+from .dop853_kernel import (DIM, N_STAGES, NON_FINITE, OK, _initial_step, _rhs,
+                            _rhs_environment, attempt)
 from ..dynamics_kernel import _finite
 from ..jit import COMPILED, depends_on, jit
+from ..orbit import kernel as orbit_kernel
 
 N_EXTENDED = _coefficients.N_STAGES_EXTENDED  # 16: the 13 of a step + 3 extra stages
 POWER = _coefficients.INTERPOLATOR_POWER  # 7 rows of F
 # (A_EXTRA, D): the extra stages' rows of scipy's A and its interpolant matrix D (4, 16).
-# C_EXTRA, the extra stages' nodes, is not needed: the system is autonomous.
 EXTENSION = (np.ascontiguousarray(_coefficients.A[N_STAGES + 1:]),
              np.ascontiguousarray(_coefficients.D))
+# the extra stages' nodes (their instants: read by the environment's torques only)
+C_EXTRA = np.ascontiguousarray(_coefficients.C[N_STAGES + 1:])
 A_EXTRA, D = EXTENSION
 A, B, E3, E5 = dop853_kernel.TABLEAU  # constants compiled into advance: fewer arguments
 # The memory, one flat array (each array argument costs numba's dispatch ~0.1 µs, and a
@@ -77,9 +83,9 @@ def views(memory):
 
 
 @jit
-def _build(y_old, y, f, h, K, F, moments, tau, model, coefficient, A_EXTRA, D):
+def _build(y_old, y, f, h, K, F, moments, tau, model, coefficient, A_EXTRA, D, t_old, env):
     """scipy's DOP853._dense_output_impl: the extra stages K[13:16] from the step's K[0:13]
-    (K[0] = f(y_old), K[12] = f(y)), then F (7, 7). 3 evaluations."""
+    (K[0] = f(y_old), K[12] = f(y); y_old at time t_old), then F (7, 7). 3 evaluations."""
     y_stage = np.empty(DIM)
     for e in range(N_EXTENDED - N_STAGES - 1):
         s = N_STAGES + 1 + e
@@ -92,6 +98,8 @@ def _build(y_old, y, f, h, K, F, moments, tau, model, coefficient, A_EXTRA, D):
         for i in range(DIM):
             y_stage[i] = y_old[i] + y_stage[i] * h
         _rhs(y_stage, K[s], moments, tau, model, coefficient)
+        if env is not None:
+            _rhs_environment(y_stage, K[s], t_old + C_EXTRA[e] * h, env, moments)
     for i in range(DIM):
         delta = y[i] - y_old[i]
         F[0, i] = delta
@@ -124,8 +132,9 @@ def _interpolate(y_old, F, x, out):
 
 
 @jit
-def advance(q, m, span, tau, memory, moments, model, coefficient, rtol, atol):
-    """One output step of ``span`` s for an integrator that keeps its memory between calls.
+def advance(q, m, span, tau, memory, moments, model, coefficient, rtol, atol, t0, env):
+    """One output step of ``span`` s from time ``t0`` for an integrator that keeps its
+    memory between calls (``env``: the orbit's element array, ``orbit.kernel``).
 
     q (4,), m (3,): the state to advance, overwritten with the result (q normalised).
     ``memory`` (MEMORY,), the caller's (zero it to start afresh; :func:`views` names its
@@ -159,13 +168,15 @@ def advance(q, m, span, tau, memory, moments, model, coefficient, rtol, atol):
         clock[0] = 0.0  # no step in progress: the current point is y
         clock[1] = 0.0
         _rhs(y, f, moments, tau, model, coefficient)
+        if env is not None:
+            _rhs_environment(y, f, t0, env, moments)
         nfev += 1
         if not (_finite(y[:4], y[4:]) and _finite(f[:4], f[4:])):
             clock[3] = 0.0  # no memory left: the next call starts afresh
             return NON_FINITE, 0.0, h_abs, nfev
         if h_abs == 0.0:  # no interval to cap the guess: the integration has no set end
             h_abs = _initial_step(y, f, np.inf, moments, tau, model, coefficient, rtol, atol,
-                                  y_old, F[0])
+                                  y_old, F[0], t0, env)
             nfev += 1
     target = clock[0] + span  # the output, from the step's start
     h_step = clock[1]
@@ -180,7 +191,7 @@ def advance(q, m, span, tau, memory, moments, model, coefficient, rtol, atol):
         # do not depend on where the outputs fall; the floor is from the call's time
         status, _, h, h_abs, n = attempt(y, 0.0, base, np.inf, h_abs, K, y_stage, y_new,
                                          moments, tau, model, coefficient, rtol, atol, A, B,
-                                         E3, E5)
+                                         E3, E5, t0 + base, env)
         nfev += n
         if status != OK:
             clock[3] = 0.0
@@ -202,7 +213,7 @@ def advance(q, m, span, tau, memory, moments, model, coefficient, rtol, atol):
     else:
         if clock[2] == 0.0:  # the first output inside this step: the extra stages, once
             nfev += _build(y_old, y, f, h_step, K, F, moments, tau, model, coefficient,
-                           A_EXTRA, D)
+                           A_EXTRA, D, t0 + base - h_step, env)
             clock[2] = 1.0
         _interpolate(y_old, F, target / h_step, out)
     clock[0] = target
@@ -225,7 +236,7 @@ def advance(q, m, span, tau, memory, moments, model, coefficient, rtol, atol):
 # numba's disk cache checks only this file; these embed dop853_kernel's and dynamics_kernel's code
 # (and advance its tableau, imported from scipy through dop853_kernel)
 for _kernel in (views, _build, _interpolate, advance):
-    depends_on(_kernel, dynamics_kernel, dop853_kernel)
+    depends_on(_kernel, dynamics_kernel, dop853_kernel, orbit_kernel)
 
 
 def warm():
@@ -233,5 +244,5 @@ def warm():
     q = np.array([0.0, 0.0, 0.0, 1.0])
     m = np.array([0.1, 1.0, 0.2])
     advance(q, m, 1e-3, np.zeros(3), np.zeros(MEMORY), np.array([1.0, 2.0, 3.0]), 1, 0.1,
-            1e-10, 1e-12)
+            1e-10, 1e-12, 0.0, None)
     return COMPILED

@@ -22,16 +22,19 @@ import numpy as np
 from scipy.integrate._ivp import dop853_coefficients as _coefficients
 
 from .. import dynamics_kernel
-from ..dynamics_kernel import _finite, _rates
+from ..dynamics_kernel import _environment, _finite, _rates
 from ..jit import COMPILED, depends_on, jit
+from ..orbit import kernel as orbit_kernel
 
 N_STAGES = _coefficients.N_STAGES  # 12; stage 0 is the FSAL derivative, so 11 new + f_new
-# (A, B, E3, E5): scipy's arrays, contiguous copies so numba sees plain C arrays. The nodes
-# C are not needed: the system is autonomous.
+# (A, B, E3, E5): scipy's arrays, contiguous copies so numba sees plain C arrays.
 TABLEAU = (np.ascontiguousarray(_coefficients.A[:N_STAGES, :N_STAGES]),
            np.ascontiguousarray(_coefficients.B),
            np.ascontiguousarray(_coefficients.E3),
            np.ascontiguousarray(_coefficients.E5))
+# The nodes C: the stages' instants, which only the environment's torques (functions of
+# time) read; a module constant, compiled in.
+NODES = np.ascontiguousarray(_coefficients.C[:N_STAGES])
 
 # scipy.integrate._ivp.rk: SAFETY, MIN_FACTOR, MAX_FACTOR; error estimator order 7.
 SAFETY = 0.9
@@ -48,14 +51,21 @@ REASONS = {NON_FINITE: 'state became non-finite (the method diverged)',
 
 @jit
 def _rhs(y, out, moments, tau, model, coefficient):
-    """out = dy/dt at y, both (7,) = (q, m)."""
+    """out = dy/dt at y, both (7,) = (q, m), without the environment's torque."""
     _rates(y[:4], y[4:], moments, tau, model, coefficient, out[:4], out[4:])
 
 
 @jit
-def _initial_step(y, f, span, moments, tau, model, coefficient, rtol, atol, y1, f1):
+def _rhs_environment(y, out, t, env, moments):
+    """out[4:] += the environment's torque at y and time t (callers test env for None, so
+    the free body's code is what it was: see dynamics_kernel)."""
+    _environment(y[:4], t, env, moments, out[4:])
+
+
+@jit
+def _initial_step(y, f, span, moments, tau, model, coefficient, rtol, atol, y1, f1, t, env):
     """scipy's select_initial_step (Hairer–Nørsett–Wanner II.4) for an order-7 error
-    estimate, over an interval of ``span``; one evaluation."""
+    estimate, over an interval of ``span`` from time t; one evaluation."""
     d0 = 0.0
     d1 = 0.0
     for i in range(DIM):
@@ -70,6 +80,8 @@ def _initial_step(y, f, span, moments, tau, model, coefficient, rtol, atol, y1, 
     for i in range(DIM):
         y1[i] = y[i] + h0 * f[i]
     _rhs(y1, f1, moments, tau, model, coefficient)
+    if env is not None:
+        _rhs_environment(y1, f1, t + h0, env, moments)
     if h0 == 0.0:  # |f| overflowed the scale: no guess; the caller starts at its floor
         return 0.0
     d2 = 0.0
@@ -85,9 +97,9 @@ def _initial_step(y, f, span, moments, tau, model, coefficient, rtol, atol, y1, 
 
 
 @jit
-def _rk_step(y, h, K, y_stage, y_new, moments, tau, model, coefficient, A, B):
-    """One DOP853 step of h from y, K[0] = f(y) given: stages into K[1:12], the 8th-order
-    solution into y_new and f(y_new) into K[12] (FSAL). 12 evaluations."""
+def _rk_step(y, h, K, y_stage, y_new, moments, tau, model, coefficient, A, B, t, env):
+    """One DOP853 step of h from y at time t, K[0] = f(y) given: stages into K[1:12], the
+    8th-order solution into y_new and f(y_new) into K[12] (FSAL). 12 evaluations."""
     for s in range(1, N_STAGES):
         # j outer, i inner: seven independent sums (same order per component as j inner)
         for i in range(DIM):
@@ -99,6 +111,8 @@ def _rk_step(y, h, K, y_stage, y_new, moments, tau, model, coefficient, A, B):
         for i in range(DIM):
             y_stage[i] = y[i] + y_stage[i] * h
         _rhs(y_stage, K[s], moments, tau, model, coefficient)
+        if env is not None:
+            _rhs_environment(y_stage, K[s], t + NODES[s] * h, env, moments)
     for i in range(DIM):
         y_new[i] = 0.0
     for j in range(N_STAGES):
@@ -108,6 +122,8 @@ def _rk_step(y, h, K, y_stage, y_new, moments, tau, model, coefficient, A, B):
     for i in range(DIM):
         y_new[i] = y[i] + h * y_new[i]
     _rhs(y_new, K[N_STAGES], moments, tau, model, coefficient)
+    if env is not None:
+        _rhs_environment(y_new, K[N_STAGES], t + h, env, moments)
 
 
 @jit
@@ -132,8 +148,9 @@ def _error_norm(y, y_new, h, K, rtol, atol, E3, E5):
 
 @jit
 def attempt(y, t, t_floor, t_bound, h_abs, K, y_stage, y_new, moments, tau, model,
-            coefficient, rtol, atol, A, B, E3, E5):
+            coefficient, rtol, atol, A, B, E3, E5, t_abs, env):
     """One accepted step from (t, y), K[0] = f(y) given, of the step ``h_abs`` or less
+    (``t_abs``: the absolute time of y, where the environment's torques are evaluated)
     (rejections shrink it; a step past ``t_bound`` is clipped to it, as scipy does). The
     step is rounded as t + h − t, and fails below 10 ulps of ``t_floor``.
 
@@ -153,7 +170,7 @@ def attempt(y, t, t_floor, t_bound, h_abs, K, y_stage, y_new, moments, tau, mode
         if clipped:
             t_new = t_bound  # land on the end exactly
         h = t_new - t  # the step actually taken, rounded as scipy rounds it
-        _rk_step(y, h, K, y_stage, y_new, moments, tau, model, coefficient, A, B)
+        _rk_step(y, h, K, y_stage, y_new, moments, tau, model, coefficient, A, B, t_abs, env)
         nfev += N_STAGES
         err = _error_norm(y, y_new, h, K, rtol, atol, E3, E5)
         if err < 1.0:
@@ -180,8 +197,9 @@ def attempt(y, t, t_floor, t_bound, h_abs, K, y_stage, y_new, moments, tau, mode
 
 @jit
 def integrate(y, f, span, h_abs, fresh, moments, tau, model, coefficient, rtol, atol,
-              A, B, E3, E5):
-    """solve_ivp over (0, span): advance y (7,) in place to ``span`` exactly, clipping the
+              A, B, E3, E5, t0, env):
+    """solve_ivp over (0, span) from time ``t0``: advance y (7,) in place to ``span``
+    exactly, clipping the
     last step; f holds dy/dt at y (recomputed first if ``fresh``) and on return at the new
     y. ``h_abs`` > 0: the step to try first; otherwise scipy's initial step selection
     (over the interval ``span``) picks it. The integrator uses :mod:`dop853_dense`
@@ -194,19 +212,22 @@ def integrate(y, f, span, h_abs, fresh, moments, tau, model, coefficient, rtol, 
     y_new = np.empty(DIM)
     if fresh:
         _rhs(y, f, moments, tau, model, coefficient)
+        if env is not None:
+            _rhs_environment(y, f, t0, env, moments)
         nfev += 1
     if not (_finite(y[:4], y[4:]) and _finite(f[:4], f[4:])):
         return NON_FINITE, 0.0, h_abs, nfev
     if not h_abs > 0.0:
         h_abs = _initial_step(y, f, span, moments, tau, model, coefficient, rtol, atol,
-                              y_stage, y_new)
+                              y_stage, y_new, t0, env)
         nfev += 1
     t = 0.0
     while t < span:
         for i in range(DIM):
             K[0, i] = f[i]
         status, t_new, h, h_abs, n = attempt(y, t, t, span, h_abs, K, y_stage, y_new, moments,
-                                             tau, model, coefficient, rtol, atol, A, B, E3, E5)
+                                             tau, model, coefficient, rtol, atol, A, B, E3, E5,
+                                             t0 + t, env)
         nfev += n
         if status != OK:
             return status, t, h, nfev
@@ -220,13 +241,13 @@ def integrate(y, f, span, h_abs, fresh, moments, tau, model, coefficient, rtol, 
 
 
 # numba's disk cache checks only this file; each of these embeds dynamics_kernel._rates or _finite
-for _kernel in (_rhs, _initial_step, _rk_step, attempt, integrate):
-    depends_on(_kernel, dynamics_kernel)
+for _kernel in (_rhs, _rhs_environment, _initial_step, _rk_step, attempt, integrate):
+    depends_on(_kernel, dynamics_kernel, orbit_kernel)
 
 
 def warm():
     """Compile (or load from the cache) the kernel on representative arguments."""
     y = np.array([0.0, 0.0, 0.0, 1.0, 0.1, 1.0, 0.2])
     integrate(y, np.empty(DIM), 1e-3, 0.0, True, np.array([1.0, 2.0, 3.0]), np.zeros(3), 1,
-              0.1, 1e-10, 1e-12, *TABLEAU)
+              0.1, 1e-10, 1e-12, *TABLEAU, 0.0, None)
     return COMPILED

@@ -34,6 +34,7 @@ class Exact(Splitting2):
     # which step doubling cannot see
     auto = Candidate((18.0, 18.0), math.inf, coupled_only=True)
     kernel_modules = (exact,)
+    environment = False  # its split steps kick with the held torque only
     preserves = frozenset({'angular_momentum_norm', 'kinetic_energy', 'unit_quaternion', 'poisson',
                            'time_reversible'})
     stability = 'none: evaluated at any t without stepping'

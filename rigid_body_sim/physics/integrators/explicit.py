@@ -30,19 +30,30 @@ class _ExplicitRK(Integrator):
         self._coefficient = d.coefficient
         self._moments = np.array(dynamics.moments, dtype=float)
 
-    def _kernel(self, q, m, h, n, tau, has_tau):
+    def _kernel(self, q, m, h, n, tau, has_tau, t0=0.0):
         failed = type(self)._kernel_loop(q, m, h, n, self._moments, tau, self._model,
-                                         self._coefficient)
+                                         self._coefficient, t0, self.dynamics.environment)
         self.nfev += self.stages * (n if failed < 0 else failed + 1)
         return failed
 
     def loop_spec(self):
         return np.ones(1), np.array([0, 2, 1])  # unused by the Runge–Kutta loops
 
+    environment = True  # a term of the right-hand side (explicit_kernel)
+
     def run(self, q, m, h, n, torque=None, t0=0.0):
         if np.ndim(q) != 1 or np.ndim(m) != 1:
+            self._one_body_only(q, t0)
             return super().run(q, m, h, n, torque, t0)
         return self._run_kernel(self._kernel, q, m, h, n, torque, t0)
+
+    def step(self, q, m, h, torque=None, t=0.0):
+        """As Integrator.step; with the environment's torques, one body's step runs the
+        compiled loop (the numpy rates have no attitude or time to evaluate them at)."""
+        if self.dynamics.gravity_gradient:
+            self._one_body_only(q, t)
+            return self._run_kernel(self._kernel, q, m, h, 1, torque, t)
+        return super().step(q, m, h, torque, t)
 
 
 class Euler(_ExplicitRK):

@@ -1,27 +1,33 @@
 """The explicit Runge–Kutta methods' compiled loops (``explicit.py``'s classes), in the
 conventions of ``dynamics_kernel``.
+Each loop takes ``t0`` (the time of its first step, s) and ``env`` (the orbit's element
+array, ``orbit.kernel``, or None for the free body): the environment's torque is a term of
+the right-hand side, evaluated at each stage's instant.
 """
 import numpy as np
 
 from .. import dynamics_kernel
-from ..dynamics_kernel import _finite, _normalise, _rates
+from ..dynamics_kernel import _environment, _finite, _normalise, _rates
 from ..jit import COMPILED, depends_on, jit
+from ..orbit import kernel as orbit_kernel
 
 
 @jit
-def euler_run(q, m, h, n, moments, tau, model, coefficient):
+def euler_run(q, m, h, n, moments, tau, model, coefficient, t0, env):
     """n explicit Euler steps (q renormalised); first non-finite step or -1."""
-    return euler_steps(q, m, h, n, moments, tau, model, coefficient, np.empty((2, 4)))
+    return euler_steps(q, m, h, n, moments, tau, model, coefficient, np.empty((2, 4)), t0, env)
 
 
 @jit
-def euler_steps(q, m, h, n, moments, tau, model, coefficient, scratch):
+def euler_steps(q, m, h, n, moments, tau, model, coefficient, scratch, t0, env):
     """euler_run with caller-owned scratch (2, 4): no allocation per call, for callers
     that run many short stretches (the engine's compiled closed loop)."""
     dq = scratch[0]
     dm = scratch[1, :3]
     for k in range(n):
         _rates(q, m, moments, tau, model, coefficient, dq, dm)
+        if env is not None:
+            _environment(q, t0 + k * h, env, moments, dm)
         for i in range(4):
             q[i] += h * dq[i]
         for i in range(3):
@@ -33,34 +39,43 @@ def euler_steps(q, m, h, n, moments, tau, model, coefficient, scratch):
 
 
 @jit
-def rk4_run(q, m, h, n, moments, tau, model, coefficient):
+def rk4_run(q, m, h, n, moments, tau, model, coefficient, t0, env):
     """n classical RK4 steps (q renormalised after each); first non-finite step or -1."""
-    return rk4_steps(q, m, h, n, moments, tau, model, coefficient, np.empty((10, 4)))
+    return rk4_steps(q, m, h, n, moments, tau, model, coefficient, np.empty((10, 4)), t0, env)
 
 
 @jit
-def rk4_steps(q, m, h, n, moments, tau, model, coefficient, scratch):
+def rk4_steps(q, m, h, n, moments, tau, model, coefficient, scratch, t0, env):
     """rk4_run with caller-owned scratch (10, 4): no allocation per call (see euler_steps)."""
     k1q, k2q, k3q, k4q, qs = scratch[0], scratch[1], scratch[2], scratch[3], scratch[4]
     k1m, k2m, k3m, k4m = scratch[5, :3], scratch[6, :3], scratch[7, :3], scratch[8, :3]
     ms = scratch[9, :3]
     for k in range(n):
+        t = t0 + k * h
         _rates(q, m, moments, tau, model, coefficient, k1q, k1m)
+        if env is not None:
+            _environment(q, t, env, moments, k1m)
         for i in range(4):
             qs[i] = q[i] + 0.5 * h * k1q[i]
         for i in range(3):
             ms[i] = m[i] + 0.5 * h * k1m[i]
         _rates(qs, ms, moments, tau, model, coefficient, k2q, k2m)
+        if env is not None:
+            _environment(qs, t + 0.5 * h, env, moments, k2m)
         for i in range(4):
             qs[i] = q[i] + 0.5 * h * k2q[i]
         for i in range(3):
             ms[i] = m[i] + 0.5 * h * k2m[i]
         _rates(qs, ms, moments, tau, model, coefficient, k3q, k3m)
+        if env is not None:
+            _environment(qs, t + 0.5 * h, env, moments, k3m)
         for i in range(4):
             qs[i] = q[i] + h * k3q[i]
         for i in range(3):
             ms[i] = m[i] + h * k3m[i]
         _rates(qs, ms, moments, tau, model, coefficient, k4q, k4m)
+        if env is not None:
+            _environment(qs, t + h, env, moments, k4m)
         for i in range(4):
             q[i] += (h / 6.0) * (k1q[i] + 2.0 * k2q[i] + 2.0 * k3q[i] + k4q[i])
         for i in range(3):
@@ -73,7 +88,7 @@ def rk4_steps(q, m, h, n, moments, tau, model, coefficient, scratch):
 
 # they call the shared rates of another file (see jit.depends_on)
 for _kernel in (euler_run, euler_steps, rk4_run, rk4_steps):
-    depends_on(_kernel, dynamics_kernel)
+    depends_on(_kernel, dynamics_kernel, orbit_kernel)
 
 
 def warm():
@@ -81,6 +96,6 @@ def warm():
     q = np.array([0.0, 0.0, 0.0, 1.0])
     m = np.array([0.1, 1.0, 0.2])
     moments = np.array([1.0, 2.0, 3.0])
-    rk4_run(q, m, 1e-3, 1, moments, np.zeros(3), 0, 0.0)
-    euler_run(q, m, 1e-3, 1, moments, np.zeros(3), 0, 0.0)
+    rk4_run(q, m, 1e-3, 1, moments, np.zeros(3), 0, 0.0, 0.0, None)
+    euler_run(q, m, 1e-3, 1, moments, np.zeros(3), 0, 0.0, 0.0, None)
     return COMPILED

@@ -23,6 +23,7 @@ class GyrostatStrang(Integrator):
     stages = 1
     requires_actuators = True
     kernel_modules = (gyrostat_kernel,)
+    environment = True  # the gravity gradient joins the external kicks (gyrostat_kernel)
     preserves = frozenset({'angular_momentum_norm', 'unit_quaternion'})
     stability = 'no step-size limit for free rotation (every sub-flow is a rotation)'
 
@@ -39,9 +40,9 @@ class GyrostatStrang(Integrator):
         # (splitting.py _ORDER: smallest, largest, intermediate)
         self._split_axes = np.argsort(dynamics.moments, kind='stable')[[0, 2, 1]]
 
-    def _kernel(self, q, m, h, n, tau, has_tau):
+    def _kernel(self, q, m, h, n, tau, has_tau, t0=0.0):
         failed = self.actuators.run(q, m, h, n, self.dynamics.moments, self._split_axes,
-                                    tau if has_tau else None)
+                                    tau if has_tau else None, t0, self.dynamics.environment)
         self.nfev += n if failed < 0 else failed + 1
         return failed
 

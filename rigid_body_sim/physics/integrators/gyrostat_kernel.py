@@ -30,6 +30,7 @@ import numpy as np
 from .. import dynamics_kernel
 from ..dynamics_kernel import _finite, _rotate_half
 from ..jit import depends_on, inline, jit
+from ..orbit import kernel as orbit_kernel
 
 # status slots (counters of steps on which a limit acted, and the last values)
 ST_WHEEL_TORQUE_SAT, ST_WHEEL_SPEED_SAT, ST_GIMBAL_RATE_SAT, ST_GIMBAL_ANGLE_SAT = 0, 1, 2, 3
@@ -139,8 +140,14 @@ def actuator_momentum(hw, delta, wa, g, s0, h0, spin, out):
 def gyrostat_run(q, m, hw, delta, h, n, moments, split_axes, tau_ext, has_ext,
                  wa, inertia_w, max_torque, max_speed, friction, u_cmd,
                  g, s0, h0, max_rate, angle_limit, rate_cmd,
-                 allocate, tau_des, wheel_pinv, lam0, mu, u_out, rate_out, status):
+                 allocate, tau_des, wheel_pinv, lam0, mu, u_out, rate_out, status,
+                 t0, env, inertia_full):
     """n Strang steps of size h (see the module docstring), in place on q, m, hw, delta.
+
+    ``env``: the orbit's element array (``orbit.kernel``) or None; its gravity gradient on
+    the whole mass distribution ``inertia_full`` (3, 3, principal frame: the body and the
+    wheels' rotors) joins the external kicks, evaluated at each kick's instant (the
+    step's start, t0 + step·h, and its end, with the attitude then).
 
     ``allocate``: commands from ``tau_des`` (principal frame, N·m) each step — CMGs if
     there are any, else wheels — instead of ``u_cmd`` / ``rate_cmd``. Gimbal rates are
@@ -250,6 +257,14 @@ def gyrostat_run(q, m, hw, delta, h, n, moments, split_axes, tau_ext, has_ext,
                 for r in range(3):
                     H[r] += half * tau_ext[r]
                     m[r] = H[r] - hA[r]
+            if phase == 1 and env is not None:
+                gx, gy, gz = orbit_kernel.gravity_gradient_torque_full(
+                    q, t0 + (step + 1) * h, env, inertia_full)
+                H[0] += half * gx
+                H[1] += half * gy
+                H[2] += half * gz
+                for r in range(3):
+                    m[r] = H[r] - hA[r]
             if nw > 0:  # wheels: motor (torque and speed limits) minus friction
                 o0 = m[0] / moments[0]
                 o1 = m[1] / moments[1]
@@ -283,6 +298,12 @@ def gyrostat_run(q, m, hw, delta, h, n, moments, split_axes, tau_ext, has_ext,
             if phase == 0 and has_ext:
                 for r in range(3):
                     H[r] += half * tau_ext[r]
+            if phase == 0 and env is not None:
+                gx, gy, gz = orbit_kernel.gravity_gradient_torque_full(q, t0 + step * h, env,
+                                                                       inertia_full)
+                H[0] += half * gx
+                H[1] += half * gy
+                H[2] += half * gz
             _momentum(hw, wa, s0, gxs, h0, hA, cd, sd)
             if phase == 0:
                 # body flow with h_A frozen (body-fixed): exact rotations of H about the axes
@@ -334,7 +355,7 @@ def _flow(q, H, hA, axis, t, moments):
 
 # numba's disk cache checks only this file; gyrostat_run embeds dynamics_kernel's _finite and
 # _rotate_half
-depends_on(gyrostat_run, dynamics_kernel)
+depends_on(gyrostat_run, dynamics_kernel, orbit_kernel)
 
 
 def warm():
@@ -349,4 +370,4 @@ def warm():
                  np.zeros(3), False, wa, np.ones(3), np.ones(3), np.ones(3), np.zeros(3),
                  np.zeros(3), g, s0, np.ones(1), np.ones(1), np.zeros(1), np.zeros(1),
                  True, np.zeros(3), np.zeros((3, 3)), 0.01, 10.0, np.zeros(3), np.zeros(1),
-                 np.zeros(ST_SIZE))
+                 np.zeros(ST_SIZE), 0.0, None, np.eye(3))

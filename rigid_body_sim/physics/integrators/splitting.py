@@ -120,6 +120,7 @@ class Splitting2(Integrator):
     loop_code = 0
     auto = Candidate((0.092, 0.23), 0.30)
     kernel_modules = (splitting_kernel, splitting_batch_kernel)
+    environment = True  # a kick at fixed attitude at the kick's instant (splitting_kernel)
     preserves = frozenset({'angular_momentum_norm', 'unit_quaternion', 'poisson',
                            'time_reversible'})
     stability = 'no step-size limit for free rotation (error bounded, |m| exact at any h)'
@@ -185,11 +186,12 @@ class Splitting2(Integrator):
             return super().order_on(dynamics, momentum_norm, h)
         return 2
 
-    def _kernel(self, q, m, h, n, tau, has_tau):
+    def _kernel(self, q, m, h, n, tau, has_tau, t0=0.0):
         weights, axes, moments = self._kernel_args
         failed, evals = splitting_kernel.splitting_run(q, m, h, n, weights, axes, moments, tau,
                                                        has_tau, self._model, self._coefficient,
-                                                       self.inner_dissipation(m, h))
+                                                       self.inner_dissipation(m, h), t0,
+                                                       self.dynamics.environment)
         self.nfev += evals
         return failed
 
@@ -204,6 +206,7 @@ class Splitting2(Integrator):
         chooses them once for the batch."""
         if np.ndim(q) == 1 and np.ndim(m) == 1:
             return self._run_kernel(self._kernel, q, m, h, n, torque, t0)
+        self._one_body_only(q, t0)
         return self._run_batch(q, m, h, n, torque, t0)
 
     def _run_batch(self, q, m, h, n, torque, t0):
@@ -242,8 +245,9 @@ class Splitting2(Integrator):
         if q.ndim == 1:  # the compiled loop, one step (the finiteness check is step()'s)
             q, m = q.copy(), m.copy()
             tau = np.zeros(3) if torque is None else np.broadcast_to(torque, (3,)).astype(float)
-            self._kernel(q, m, h, 1, tau, torque is not None)
+            self._kernel(q, m, h, 1, tau, torque is not None, t)
             return q, m
+        self._one_body_only(q, t)
         shape = np.broadcast_shapes(q.shape[:-1], m.shape[:-1])
         q_flat = np.broadcast_to(q, shape + (4,)).reshape(-1, 4)
         m_flat = np.broadcast_to(m, shape + (3,)).reshape(-1, 3)

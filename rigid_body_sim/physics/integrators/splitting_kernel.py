@@ -9,6 +9,7 @@ import numpy as np
 from .. import dynamics_kernel
 from ..dynamics_kernel import _axis_flow, _dissipate, _finite
 from ..jit import COMPILED, depends_on, jit
+from ..orbit import kernel as orbit_kernel
 
 INNER_LIMIT = 0.5  # |w|·h·λ up to which damping goes inside the compositions (weak damping)
 
@@ -49,12 +50,22 @@ def inner_dissipation(m, h, weights, moments, model, coefficient):
 
 
 @jit
-def splitting_run(q, m, h, n, weights, axes, moments, tau, has_tau, model, coefficient, inner):
+def splitting_run(q, m, h, n, weights, axes, moments, tau, has_tau, model, coefficient, inner,
+                  t0, env):
     """n steps of D(h/2) · Π_w [K(wh/2) a(wh/2) b(wh/2) c(wh) b(wh/2) a(wh/2) K(wh/2)] · D(h/2).
 
     ``inner``: dissipation inside every stage instead, by a time-symmetric flow —
     Π_w [D K a b c b a K D](wh) — which keeps the composition's order (weak damping only:
-    negative stages run it backwards). Returns (first non-finite step or -1, evaluations)."""
+    negative stages run it backwards).
+
+    The environment's torque (``env``, gravity gradient) joins the kicks K: it depends on
+    the attitude and the time, never on m, so its flow at fixed attitude is exactly a kick
+    m ← m + (wh/2)·τ(q, t), evaluated at the kick's instant (Touma & Wisdom 1994). Time
+    advances with the free flow (a b c b a), so in a stage starting at t the first kick
+    is at t and the second at t + wh: the composition stays symmetric in the extended
+    phase space and keeps its order. The first step starts at ``t0`` (s); ``env`` None
+    (the free body) prunes the kicks from the compiled code.
+    Returns (first non-finite step or -1, evaluations)."""
     a = axes[0]
     b = axes[1]
     c = axes[2]
@@ -62,6 +73,7 @@ def splitting_run(q, m, h, n, weights, axes, moments, tau, has_tau, model, coeff
     for k in range(n):
         if not inner:
             evals += _dissipate(m, 0.5 * h, moments, model, coefficient, False)
+        t = t0 + k * h
         for j in range(len(weights)):
             hw = weights[j] * h
             if inner:
@@ -69,14 +81,25 @@ def splitting_run(q, m, h, n, weights, axes, moments, tau, has_tau, model, coeff
             if has_tau:
                 for i in range(3):
                     m[i] = m[i] + (0.5 * hw) * tau[i]
+            if env is not None:
+                gx, gy, gz = orbit_kernel.gravity_gradient_torque(q, t, env, moments)
+                m[0] = m[0] + (0.5 * hw) * gx
+                m[1] = m[1] + (0.5 * hw) * gy
+                m[2] = m[2] + (0.5 * hw) * gz
             _axis_flow(q, m, a, 0.5 * hw, moments)
             _axis_flow(q, m, b, 0.5 * hw, moments)
             _axis_flow(q, m, c, hw, moments)
             _axis_flow(q, m, b, 0.5 * hw, moments)
             _axis_flow(q, m, a, 0.5 * hw, moments)
+            t += hw
             if has_tau:
                 for i in range(3):
                     m[i] = m[i] + (0.5 * hw) * tau[i]
+            if env is not None:
+                gx, gy, gz = orbit_kernel.gravity_gradient_torque(q, t, env, moments)
+                m[0] = m[0] + (0.5 * hw) * gx
+                m[1] = m[1] + (0.5 * hw) * gy
+                m[2] = m[2] + (0.5 * hw) * gz
             if inner:
                 evals += _dissipate(m, 0.5 * hw, moments, model, coefficient, True)
         if not inner:
@@ -109,7 +132,7 @@ def splitting_bodies(q, m, lo, hi, h, n, weights, axes, moments, tau, has_tau, m
             ms[j] = m[i, j]
         bad, used = splitting_run(qs, ms, h, limit, weights, axes, moments,
                                   tau[i % tau.shape[0]], has_tau, model, coefficient,
-                                  inner[i % inner.shape[0]])
+                                  inner[i % inner.shape[0]], 0.0, None)
         for j in range(4):
             q[i, j] = qs[j]
         for j in range(3):
@@ -123,8 +146,8 @@ def splitting_bodies(q, m, lo, hi, h, n, weights, axes, moments, tau, has_tau, m
 
 
 # they call the shared flows of another file (see jit.depends_on)
-splitting_run = depends_on(splitting_run, dynamics_kernel)
-splitting_bodies = depends_on(splitting_bodies, dynamics_kernel)
+splitting_run = depends_on(splitting_run, dynamics_kernel, orbit_kernel)
+splitting_bodies = depends_on(splitting_bodies, dynamics_kernel, orbit_kernel)
 
 
 def warm():
@@ -133,5 +156,6 @@ def warm():
     m = np.array([0.1, 1.0, 0.2])
     for inner in (False, True):
         splitting_run(q, m, 1e-3, 1, np.array([1.0]), np.array([0, 2, 1]),
-                      np.array([1.0, 2.0, 3.0]), np.zeros(3), False, 1, 0.1, inner)
+                      np.array([1.0, 2.0, 3.0]), np.zeros(3), False, 1, 0.1, inner, 0.0,
+                      None)
     return COMPILED

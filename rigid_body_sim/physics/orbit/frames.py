@@ -1,0 +1,28 @@
+"""The orbit frame (LVLH) from the orbit's state: x along the velocity (for e = 0), z to
+nadir (−r̂), y = z × x = −orbit normal. Frames per REP-103 (right-handed); quaternions
+(x, y, z, w).
+"""
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+
+def lvlh_axes(r, v) -> np.ndarray:
+    """The LVLH axes as the columns of a matrix (LVLH → inertial) at position r, velocity v."""
+    r, v = np.asarray(r, float), np.asarray(v, float)
+    z = -r / np.linalg.norm(r)
+    h = np.cross(r, v)
+    y = -h / np.linalg.norm(h)
+    x = np.cross(y, z)
+    return np.column_stack((x, y, z))
+
+
+def lvlh_attitude(r, v) -> np.ndarray:
+    """Quaternion (x, y, z, w) of the rotation LVLH → inertial (the orbit frame's pose)."""
+    return Rotation.from_matrix(lvlh_axes(r, v)).as_quat()
+
+
+def lvlh_rate(r, v) -> np.ndarray:
+    """The LVLH frame's angular velocity, inertial frame, rad/s: (r × v)/r² (exact for the
+    circular orbit; the argument of latitude's rate in general)."""
+    r, v = np.asarray(r, float), np.asarray(v, float)
+    return np.cross(r, v) / float(r @ r)

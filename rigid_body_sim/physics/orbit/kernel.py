@@ -1,0 +1,147 @@
+"""The orbit as the compiled loops see it: an element set in one float array, evaluated at
+any instant, and the gravity-gradient torque it gives.
+
+``env`` (float64, SIZE): [ON] 1 when the gravity gradient acts; [MU] μ; then the
+osculating or mean elements of a conic at time [T0] — [A] semi-major axis (m), [E]
+eccentricity, [INC] inclination, [RAAN] node, [ARGP] argument of periapsis, [M0] mean
+anomaly (rad) — and their secular rates [RAAN_RATE], [ARGP_RATE], [M_RATE] (rad/s: the
+two-body n for Kepler, J2's drifts for ``j2``). ``orbit.py`` builds it; SGP4 re-anchors
+an osculating set at each interval. The free body passes None instead.
+
+Plain numerical Python compiled by ``jit`` (NUMBA_DISABLE_JIT=1 runs it as Python).
+"""
+import math
+
+import numpy as np
+
+from ..jit import jit
+
+ON, MU, A, E, INC, RAAN, ARGP, M0, T0, RAAN_RATE, ARGP_RATE, M_RATE, SIZE = range(13)
+KEPLER_TOL = 1e-15   # |ΔE| (rad) that ends Newton's iteration
+KEPLER_MAX_ITER = 50
+TWO_PI = 2.0 * math.pi
+
+
+def off():
+    """A fresh element array of zeros (ON = 0), for an orbit to fill. The free body passes
+    None to the loops instead (numba then compiles them without the term)."""
+    return np.zeros(SIZE)
+
+
+@jit
+def eccentric_anomaly(mean_anomaly, e):
+    """E with M = E − e sin E (Kepler's equation) by Newton's method from E0 = M + e sin M,
+    M first reduced to [−π, π); converges in a few iterations for e < 0.9."""
+    m = mean_anomaly - TWO_PI * math.floor(mean_anomaly / TWO_PI + 0.5)
+    big_e = m + e * math.sin(m)
+    for _ in range(KEPLER_MAX_ITER):
+        step = (big_e - e * math.sin(big_e) - m) / (1.0 - e * math.cos(big_e))
+        big_e -= step
+        if abs(step) <= KEPLER_TOL:
+            break
+    return big_e
+
+
+@jit
+def state_at(env, t, out):
+    """Inertial position (m) and velocity (m/s) at time t (s) into out (6,): the conic of
+    ``env`` with its angles advanced by their rates from [T0]."""
+    dt = t - env[T0]
+    a = env[A]
+    e = env[E]
+    big_e = eccentric_anomaly(env[M0] + env[M_RATE] * dt, e)
+    raan = env[RAAN] + env[RAAN_RATE] * dt
+    argp = env[ARGP] + env[ARGP_RATE] * dt
+    cos_e = math.cos(big_e)
+    sin_e = math.sin(big_e)
+    root = math.sqrt(1.0 - e * e)
+    xp = a * (cos_e - e)                       # perifocal position
+    yp = a * root * sin_e
+    n = math.sqrt(env[MU] / (a * a * a))        # two-body speed along the conic
+    k = a * n / (1.0 - e * cos_e)
+    vxp = -k * sin_e
+    vyp = k * root * cos_e
+    co, so = math.cos(raan), math.sin(raan)
+    cw, sw = math.cos(argp), math.sin(argp)
+    ci, si = math.cos(env[INC]), math.sin(env[INC])
+    px, py, pz = co * cw - so * sw * ci, so * cw + co * sw * ci, sw * si   # periapsis
+    qx, qy, qz = -co * sw - so * cw * ci, -so * sw + co * cw * ci, cw * si  # 90° ahead
+    out[0] = xp * px + yp * qx
+    out[1] = xp * py + yp * qy
+    out[2] = xp * pz + yp * qz
+    out[3] = vxp * px + vyp * qx
+    out[4] = vxp * py + vyp * qy
+    out[5] = vxp * pz + vyp * qz
+
+
+@jit
+def radial(env, t):
+    """(unit radial vector x, y, z, radius r): the position at t, inertial frame."""
+    dt = t - env[T0]
+    a = env[A]
+    e = env[E]
+    big_e = eccentric_anomaly(env[M0] + env[M_RATE] * dt, e)
+    raan = env[RAAN] + env[RAAN_RATE] * dt
+    argp = env[ARGP] + env[ARGP_RATE] * dt
+    cos_e = math.cos(big_e)
+    xp = a * (cos_e - e)
+    yp = a * math.sqrt(1.0 - e * e) * math.sin(big_e)
+    co, so = math.cos(raan), math.sin(raan)
+    cw, sw = math.cos(argp), math.sin(argp)
+    ci, si = math.cos(env[INC]), math.sin(env[INC])
+    x = xp * (co * cw - so * sw * ci) + yp * (-co * sw - so * cw * ci)
+    y = xp * (so * cw + co * sw * ci) + yp * (-so * sw + co * cw * ci)
+    z = xp * (sw * si) + yp * (cw * si)
+    r = math.sqrt(x * x + y * y + z * z)
+    return x / r, y / r, z / r, r
+
+
+@jit
+def radial_in_body(q, t, env):
+    """(ĉ x, y, z, 3μ/r³): the radial unit vector at time t in the frame of q (principal →
+    inertial, so ĉ = q⁻¹ r̂ q; q normalised here: the RK loops' stages are not unit) and
+    the gradient's factor."""
+    ux, uy, uz, r = radial(env, t)
+    x, y, z, w = q[0], q[1], q[2], q[3]
+    s = 1.0 / (x * x + y * y + z * z + w * w)
+    c0 = ((1.0 - 2.0 * s * (y * y + z * z)) * ux + 2.0 * s * (x * y + w * z) * uy
+          + 2.0 * s * (x * z - w * y) * uz)
+    c1 = (2.0 * s * (x * y - w * z) * ux + (1.0 - 2.0 * s * (x * x + z * z)) * uy
+          + 2.0 * s * (y * z + w * x) * uz)
+    c2 = (2.0 * s * (x * z + w * y) * ux + 2.0 * s * (y * z - w * x) * uy
+          + (1.0 - 2.0 * s * (x * x + y * y)) * uz)
+    return c0, c1, c2, 3.0 * env[MU] / (r * r * r)
+
+
+@jit
+def gravity_gradient_torque(q, t, env, moments):
+    """τ_gg = 3μ/r³ · ĉ × (I ĉ) (principal frame, N·m) as three floats, I = diag(moments),
+    at time t. Callers test env for None first, so the free body's loops are compiled
+    without it (see dynamics_kernel)."""
+    c0, c1, c2, k = radial_in_body(q, t, env)
+    i0 = moments[0] * c0
+    i1 = moments[1] * c1
+    i2 = moments[2] * c2
+    return k * (c1 * i2 - c2 * i1), k * (c2 * i0 - c0 * i2), k * (c0 * i1 - c1 * i0)
+
+
+@jit
+def gravity_gradient_torque_full(q, t, env, inertia):
+    """The same for a full inertia matrix (3, 3) in the frame of q: a gyrostat's whole mass
+    distribution, its wheels' rotors included."""
+    c0, c1, c2, k = radial_in_body(q, t, env)
+    i0 = inertia[0, 0] * c0 + inertia[0, 1] * c1 + inertia[0, 2] * c2
+    i1 = inertia[1, 0] * c0 + inertia[1, 1] * c1 + inertia[1, 2] * c2
+    i2 = inertia[2, 0] * c0 + inertia[2, 1] * c1 + inertia[2, 2] * c2
+    return k * (c1 * i2 - c2 * i1), k * (c2 * i0 - c0 * i2), k * (c0 * i1 - c1 * i0)
+
+
+@jit
+def gravity_gradient(q, t, env, moments, out):
+    """τ_gg (principal frame, N·m) into out (3,): zero when env[ON] is 0."""
+    if env[ON] == 0.0:
+        out[0] = 0.0
+        out[1] = 0.0
+        out[2] = 0.0
+        return
+    out[0], out[1], out[2] = gravity_gradient_torque(q, t, env, moments)
