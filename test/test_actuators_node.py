@@ -122,9 +122,11 @@ def test_the_recorder_records_the_joint_states_by_default(ros_process, namespace
     bag = tmp_path / 'bag'
     rec = ros_process(venv_exe('recorder'), '--ros-args', '-r', f'__ns:={namespace}',
                       '-p', f'output:={bag}', env={'PYTHONUNBUFFERED': '1'})
+    # as the docs record: the simulator holds t = 0 until the recorder is matched (under
+    # load that match once came after the run had ended, and the bag had no gimbal_states)
     start_simulator(ros_process, namespace, actuators__command='forward',
                     actuators__cmgs__cluster='pyramid', publish_rate=20.0, step=0.01,
-                    initial_angular_velocity=[0.0, 0.0, 0.0])
+                    initial_angular_velocity=[0.0, 0.0, 0.0], wait_for_subscribers=1)
     states = []
     joints(rclpy_node, namespace, 'gimbal_states', states)
     pub = rclpy_node.create_publisher(Float64MultiArray, f'{namespace}/actuator_command', 10)
