@@ -98,3 +98,16 @@ def spin_until(node, predicate, timeout, executor=None):
         else:
             rclpy.spin_once(node, timeout_sec=0.05)
     return predicate()
+
+
+def call_service(node, client, request, timeout=30.0):
+    """The response of ``client`` to ``request``, spinning ``node`` (asserts it comes)."""
+    assert spin_until(node, client.service_is_ready, 60.0), client.srv_name
+    future = client.call_async(request)
+    assert spin_until(node, future.done, timeout), client.srv_name
+    return future.result()
+
+
+def stamp_ns(msg) -> int:
+    """A stamped message's header stamp in ns."""
+    return msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec

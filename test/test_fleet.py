@@ -8,7 +8,7 @@ import os
 import numpy as np
 import pytest
 
-from ros_helpers import spin_until, venv_exe
+from ros_helpers import call_service as _call, spin_until, stamp_ns as _stamp, venv_exe
 
 from rigid_body_sim.engine import fleet
 from rigid_body_sim.scene import SceneError, load
@@ -76,17 +76,6 @@ def test_offline_run_refuses_a_fleet_scene():
 
 
 # ------------------------------------------------------------------ live
-def _call(node, client, request, timeout=30.0):
-    assert spin_until(node, client.service_is_ready, 60.0), client.srv_name
-    future = client.call_async(request)
-    assert spin_until(node, future.done, timeout), client.srv_name
-    return future.result()
-
-
-def _stamp(msg):
-    return msg.header.stamp.sec * NS + msg.header.stamp.nanosec
-
-
 class Fleet:
     """A formation simulator in ``namespace`` and a client of it."""
 

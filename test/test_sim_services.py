@@ -8,23 +8,12 @@ import time
 import numpy as np
 import pytest
 
-from ros_helpers import spin_until, venv_exe
+from ros_helpers import call_service as _call, spin_until, stamp_ns as _stamp, venv_exe
 
 import simulation_interfaces.srv as srv  # noqa: E402  (built by make venv)
 from simulation_interfaces.msg import Result, SimulationState, SimulatorFeatures  # noqa: E402
 
 NS = 1_000_000_000
-
-
-def _call(node, client, request, timeout=30.0):
-    assert spin_until(node, client.service_is_ready, 60.0), client.srv_name
-    future = client.call_async(request)
-    assert spin_until(node, future.done, timeout), client.srv_name
-    return future.result()
-
-
-def _stamp(msg):
-    return msg.header.stamp.sec * NS + msg.header.stamp.nanosec
 
 
 def test_play_pause_step_state_reset_quit(ros_process, namespace, rclpy_node):

@@ -7,6 +7,7 @@ benchmark suite (``rigid-body-sim bench``, :mod:`rigid_body_sim.bench`) runs liv
 recorder_load and viewer as subprocesses for its live section; the rest run only by hand.
 """
 import argparse
+import subprocess
 
 
 def argument_parser(spec, doc: str) -> argparse.ArgumentParser:
@@ -14,3 +15,13 @@ def argument_parser(spec, doc: str) -> argparse.ArgumentParser:
     line (``spec`` is the module's ``__spec__``; None when run as a file path)."""
     prog = f'python -m {spec.name}' if spec is not None else None
     return argparse.ArgumentParser(prog=prog, description=doc.splitlines()[0])
+
+
+def stop(proc, timeout: float = 10.0) -> None:
+    """Stop a node process as Ctrl-C would (SIGINT), killing it if it has not exited within
+    ``timeout`` s."""
+    proc.send_signal(2)
+    try:
+        proc.wait(timeout)
+    except subprocess.TimeoutExpired:
+        proc.kill()

@@ -13,7 +13,7 @@ published per topic per simulated second (its diagnostics; 10: every topic at it
 those received here (one Python executor: at 100 spacecraft it falls behind before the
 simulator does).
 """
-from . import argument_parser
+from . import argument_parser, stop
 import os
 import random
 import subprocess
@@ -114,11 +114,7 @@ def measure(n: int, seconds: float, observe: bool = True) -> dict:
                 'messages_per_topic_per_s': received[0] / wall / expected if expected else None,
                 'discovery_s': matched, 'rss_mb': _rss_mb(proc.pid)}
     finally:
-        proc.send_signal(2)
-        try:
-            proc.wait(10)
-        except subprocess.TimeoutExpired:
-            proc.kill()
+        stop(proc)
         os.unlink(f.name)
         for s in subs:
             node.destroy_subscription(s)

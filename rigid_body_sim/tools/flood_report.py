@@ -11,7 +11,7 @@ after. Then the flood stops, and recovery (the held command timed out to zero to
 ``command_timeout``) is bounded by the first 1 Hz diagnostics report that shows it. Prints
 one JSON line; ``--out`` writes DIR/flood.json.
 """
-from . import argument_parser
+from . import argument_parser, stop
 import json
 import math
 import os
@@ -86,11 +86,7 @@ def run(seconds: float, rate: float) -> dict:
             'zero_torque_reported_within_s': None if recovered is None else round(recovered, 2),
             'simulator_alive': sim.poll() is None}
     finally:
-        sim.send_signal(2)
-        try:
-            sim.wait(10)
-        except subprocess.TimeoutExpired:
-            sim.kill()
+        stop(sim)
         node.destroy_node()
         rclpy.try_shutdown()
 

@@ -10,7 +10,7 @@ Prints, for 1 kHz physics (step 1 ms) and 100 Hz publishing:
 skipped by the node, as in a deployment where nobody listens to them).
 ``run(...)`` returns the figures as a dict for the bench command.
 """
-from . import argument_parser
+from . import argument_parser, stop
 import os
 import random
 import subprocess
@@ -132,11 +132,7 @@ def run(integrator='auto', subscribe=False, seconds=6.0) -> dict:
                 if values:
                     result['step_cost_us'].setdefault(values[-1]['integrator'], None)
             finally:
-                proc.send_signal(2)
-                try:
-                    proc.wait(10)
-                except subprocess.TimeoutExpired:
-                    proc.kill()
+                stop(proc)
                 probe.destroy_subscription(sub)
                 for s in subs:
                     probe.destroy_subscription(s)

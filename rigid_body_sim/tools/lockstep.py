@@ -18,7 +18,7 @@ import subprocess
 import sys
 import tempfile
 
-from . import argument_parser
+from . import argument_parser, stop
 
 SCENE = os.path.join(os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(
     __file__)))), 'config', 'slew.yaml')
@@ -61,11 +61,7 @@ def exchange(rate: float, rtf: float, duration: float, timeout: float = 600.0) -
         sim = subprocess.run(_exe('simulator') + args, env=env, capture_output=True,
                              text=True, timeout=timeout)
     finally:
-        ctl.send_signal(2)
-        try:
-            ctl.wait(10)
-        except subprocess.TimeoutExpired:
-            ctl.kill()
+        stop(ctl)
         os.unlink(over)
     log = sim.stdout + sim.stderr
     m = SUMMARY.search(log)

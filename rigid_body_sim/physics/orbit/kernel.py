@@ -14,7 +14,7 @@ import math
 
 import numpy as np
 
-from ..jit import jit
+from ..jit import inline, jit
 
 ON, MU, A, E, INC, RAAN, ARGP, M0, T0, RAAN_RATE, ARGP_RATE, M_RATE, SIZE = range(13)
 KEPLER_TOL = 1e-15   # |ΔE| (rad) that ends Newton's iteration
@@ -42,10 +42,10 @@ def eccentric_anomaly(mean_anomaly, e):
     return big_e
 
 
-@jit
-def state_at(env, t, out):
-    """Inertial position (m) and velocity (m/s) at time t (s) into out (6,): the conic of
-    ``env`` with its angles advanced by their rates from [T0]."""
+@inline
+def _conic(env, t):
+    """The conic at t: the perifocal position (xp, yp), cos E, sin E, and the unit vectors
+    P (to periapsis) and Q (90° ahead of it) in the inertial frame."""
     dt = t - env[T0]
     a = env[A]
     e = env[E]
@@ -54,18 +54,27 @@ def state_at(env, t, out):
     argp = env[ARGP] + env[ARGP_RATE] * dt
     cos_e = math.cos(big_e)
     sin_e = math.sin(big_e)
-    root = math.sqrt(1.0 - e * e)
-    xp = a * (cos_e - e)                       # perifocal position
-    yp = a * root * sin_e
-    n = math.sqrt(env[MU] / (a * a * a))        # two-body speed along the conic
-    k = a * n / (1.0 - e * cos_e)
-    vxp = -k * sin_e
-    vyp = k * root * cos_e
+    xp = a * (cos_e - e)
+    yp = a * math.sqrt(1.0 - e * e) * sin_e
     co, so = math.cos(raan), math.sin(raan)
     cw, sw = math.cos(argp), math.sin(argp)
     ci, si = math.cos(env[INC]), math.sin(env[INC])
-    px, py, pz = co * cw - so * sw * ci, so * cw + co * sw * ci, sw * si   # periapsis
-    qx, qy, qz = -co * sw - so * cw * ci, -so * sw + co * cw * ci, cw * si  # 90° ahead
+    return (xp, yp, cos_e, sin_e,
+            co * cw - so * sw * ci, so * cw + co * sw * ci, sw * si,       # P
+            -co * sw - so * cw * ci, -so * sw + co * cw * ci, cw * si)     # Q
+
+
+@jit
+def state_at(env, t, out):
+    """Inertial position (m) and velocity (m/s) at time t (s) into out (6,): the conic of
+    ``env`` with its angles advanced by their rates from [T0]."""
+    xp, yp, cos_e, sin_e, px, py, pz, qx, qy, qz = _conic(env, t)
+    a = env[A]
+    e = env[E]
+    n = math.sqrt(env[MU] / (a * a * a))        # two-body speed along the conic
+    k = a * n / (1.0 - e * cos_e)
+    vxp = -k * sin_e
+    vyp = k * math.sqrt(1.0 - e * e) * cos_e
     out[0] = xp * px + yp * qx
     out[1] = xp * py + yp * qy
     out[2] = xp * pz + yp * qz
@@ -77,21 +86,10 @@ def state_at(env, t, out):
 @jit
 def radial(env, t):
     """(unit radial vector x, y, z, radius r): the position at t, inertial frame."""
-    dt = t - env[T0]
-    a = env[A]
-    e = env[E]
-    big_e = eccentric_anomaly(env[M0] + env[M_RATE] * dt, e)
-    raan = env[RAAN] + env[RAAN_RATE] * dt
-    argp = env[ARGP] + env[ARGP_RATE] * dt
-    cos_e = math.cos(big_e)
-    xp = a * (cos_e - e)
-    yp = a * math.sqrt(1.0 - e * e) * math.sin(big_e)
-    co, so = math.cos(raan), math.sin(raan)
-    cw, sw = math.cos(argp), math.sin(argp)
-    ci, si = math.cos(env[INC]), math.sin(env[INC])
-    x = xp * (co * cw - so * sw * ci) + yp * (-co * sw - so * cw * ci)
-    y = xp * (so * cw + co * sw * ci) + yp * (-so * sw + co * cw * ci)
-    z = xp * (sw * si) + yp * (cw * si)
+    xp, yp, _, _, px, py, pz, qx, qy, qz = _conic(env, t)
+    x = xp * px + yp * qx
+    y = xp * py + yp * qy
+    z = xp * pz + yp * qz
     r = math.sqrt(x * x + y * y + z * z)
     return x / r, y / r, z / r, r
 
