@@ -128,3 +128,26 @@ def test_the_summary_is_what_the_run_files_render():
     """summary.md is rendered from its neighbours, not edited: rendering again gives it."""
     with open(os.path.join(RUN, report.NAME), encoding='utf-8') as f:
         assert f.read() == report.render(RUN)
+
+
+def test_the_fleet_and_lockstep_tools_files_are_rendered(tmp_path):
+    """tools.fleet and tools.lockstep write fleet.json and lockstep.json (``--out``); the
+    page renders what they hold, and says nothing of a file that is not there."""
+    from rigid_body_sim.bench.common import report as write_json
+    assert 'Spacecraft per simulator' not in report.render(str(tmp_path))
+    write_json({'command': 'python -m rigid_body_sim.tools.fleet --counts 1 100',
+                'rate_hz': 10.0, 'observed': '9 topics and /tf each, all subscribed',
+                'seconds': 10.0,
+                'rows': [{'spacecraft': 100, 'cpu_percent_of_one_core': 35.5,
+                          'achieved_real_time_factor': 0.991, 'missed_deadlines': 31}]},
+               str(tmp_path), 'fleet.json')
+    write_json({'command': 'python -m rigid_body_sim.tools.lockstep',
+                'rows': [{'control_rate_hz': 1000.0,
+                          'as_fast_as_possible': {'round_trip_wall_us': 5900,
+                                                  'sim_cpu_per_period_us': 788},
+                          'real_time': {'achieved_rate_hz': 318.2}}]},
+               str(tmp_path), 'lockstep.json')
+    text = report.render(str(tmp_path))
+    assert 'N = 100: 35.5 % of a core, RTF 0.991, 31 missed deadlines' in text
+    assert '1000 Hz control: round trip 5.9 ms wall' in text
+    assert '788 µs per exchange' in text and '318.2 exchanges/s at real time' in text

@@ -3,8 +3,9 @@
 ``python -m rigid_body_sim.bench.report DIR`` writes DIR/summary.md from the files in DIR:
 what ``rigid-body-sim bench`` wrote (targets.csv, generated.csv, sampling.csv, batch.csv,
 perstep.csv, compile.csv, exact_horizon.csv, live.json) and what the standalone tools wrote
-there (soak.json, flood.json, recovery.json). The bench calls it at the end of a run;
-docs/benchmarks.md includes the result, so every figure on the page comes from a file.
+there (soak.json, flood.json, recovery.json, fleet.json, lockstep.json). The bench calls it
+at the end of a run; docs/benchmarks.md includes the result, so every figure on the page
+comes from a file.
 A file that is missing is said to be missing, not filled in.
 """
 import csv
@@ -198,6 +199,22 @@ def live_section(out):
                      f' s; simulator killed → zero command after '
                      f'{_f(rec["simulator_killed_to_zero_command_s"])} s, restarted → control '
                      f'after {_f(rec["simulator_restarted_to_control_s"])} s.')
+    fleet = _json(out, 'fleet.json')
+    if fleet:
+        lines.append(f'- **Spacecraft per simulator process** (`{fleet["command"]}`; '
+                     f'{fleet["observed"]}, {_f(fleet["rate_hz"])} Hz): ' + '; '.join(
+                         f'N = {r["spacecraft"]}: {_f(r["cpu_percent_of_one_core"])} % of a '
+                         f'core, RTF {_f(r["achieved_real_time_factor"], ".4g")}, '
+                         f'{r["missed_deadlines"]} missed deadlines' for r in fleet['rows'])
+                     + '.')
+    step = _json(out, 'lockstep.json')
+    if step:
+        lines.append(f'- **Lockstep** (`{step["command"]}`): ' + '; '.join(
+            f'{_f(r["control_rate_hz"], "g")} Hz control: round trip '
+            f'{_f(r["as_fast_as_possible"]["round_trip_wall_us"] / 1000)} ms wall, simulator CPU '
+            f'{_f(r["as_fast_as_possible"]["sim_cpu_per_period_us"])} µs per exchange as '
+            f'fast as possible; {_f(r["real_time"]["achieved_rate_hz"], ".4g")} exchanges/s '
+            'at real time' for r in step['rows']) + '.')
     return lines or _missing('live.json, soak.json, flood.json, recovery.json')
 
 

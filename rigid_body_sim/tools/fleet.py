@@ -13,6 +13,7 @@ published per topic per simulated second (its diagnostics; 10: every topic at it
 those received here (one Python executor: at 100 spacecraft it falls behind before the
 simulator does).
 """
+from ..bench.common import report
 from . import argument_parser, stop
 import os
 import random
@@ -128,6 +129,8 @@ def main(argv=None):
     parser.add_argument('--seconds', type=float, default=10.0, help='wall seconds measured')
     parser.add_argument('--unobserved', action='store_true',
                         help='no subscriber: the simulator publishes nothing but diagnostics')
+    parser.add_argument('--out', help='directory for fleet.json (e.g. docs/bench), which '
+                        'the benchmarks page renders')
     args = parser.parse_args(argv)
     import rclpy
     os.environ.setdefault('ROS_DOMAIN_ID', str(random.randint(101, 200)))
@@ -136,8 +139,10 @@ def main(argv=None):
         observed = 'no subscribers' if args.unobserved else \
             f'{len(TOPICS)} topics and /tf each, all subscribed'
         print(f'spacecraft per simulator process at real time, {RATE:g} Hz, {observed}')
+        rows = []
         for n in args.counts:
             r = measure(n, args.seconds, not args.unobserved)
+            rows.append({'spacecraft': n, **r})
             rate, out = r['messages_per_topic_per_s'], r['published_per_topic_per_s']
             rtf = r['achieved_real_time_factor']
             print(f'  N = {n:4d}: CPU {r["cpu_percent_of_one_core"]:5.1f} % of one core, '
@@ -146,6 +151,11 @@ def main(argv=None):
                   f'{"-" if out is None else f"{out:.2f}"}/s published, '
                   f'{"-" if rate is None else f"{rate:.2f}"}/s received here, '
                   f'RSS {r["rss_mb"]:.0f} MB (discovery {r["discovery_s"]:.1f} s)', flush=True)
+        if args.out:
+            report({'command': 'python -m rigid_body_sim.tools.fleet ' + ' '.join(
+                        argv if argv is not None else sys.argv[1:]),
+                    'rate_hz': RATE, 'observed': observed, 'seconds': args.seconds,
+                    'rows': rows}, args.out, 'fleet.json')
     finally:
         rclpy.try_shutdown()
     return 0

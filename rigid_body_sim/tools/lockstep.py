@@ -18,6 +18,7 @@ import subprocess
 import sys
 import tempfile
 
+from ..bench.common import report
 from . import argument_parser, stop
 
 SCENE = os.path.join(os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(
@@ -86,16 +87,24 @@ def main(argv=None):
                         help='sim seconds at real time, per rate')
     parser.add_argument('--rates', type=float, nargs='+', default=[100.0, 1000.0],
                         help='control rates [Hz]')
+    parser.add_argument('--out', help='directory for lockstep.json (e.g. docs/bench), which '
+                        'the benchmarks page renders')
     args = parser.parse_args(argv)
+    rows = []
     for rate in args.rates:
         fast = exchange(rate, 0.0, args.periods / rate)
         real = exchange(rate, 1.0, args.seconds)
+        rows.append({'control_rate_hz': rate, 'as_fast_as_possible': fast, 'real_time': real})
         print(f'control {rate:g} Hz: as fast as possible {fast["exchanges"]} exchanges, round '
               f'trip {fast["round_trip_wall_us"]} µs wall (max {fast["round_trip_wall_max_us"]}'
               f' µs), simulator CPU {fast["sim_cpu_per_period_us"]} µs per period, '
               f'{fast["achieved_rate_hz"]:.0f} exchanges/s; at real time '
               f'{real["achieved_rate_hz"]:.1f} exchanges/s (target {rate:g}), simulator CPU '
               f'{real["sim_cpu_per_period_us"]} µs per period', flush=True)
+    if args.out:
+        report({'command': 'python -m rigid_body_sim.tools.lockstep ' + ' '.join(
+                    argv if argv is not None else sys.argv[1:]), 'rows': rows},
+               args.out, 'lockstep.json')
     return 0
 
 
