@@ -182,3 +182,27 @@ def test_a_future_half_made_by_ctrl_c_prints_nothing_but_other_errors_still_do()
                          timeout=60)
     assert out.returncode == 0, out.stderr
     assert 'Future' not in out.stderr and 'still reported' in out.stderr, out.stderr
+
+
+def test_a_stop_during_the_nodes_construction_is_not_reported_as_bad_parameters():
+    """A SIGTERM that lands while a node is being built shuts the context down, and the
+    build then fails with whatever rclpy raised, wrapped as a scene error (seen once in a
+    loaded run: the demo's simulator exited 2, "invalid parameters"). run_node tells the
+    two apart: a context shut down under the build is a clean stop (0, nothing logged);
+    bad parameters with the context up still exit 2 with the reason."""
+    code = (
+        'import rclpy\n'
+        'from rigid_body_sim.nodes.process import run_node\n'
+        'def stopped():\n'
+        '    rclpy.shutdown()\n'              # what the signal handler does
+        '    raise ValueError("context is not valid")\n'
+        'def bad():\n'
+        '    raise ValueError("inertia: not positive")\n'
+        'print("stopped", run_node("probe", stopped, args=[]))\n'
+        'print("bad", run_node("probe", bad, args=[]))\n')
+    out = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True,
+                         timeout=120)
+    assert out.returncode == 0, out.stderr
+    assert 'stopped 0' in out.stdout and 'bad 2' in out.stdout, out.stdout + out.stderr
+    assert out.stderr.count('invalid parameters') == 1, out.stderr
+    assert 'inertia: not positive' in out.stderr and 'context is not valid' not in out.stderr

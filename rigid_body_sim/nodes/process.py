@@ -165,6 +165,8 @@ def run_node(node_name: str, build, run=None, args=None, fatal=(ValueError,),
         try:
             node = build()
         except fatal as exc:
+            if not rclpy.ok():  # SIGINT/SIGTERM shut the context down under the build:
+                return 0        # a stop, not bad parameters
             rclpy.logging.get_logger(node_name).fatal(f'invalid parameters: {exc}')
             return 2
         except tuple(exit_codes or ()) as exc:
