@@ -21,7 +21,7 @@ import platform
 import sys
 import time
 
-from . import charts, generated, peers, sections, targets
+from . import charts, generated, peers, report, sections, targets
 from .common import write_csv
 from .scenes import SCENES, SCENE_BY_NAME
 
@@ -157,7 +157,6 @@ def _run(args) -> int:
         charts.long_horizon(run.results['long_horizon'], os.path.join(out, 'long_horizon.png'))
     except Exception as exc:  # noqa: BLE001 - charts are a convenience; the CSVs carry the data
         log(f'charts not written: {type(exc).__name__}: {exc}')
-    from . import report  # here: `python -m rigid_body_sim.bench.report` imports it first
     report.write(out)  # the benchmarks page's figures, from the files just written
     log(f'\nwrote {out}/ (CSV, PNG, targets.md, summary.md) in '
         f'{time.monotonic() - wall0:.0f} s wall, {time.process_time() - cpu0:.0f} s CPU '
