@@ -8,6 +8,7 @@ recorder_load and viewer as subprocesses for its live section; the rest run only
 """
 import argparse
 import subprocess
+import sys
 
 
 def argument_parser(spec, doc: str) -> argparse.ArgumentParser:
@@ -25,3 +26,8 @@ def stop(proc, timeout: float = 10.0) -> None:
         proc.wait(timeout)
     except subprocess.TimeoutExpired:
         proc.kill()
+
+
+def command_line(spec, argv=None) -> str:
+    """How the tool was run, for its run file: ``python -m <module>`` and its arguments."""
+    return ' '.join([f'python -m {spec.name}', *(sys.argv[1:] if argv is None else argv)])

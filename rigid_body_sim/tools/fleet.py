@@ -14,7 +14,7 @@ those received here (one Python executor: at 100 spacecraft it falls behind befo
 simulator does).
 """
 from ..bench.common import report
-from . import argument_parser, stop
+from . import argument_parser, command_line, stop
 import os
 import random
 import subprocess
@@ -152,8 +152,7 @@ def main(argv=None):
                   f'{"-" if rate is None else f"{rate:.2f}"}/s received here, '
                   f'RSS {r["rss_mb"]:.0f} MB (discovery {r["discovery_s"]:.1f} s)', flush=True)
         if args.out:
-            report({'command': 'python -m rigid_body_sim.tools.fleet ' + ' '.join(
-                        argv if argv is not None else sys.argv[1:]),
+            report({'command': command_line(__spec__, argv),
                     'rate_hz': RATE, 'observed': observed, 'seconds': args.seconds,
                     'rows': rows}, args.out, 'fleet.json')
     finally:

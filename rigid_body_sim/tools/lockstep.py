@@ -19,7 +19,7 @@ import sys
 import tempfile
 
 from ..bench.common import report
-from . import argument_parser, stop
+from . import argument_parser, command_line, stop
 
 SCENE = os.path.join(os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(
     __file__)))), 'config', 'slew.yaml')
@@ -102,9 +102,8 @@ def main(argv=None):
               f'{real["achieved_rate_hz"]:.1f} exchanges/s (target {rate:g}), simulator CPU '
               f'{real["sim_cpu_per_period_us"]} µs per period', flush=True)
     if args.out:
-        report({'command': 'python -m rigid_body_sim.tools.lockstep ' + ' '.join(
-                    argv if argv is not None else sys.argv[1:]), 'rows': rows},
-               args.out, 'lockstep.json')
+        report({'command': command_line(__spec__, argv), 'rows': rows}, args.out,
+               'lockstep.json')
     return 0
 
 
