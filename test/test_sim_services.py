@@ -7,6 +7,7 @@ import time
 
 import numpy as np
 import pytest
+from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 
 from ros_helpers import call_service as _call, spin_until, stamp_ns as _stamp, venv_exe
 
@@ -158,7 +159,10 @@ def test_simulate_steps_action_feedback_and_cancellation(ros_process, namespace,
                       '-p', 'publish_rate:=50.0', '-p', 'publish_clock:=true')
     base = f'{namespace}/attitude_simulator'
     att = []
-    rclpy_node.create_subscription(QuaternionStamped, f'{namespace}/attitude', att.append, 1000)
+    # keep all: the cancelled goal publishes its steps in one burst, over 1000 under load
+    keep_all = QoSProfile(history=HistoryPolicy.KEEP_ALL, reliability=ReliabilityPolicy.RELIABLE)
+    rclpy_node.create_subscription(QuaternionStamped, f'{namespace}/attitude', att.append,
+                                   keep_all)
     assert spin_until(rclpy_node, lambda: len(att) >= 5, 60.0), sim.output()[-2000:]
     client = ActionClient(rclpy_node, SimulateSteps, f'{base}/simulate_steps')
     # every feedback message on the wire: rclpy's client drops those of a goal whose result
