@@ -46,8 +46,10 @@ class CommandFilter(Rejections):
         super().__init__(node, REJECT_REASONS, 'commands_rejected', 'torque not applied')
         self.params = params
 
-    def accept(self, header, vector, source: str, now_stamp_ns: int) -> bool:
-        """True if the command may be applied; ``now_stamp_ns``: this node's current stamp."""
+    def accept(self, header, vector, source: str, now_stamp_ns) -> bool:
+        """True if the command may be applied; ``now_stamp_ns``: this node's current stamp,
+        None before t = 0 (held for subscribers or a controller: the node's stamps have not
+        started, so a stamp cannot be judged against them; the value and frame still are)."""
         p = self.params
         x, y, z = vector.x, vector.y, vector.z
         if not (math.isfinite(x) and math.isfinite(y) and math.isfinite(z)):
@@ -58,7 +60,7 @@ class CommandFilter(Rejections):
                                 f'must be in the body frame {p["child_frame_id"]!r} (or frame_id '
                                 'empty)')
         stamp = header.stamp.sec + 1e-9 * header.stamp.nanosec
-        if stamp != 0.0:
+        if stamp != 0.0 and now_stamp_ns is not None:
             now = now_stamp_ns * 1e-9
             if stamp - now > p['command_stamp_tolerance']:
                 hint = ' (does the sender use_sim_time? this node publishes /clock)' \

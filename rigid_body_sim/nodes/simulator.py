@@ -154,6 +154,7 @@ class Simulator(Control, Fleet, Holds, Node):
         self._lockstep_pauses = 0
         self._round_trips = lockstep.RoundTrips()
         self._base_stamp(self.get_clock().now().nanoseconds)
+        self._started = False  # run() sets it at t = 0, after the holds for subscribers
         self._anchor()
         self._last_diag = (time.monotonic(), 0)
         self._next_diag_wall = 0.0
@@ -370,6 +371,7 @@ class Simulator(Control, Fleet, Holds, Node):
         with events_executor(self) as executor:
             self._wait_for_subscribers(executor)
             self._base_stamp(self.get_clock().now().nanoseconds)
+            self._started = True
             self._anchor()  # pace from the first turn of the loop, not from construction
             while self.context.ok() and not self.finished and not (
                     self._quit_at is not None and time.monotonic() >= self._quit_at):
@@ -389,7 +391,8 @@ class Simulator(Control, Fleet, Holds, Node):
         engine = craft.engine
         if self._fault or engine.finished:
             return
-        if not craft.commands.accept(header, vector, source, self.stamp_ns(engine.t_ns)):
+        now = self.stamp_ns(engine.t_ns) if self._started else None  # None: before t = 0
+        if not craft.commands.accept(header, vector, source, now):
             return
         if self._lockstep:
             return self._on_lockstep_command(header, vector, source)
