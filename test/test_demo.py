@@ -51,11 +51,18 @@ def test_make_demo_runs_the_live_graph_and_records_a_bag(tmp_path):
                    default_typestore=get_typestore(Stores.ROS2_JAZZY)) as reader:
         counts = {}
         torques = []
+        late_kernels = []  # the simulator's kernels_loaded_after_t0, per diagnostics message
         for conn, _, raw in reader.messages(connections=reader.connections):
             counts[conn.topic] = counts.get(conn.topic, 0) + 1
             if conn.topic == '/torque_command':
                 v = reader.deserialize(raw, conn.msgtype).vector
                 torques.append((v.x, v.y, v.z))
+            if conn.topic == '/diagnostics':
+                late_kernels += [kv.value for st in reader.deserialize(raw, conn.msgtype).status
+                                 for kv in st.values if kv.key == 'kernels_loaded_after_t0']
+    # every kernel of the run, the controlled phases' included, was loaded before t = 0:
+    # none stalled the real-time loop (a cold cache once stalled it 26 s after t = 0)
+    assert late_kernels and set(late_kernels) == {'0'}, late_kernels
     # 50 Hz state for ~24 s of sim time, and the controller's commands (zeros, then detumble)
     assert counts.get('/attitude', 0) > 300 and counts.get('/kinetic_energy', 0) > 300, counts
     assert any(any(t) for t in torques) and any(not any(t) for t in torques)

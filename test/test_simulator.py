@@ -260,6 +260,8 @@ def test_torque_free_invariants(ros_process, namespace, rclpy_node, integrator):
     assert T_err < (1e-11 if integrator == 'auto' else 1e-4), T_err
     d = probe.diag()
     assert abs(float(d['angular_momentum_inertial_drift'])) < 1e-9
+    # auto's pilot and its choice ran on kernels loaded before t = 0 (none stalled the loop)
+    assert d['kernels_loaded_after_t0'] == '0', d
 
 
 def test_constant_torque_changes_inertial_momentum(ros_process, namespace, rclpy_node):
@@ -291,6 +293,8 @@ def test_constant_torque_changes_inertial_momentum(ros_process, namespace, rclpy
     # a wrench's torque part is a command too
     probe.send_torque([0.0, 0.0, -0.2], wrench=True)
     probe.wait_diag(lambda d, s: d['commands_accepted'] == '2', 5.0, 'wrench accepted')
+    # the torque's path was loaded before t = 0 too: no kernel stalled the loop
+    assert probe.diag()['kernels_loaded_after_t0'] == '0', probe.diag()
 
 
 def test_stale_and_rejected_commands(ros_process, namespace, rclpy_node):

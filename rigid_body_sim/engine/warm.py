@@ -1,6 +1,8 @@
 """Kernels loaded before a run's clock starts, for every front that has a clock (the CLI's
 CPU figure, the live node's real-time pacing)."""
+from .config import NS
 from .core import Engine
+from ..physics import INTEGRATORS
 
 
 def warm_for(engine: Engine) -> None:
@@ -16,3 +18,50 @@ def warm_for(engine: Engine) -> None:
     copy = Engine(c)
     for _ in copy.run(min(copy.end_ns, copy.t_ns + span)):
         pass
+
+
+def warm_live(engine: Engine) -> None:
+    """The same for the live simulator's engine, before its t = 0: it advances sample by
+    sample with ``auto``'s pilot worked between samples (``blocking_selection=False``), and
+    commands switch it to the torque's path. A kernel first loaded (or, cache cold, compiled)
+    after t = 0 stalls the real-time loop: seconds, 26 s with an empty cache. A fresh engine
+    of the same configuration advances a few samples, lets the pilot choose, then runs with
+    a small command and without it again."""
+    c = engine.config
+    copy = Engine(c, blocking_selection=False)
+    p = c.sample_period_ns
+    methods = {copy.method}
+
+    def advance(samples):
+        """``samples`` one call each (a live loop's turn, at real time), then as many
+        in one call (catching up: the block path)."""
+        for stop in [copy.t_ns + (k + 1) * p for k in range(samples)] + [
+                copy.t_ns + 2 * samples * p]:
+            if copy.finished or copy.fault:
+                return
+            if copy.selection_pending:
+                copy.work()
+            copy.advance(min(copy.end_ns, stop))
+            methods.add(copy.method)
+        copy.diagnostics()  # the state between samples
+    advance(3)
+    while copy.selection_pending and not copy.fault:
+        copy.work()
+    advance(3)
+    copy.apply_command((1e-3 * c.max_torque,) * 3 if c.max_torque else (1e-6,) * 3)
+    advance(3)
+    copy.apply_command((0.0, 0.0, 0.0))
+    advance(3)
+    # past the command's expiry: the hold then has no event left and the block path runs
+    # the samples in one compiled loop (splitting_run), a path of its own
+    if 0 < c.command_timeout_ns < 600 * NS:
+        until, before = copy.t_ns + c.command_timeout_ns + 3 * p, -1
+        while not (copy.finished or copy.fault) and before < copy.t_ns:  # until no progress
+            before = copy.t_ns
+            copy.advance(until)
+        advance(3)
+    # and each method's loops as its module loads them (a partial step to an event's
+    # instant runs another of its loops than the samples do)
+    for module in dict.fromkeys(m for name in methods if name in INTEGRATORS
+                                for m in INTEGRATORS[name].kernel_modules):
+        module.warm()

@@ -64,6 +64,8 @@ def diagnostics(sim) -> DiagnosticArray:
                 sim._commands.rejected['unknown_spacecraft']}),
         'messages_published': sim._published,  # state topics, /tf included
         'missed_deadlines': sim._missed,
+        # kernels first loaded after t = 0 (each a stall of the loop; warm_live prevents it)
+        'kernels_loaded_after_t0': sim.kernels_after_t0(),
         'missed_deadlines_in_period': sim._missed - sim._missed_at_last_diag,
         'worst_lateness_in_period': sim._worst_late,
         'deadline_tolerance': sim._p['deadline_tolerance'],

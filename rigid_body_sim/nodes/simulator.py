@@ -47,7 +47,8 @@ from rosgraph_msgs.msg import Clock
 from std_srvs.srv import Trigger
 
 from ..engine import NS, fleet, lockstep, specs
-from ..physics import IntegrationError
+from ..engine.warm import warm_live
+from ..physics import IntegrationError, jit
 from ..scene import SceneError, params_files_record
 from .commands import CommandFilter
 from .common import (check_overrides, declare_parameters,
@@ -368,10 +369,12 @@ class Simulator(Control, Fleet, Holds, Node):
         Python SingleThreadedExecutor rebuilds its wait set over every service and
         subscription each turn (~0.6 ms; the simulator has ~20), which cost more than the
         physics."""
+        self._warm()
         with events_executor(self) as executor:
             self._wait_for_subscribers(executor)
             self._base_stamp(self.get_clock().now().nanoseconds)
             self._started = True
+            self._kernels_at_t0 = jit.signatures()
             self._anchor()  # pace from the first turn of the loop, not from construction
             while self.context.ok() and not self.finished and not (
                     self._quit_at is not None and time.monotonic() >= self._quit_at):
@@ -380,6 +383,28 @@ class Simulator(Control, Fleet, Holds, Node):
                 # the last samples are still in flight when the run ends: a recorder that
                 # was waited for must get them before this process takes its writers away
                 self._wait_acked()
+
+    def _warm(self):
+        """Load every kernel the spacecraft will use before t = 0 (``warm_live``): one
+        spacecraft per kind of model, since a fleet's alike share their kernels."""
+        kinds = {}
+        for craft in self._crafts.values():
+            c = craft.engine.config
+            kinds.setdefault((c.integrator, c.dissipation.model, c.actuators is None,
+                              c.sensors is None, c.environment is None), craft)
+        start = time.monotonic()
+        for craft in kinds.values():
+            try:
+                warm_live(craft.engine)
+            except Exception as exc:  # noqa: BLE001 - the run itself reports its failure
+                self._log.warning(f'{craft.prefix}kernels not loaded before t = 0: '
+                                  f'{type(exc).__name__}: {exc}')
+        self._log.info(f'kernels loaded in {time.monotonic() - start:.3g} s '
+                       f'({jit.signatures()} compiled versions)')
+
+    def kernels_after_t0(self) -> int:
+        """Compiled versions loaded (or compiled) since t = 0: each stalled the loop."""
+        return jit.signatures() - self._kernels_at_t0 if self._started else 0
 
     @property
     def finished(self) -> bool:

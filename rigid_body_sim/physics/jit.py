@@ -5,20 +5,41 @@ Compilation: ``numba.njit(cache=True)``, IEEE division (see ``jit``) — compile
 use and cached on disk beside each source file (``make`` warms the cache). With
 ``NUMBA_DISABLE_JIT=1`` (or without numba) the same functions run as ordinary Python, which
 the tests use to check both modes agree.
+
+``signatures()`` counts the compiled versions the package's kernels hold in this process
+(compiled now or loaded from the disk cache): the live simulator reports those that came
+after its t = 0, each a stall of its real-time loop.
 """
 import hashlib
 import os
 import sys
+
+_DISPATCHERS = []  # every kernel made by jit or inline, for signatures()
+
+
+def _kept(decorator):
+    def make(function):
+        dispatcher = decorator(function)
+        _DISPATCHERS.append(dispatcher)
+        return dispatcher
+    return make
+
+
+def signatures() -> int:
+    """The compiled versions (argument types) the package's kernels hold in this process;
+    0 uncompiled."""
+    return sum(len(getattr(d, 'signatures', ())) for d in _DISPATCHERS)
+
 
 try:
     from numba import njit
     # error_model='numpy': a division by zero gives inf/NaN (the loops' finiteness checks
     # report it) instead of raising. The python model's checks kept the small rate functions
     # from being optimised: rk4_run 610 → 120 ns per step, results bitwise unchanged.
-    jit = njit(cache=True, nogil=True, error_model='numpy')
+    jit = _kept(njit(cache=True, nogil=True, error_model='numpy'))
     # small helpers taking several arrays: called out of line, each call pays a reference
     # count round trip per array (≈ 0.15 µs, 5× a body's whole step); inlined, none
-    inline = njit(cache=True, nogil=True, error_model='numpy', inline='always')
+    inline = _kept(njit(cache=True, nogil=True, error_model='numpy', inline='always'))
     COMPILED = not getattr(__import__('numba').config, 'DISABLE_JIT', False)
 except Exception as exc:  # noqa: BLE001 - numba missing, or broken (a numpy it refuses)
     def jit(function):
