@@ -184,3 +184,19 @@ def test_environment_refuses_an_unknown_model_and_an_epoch_outside_the_field_mod
     with pytest.raises(ValueError, match='outside the IGRF-14'):
         Environment(datetime(1850, 1, 1, tzinfo=timezone.utc))
     assert Environment().epoch.year == 2000   # no epoch: J2000
+
+
+def test_dipole_field_drawn_is_the_physics_field():
+    """The viewer's dipole (its moment kept for an hour of sim time) against
+    physics.environment.magnetic_field over a 20,000 s run: within 1e-6 relative."""
+    from rigid_body_sim.engine.environment_specs import parse_epoch
+    from rigid_body_sim.physics.environment import magnetic_field
+    from rigid_body_sim.physics.orbit import KeplerOrbit
+    from rigid_body_sim.viewer.orbit_view import Environment
+    orbit, epoch = KeplerOrbit(7.0e6, 0.01, 0.9, 0.2, 0.0, 0.0), '2026-03-20T12:00:00Z'
+    env = Environment(parse_epoch(epoch), 'dipole')
+    for t in np.linspace(0.0, 20000.0, 41):
+        r, _ = orbit.state(t)
+        want = magnetic_field.field('dipole', r, epoch, t)
+        np.testing.assert_allclose(env.field(r, t), want, rtol=0,
+                                   atol=1e-6 * np.linalg.norm(want))

@@ -221,9 +221,10 @@ def test_orbit_scene_draws_earth_orbit_lvlh_sun_and_field(ros_process, namespace
         sun = np.asarray(sunlight.sun_direction(EPOCH, t))
         np.testing.assert_allclose(_direction(ents['sun']['arrows'][0]), sun, atol=1e-9)
         np.testing.assert_allclose(_direction(ents['orbit_sun']['arrows'][0]), sun, atol=1e-9)
+        # (the viewer keeps the dipole's moment for an hour of sim time: ≤ 1e-7 rad)
         b = np.asarray(magnetic_field.field('dipole', r, EPOCH, t))
         np.testing.assert_allclose(_direction(ents['magnetic_field']['arrows'][0]),
-                                   b / np.linalg.norm(b), atol=1e-7)
+                                   b / np.linalg.norm(b), atol=1e-6)
         checked += 1
     assert checked >= 10, (checked, len(s['dumped'].get('/scene', [])), viewer.output()[-3000:])
     assert 'Traceback' not in viewer.output()

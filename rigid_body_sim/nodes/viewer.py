@@ -49,6 +49,7 @@ from .process import events_executor, run_node
 NODE_NAME = 'attitude_viewer'
 DIAGNOSTICS_PERIOD_S = 1.0   # wall clock
 WAIT_NOTICE_S = 2.0          # no state after this long: say once that we wait
+IGRF_PERIOD_S = 1.0          # wall seconds between drawings of an IGRF field
 ASK_AGAIN_S = 3.0            # a parameter request unanswered this long is sent again
 # the simulator's values that date and place the orbit's Sun and field (absent ones: unset)
 ENVIRONMENT_PARAMETERS = ['orbit.model', 'epoch', 'publish_clock',
@@ -110,7 +111,7 @@ class Viewer(Node):
         self._resets = None  # the simulator's resets count last seen
         self._subs = {}      # spacecraft name ('' unnamed) -> its subscriptions
         self._inertia = {}   # spacecraft name -> the inertia text its body was built from
-        self._next_orbit = {}  # spacecraft name -> stamp of its next orbit drawing
+        self._next_orbit = {}  # spacecraft name -> (stamp, wall time) of its next orbit drawing
         self.sim_time = orbit_view.SimTime()
         self.environment = None  # orbit_view.Environment once the simulator's values are read
         self._publish_clock = False
@@ -167,14 +168,19 @@ class Viewer(Node):
         than a sample)."""
         s = msg.header.stamp
         stamp = s.sec * 1_000_000_000 + s.nanosec
-        if stamp < self._next_orbit.get(name, 0):
+        env, now = self.environment, time.monotonic()
+        due_stamp, due_wall = self._next_orbit.get(name, (0, 0.0))
+        if stamp < due_stamp or now < due_wall:
             return
-        self._next_orbit[name] = stamp + self.view.scene_period_ns
+        # IGRF in full costs 70 ms a call: drawn at most once a wall second
+        slow = env is not None and env.field_model != 'dipole'
+        self._next_orbit[name] = (stamp + self.view.scene_period_ns,
+                                  now + IGRF_PERIOD_S if slow else 0.0)
         pose, v = msg.pose.pose, msg.twist.twist.linear
         r = (pose.position.x, pose.position.y, pose.position.z)
         o = pose.orientation  # LVLH → world; the twist is resolved in LVLH (REP-105)
         v_world = geometry.rotate_vector((o.x, o.y, o.z, o.w), (v.x, v.y, v.z))
-        env, size = self.environment, self.view.body_size
+        size = self.view.body_size
         try:
             frame = orbit_view.OrbitFrame(r, v_world, size=size, stamp_ns=stamp) \
                 if env is None else env.frame(r, v_world, self.sim_time(stamp), size, stamp)
@@ -242,7 +248,8 @@ class Viewer(Node):
     def _set_environment(self, values):
         """The simulator's epoch and field model: the Sun and the field along the orbit."""
         from ..engine.environment_specs import parse_epoch
-        text = lambda v: v.string_value if v.type == ParameterType.PARAMETER_STRING else ''  # noqa: E731
+        def text(value):
+            return value.string_value if value.type == ParameterType.PARAMETER_STRING else ''
         clock = values['publish_clock']
         self._publish_clock = clock.type == ParameterType.PARAMETER_BOOL and clock.bool_value
         if text(values['orbit.model']) in ('', 'none'):

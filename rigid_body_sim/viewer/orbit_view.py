@@ -12,12 +12,12 @@ The path is the osculating two-body conic through the orbit's state (r, v) at th
 over one period: the orbit itself for ``kepler``, the instantaneous conic for ``j2`` and
 ``sgp4`` (whose drift over one period is a fraction of a degree).
 """
-from datetime import datetime, timezone
+from datetime import datetime, timedelta, timezone
 import math
 
 import numpy as np
 
-from ..physics.environment import magnetic_field, sunlight
+from ..physics.environment import earth, magnetic_field, sunlight
 from ..physics.orbit import MU, frames, kernel, osculating_elements
 
 PATH_POINTS = 180          # segments of the drawn conic
@@ -25,6 +25,7 @@ PATH_POINTS = 180          # segments of the drawn conic
 # do): J2000, said in the log and on the docs page
 DEFAULT_EPOCH = datetime(2000, 1, 1, 12, 0, 0, tzinfo=timezone.utc)
 FIELD_MODELS = magnetic_field.MODELS
+DIPOLE_REFRESH_S = 3600.0  # sim time over which the dipole's moment is kept (see field)
 
 
 def conic_path(r, v, mu: float = MU, points: int = PATH_POINTS) -> np.ndarray:
@@ -66,6 +67,7 @@ class Environment:
                              f'{FIELD_MODELS}')
         self.epoch = epoch or DEFAULT_EPOCH
         self.field_model = field_model
+        self._moment = None  # (sim time, the dipole's moment then, A·m², ECEF)
         magnetic_field.check_epoch(self.epoch)
 
     def sun(self, t: float) -> np.ndarray:
@@ -73,9 +75,21 @@ class Environment:
         return np.asarray(sunlight.sun_direction(self.epoch, t), float)
 
     def field(self, r, t: float) -> np.ndarray:
-        """The field (T, world) at inertial position ``r`` (m) at sim time ``t`` (s)."""
-        return np.asarray(magnetic_field.field(self.field_model, np.asarray(r, float),
-                                               self.epoch, t), float)
+        """The field (T, world) at inertial position ``r`` (m) at sim time ``t`` (s).
+
+        The dipole as ``magnetic_field.field`` computes it, with its moment (IGRF's degree 1,
+        32 ms to read from the model's file) kept for DIPOLE_REFRESH_S of sim time: the
+        moment turns by ~1e-3 rad a year, ~1e-7 rad in that time. IGRF in full (70 ms a
+        call): the node draws it at most once a wall second."""
+        r = np.asarray(r, float)
+        if self.field_model != 'dipole':
+            return np.asarray(magnetic_field.field(self.field_model, r, self.epoch, t), float)
+        if self._moment is None or abs(t - self._moment[0]) > DIPOLE_REFRESH_S:
+            self._moment = (t, magnetic_field.dipole_moment(
+                self.epoch + timedelta(seconds=float(t))))
+        angle = earth.gmst(self.epoch, t)
+        b = magnetic_field.dipole_field(earth.eci_to_ecef(r, angle), self._moment[1])
+        return np.asarray(earth.ecef_to_eci(b, angle), float)
 
     def frame(self, r, v, t, size: float = 1.0, stamp_ns: int = 0) -> OrbitFrame:
         """The drawing at a sample; ``t`` None (not yet known): no Sun, no field."""
