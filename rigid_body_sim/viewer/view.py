@@ -259,6 +259,8 @@ class View:
             self.reset()
         if name == self._primary:
             self._primary_sample(stamp_ns, q, omega, target)
+        if self.T0 is None:
+            return  # the first body not sampled since a reset: no Poinsot scale yet
         if self.next_scene_ns is None or stamp_ns >= self.next_scene_ns:
             self.next_scene_ns = stamp_ns + self.scene_period_ns
             primary = self.crafts[self._primary]
