@@ -158,10 +158,13 @@ VIEWER = NodeInterfaces('attitude_viewer', 'viewer', (
     'subscribes, so it never disturbs the simulation.'), (
     Topic('pub', '/diagnostics', 'diagnostic_msgs/msg/DiagnosticArray',
           'subscriptions, samples served, rejected client messages'),
-    Topic('sub', 'imu', 'sensor_msgs/msg/Imu', 'attitude and rate of each sample'),
+    Topic('sub', 'imu', 'sensor_msgs/msg/Imu', 'attitude and rate of each sample (a '
+          'formation\'s: <name>/imu, each spacecraft the simulator lists)'),
+    Topic('sub', 'orbit', 'nav_msgs/msg/Odometry', 'the orbit\'s state, for the Earth, the '
+          'orbit, LVLH, the Sun and the field (<name>/orbit in a formation)'),
     Topic('sub', 'attitude_target', 'geometry_msgs/msg/QuaternionStamped', 'the slew target'),
     Topic('sub', '/diagnostics', 'diagnostic_msgs/msg/DiagnosticArray',
-          'served to Foxglove; the simulator\'s reset count'),
+          'served to Foxglove; the simulator\'s reset count, spacecraft and sim time'),
 ))
 
 RECORDER = NodeInterfaces('mcap_recorder', 'recorder', (

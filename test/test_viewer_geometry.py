@@ -137,3 +137,66 @@ def test_shipped_foxglove_layout_is_the_built_one_and_names_our_channels():
     assert {v.split('.')[1] for v in found} <= fields
     assert {'omega', 'kinetic_energy', 'angular_momentum_norm', 'pointing_error_deg'} <= \
         {v.split('.')[1] for v in found}
+
+
+# --- the orbit's drawing (viewer/orbit_view.py) --------------------------------------------
+def test_orbit_path_is_the_conic_over_one_period():
+    """An ellipse (a = 8,000 km, e = 0.1): the path closes on the state it starts from,
+    its radii span the perigee a(1 − e) and the apogee a(1 + e), and the apoapsis is drawn
+    one body size from the Earth's centre, the Earth at the same scale."""
+    from rigid_body_sim.physics.orbit import KeplerOrbit
+    from rigid_body_sim.viewer import orbit_view
+    a, e = 8.0e6, 0.1
+    r, v = KeplerOrbit(a, e, 0.5, 0.3, 0.7, 1.1).state(0.0)
+    frame = orbit_view.OrbitFrame(r, v, size=2.0)
+    radii = np.linalg.norm(frame.path, axis=1)
+    np.testing.assert_allclose(frame.path[0], r, rtol=1e-12)
+    np.testing.assert_allclose(frame.path[-1], r, rtol=1e-9)
+    assert radii.min() == pytest.approx(a * (1 - e), rel=1e-3)   # 180 points: near perigee
+    assert radii.max() == pytest.approx(a * (1 + e), rel=1e-3)
+    assert frame.scale * radii.max() == pytest.approx(2.0, rel=1e-15)
+    assert frame.earth_radius == pytest.approx(6378137.0 * frame.scale, rel=1e-15)
+    h = np.cross(r, v)
+    np.testing.assert_allclose(frame.path @ h, 0.0, atol=1e-6 * a * np.linalg.norm(h))
+    with pytest.raises(ValueError, match='closed orbit'):
+        orbit_view.OrbitFrame(r, 3.0 * np.asarray(v))   # escape speed
+
+
+def test_sim_time_of_a_stamp():
+    """Stamps are the run's start plus sim time / real_time_factor, or sim time itself with
+    publish_clock (nodes/simulator.py); one (stamp, sim time) pair and the slope date any."""
+    from rigid_body_sim.viewer.orbit_view import SimTime
+    t = SimTime()
+    assert t(5) is None
+    t.set(1_000_000_000_000, 20.0, 1000.0, publish_clock=False)
+    assert t(1_000_000_000_000 + 10_000_000) == pytest.approx(30.0, rel=1e-15)
+    t.set(20_000_000_000, 20.0, 1000.0, publish_clock=True)
+    assert t(30_000_000_000) == pytest.approx(30.0, rel=1e-15)
+    t.set(1_000_000_000_000, 20.0, 0.0, publish_clock=False)   # as fast as possible: 1
+    assert t(1_001_000_000_000) == pytest.approx(21.0, rel=1e-15)
+
+
+def test_environment_refuses_an_unknown_model_and_an_epoch_outside_the_field_model():
+    from rigid_body_sim.viewer.orbit_view import Environment
+    with pytest.raises(ValueError, match="'wmm' is not one of"):
+        Environment(None, 'wmm')
+    from datetime import datetime, timezone
+    with pytest.raises(ValueError, match='outside the IGRF-14'):
+        Environment(datetime(1850, 1, 1, tzinfo=timezone.utc))
+    assert Environment().epoch.year == 2000   # no epoch: J2000
+
+
+def test_dipole_field_drawn_is_the_physics_field():
+    """The viewer's dipole (its moment kept for an hour of sim time) against
+    physics.environment.magnetic_field over a 20,000 s run: within 1e-6 relative."""
+    from rigid_body_sim.engine.environment_specs import parse_epoch
+    from rigid_body_sim.physics.environment import magnetic_field
+    from rigid_body_sim.physics.orbit import KeplerOrbit
+    from rigid_body_sim.viewer.orbit_view import Environment
+    orbit, epoch = KeplerOrbit(7.0e6, 0.01, 0.9, 0.2, 0.0, 0.0), '2026-03-20T12:00:00Z'
+    env = Environment(parse_epoch(epoch), 'dipole')
+    for t in np.linspace(0.0, 20000.0, 41):
+        r, _ = orbit.state(t)
+        want = magnetic_field.field('dipole', r, epoch, t)
+        np.testing.assert_allclose(env.field(r, t), want, rtol=0,
+                                   atol=1e-6 * np.linalg.norm(want))

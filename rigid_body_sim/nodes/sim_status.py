@@ -5,7 +5,8 @@ lockstep, faults and resets. With the unnamed spacecraft alone (a scene without
 ``spacecraft``) it also holds that spacecraft's physics and command counts, as it always
 has. Otherwise the simulation's status counts the spacecraft and the commands that reached
 none (``commands_rejected.unknown_spacecraft``), and each spacecraft has a status of its
-own (``attitude_simulator: <name>``) with its physics and command counts. Without any
+own (``attitude_simulator: <name>``) with its physics and command counts, and its
+``inertia`` (the viewer draws a spawned one's body from it). Without any
 spacecraft (all deleted) the simulation's status says so (WARN) and runs on.
 """
 import time
@@ -104,7 +105,8 @@ def diagnostics(sim) -> DiagnosticArray:
                 level, text = 'OK', 'finished' if e.finished else 'running'
             status.append(diagnostic_status(
                 f'{name}: {c.entity}', hardware, level, f'{text}, t = {e.t:.3f} s, integrator '
-                f'{e.method}', {**e.diagnostics(), **_craft_counts(c)}))
+                f'{e.method}', {**e.diagnostics(), **_craft_counts(c),
+                                'inertia': [float(x) for x in c.p['inertia']]}))
     array = DiagnosticArray(status=status)
     array.header.stamp.sec, array.header.stamp.nanosec = divmod(sim.stamp_ns(t_ns), NS)
     return array

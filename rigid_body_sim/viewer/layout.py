@@ -5,9 +5,10 @@ layout model (``foxglove.layouts``) so that it stays in the app's format.
 package's ``config/foxglove_layout.json``); ``test/test_viewer_geometry.py`` checks that the
 shipped file is what this builds.
 
-Left, the 3D panel in ``world``: the body box, ω and L arrows and Poinsot's construction
-beside it. Right, plots of ω (body), T and |L|, their relative drift, and the pointing
-error, all from the viewer's ``/state`` channel; under them the diagnostics summary.
+Left, the 3D panel in ``world``: each body's box, ω and L arrows, Poinsot's construction
+beside the first, and with an orbit the Earth, the orbit, LVLH, the Sun and the field.
+Right, plots of ω (body), T and |L|, their relative drift, and the pointing error, all
+from the viewer's ``/state`` channel; under them the diagnostics summary.
 """
 import os
 import sys
@@ -23,9 +24,10 @@ def _plot(title, *series):
 
 
 def build() -> 'fl.Layout':
-    three_d = fl.ThreeDeePanel(title='body and Poinsot construction', config=fl.ThreeDeeConfig(
-        follow_tf='world', fixed_frame='world', follow_mode='follow-none',
-        topics={'/scene': fl.BaseRendererSceneUpdateTopicSettings(visible=True)}))
+    three_d = fl.ThreeDeePanel(
+        title='bodies, Poinsot construction and orbit', config=fl.ThreeDeeConfig(
+            follow_tf='world', fixed_frame='world', follow_mode='follow-none',
+            topics={'/scene': fl.BaseRendererSceneUpdateTopicSettings(visible=True)}))
     plots = fl.SplitContainer(direction='column', items=[
         fl.SplitItem(content=_plot('ω (base_link, rad/s)', ('omega.x', 'ω x'),
                                    ('omega.y', 'ω y'), ('omega.z', 'ω z'),

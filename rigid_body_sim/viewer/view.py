@@ -3,13 +3,17 @@ optional MCAP sink). Free of ROS: the node (``nodes/viewer.py``) and the benchma
 plain numbers.
 
 Channels (all stamped with the state's stamp, which is also the log time):
-- ``/tf`` (foxglove.FrameTransform): ``world`` → ``base_link``, every sample;
+- ``/tf`` (foxglove.FrameTransform): ``world`` → ``base_link``, every sample; for a
+  formation, ``world`` → ``<name>/base_link`` for each spacecraft, translated to its display
+  slot (the simulator has attitudes, not positions: the slots keep the bodies apart);
 - ``/tf_poinsot`` (foxglove.FrameTransforms): ``world`` → ``poinsot`` (a fixed offset beside
   the body) and ``poinsot`` → ``poinsot_body`` (the body's attitude), at ``scene_rate``;
-- ``/scene`` (foxglove.SceneUpdate), at ``scene_rate``: the body as its inertia box, the ω
-  (body) and L (world) arrows; Poinsot's construction: the energy ellipsoid with its polhode
-  (``poinsot_body``), the invariable plane with the herpolhode and the contact point
-  (``poinsot``);
+- ``/scene`` (foxglove.SceneUpdate), at ``scene_rate``: each body as its inertia box, the ω
+  (body) and L (world) arrows (a formation's prefixed ``<name>/``, with a label; a deleted
+  spacecraft's deleted); Poinsot's construction of the first body: the energy ellipsoid
+  with its polhode (``poinsot_body``), the invariable plane with the herpolhode and the
+  contact point (``poinsot``); with an orbit, the Earth, the orbit and the LVLH frame, the
+  Sun and the field (``orbit_view.py``);
 - ``/state`` (JSON): ω, |ω|, T, |L|, their drift, the pointing error, for Plot panels;
 - ``/diagnostics`` (diagnostic_msgs/msg/DiagnosticArray, ROS 2 CDR as received): the ROS
   graph's diagnostics, this viewer's own included, for Foxglove's Diagnostics panels.
@@ -28,11 +32,11 @@ import numpy as np
 from foxglove import Channel
 from foxglove.channels import (FrameTransformChannel, FrameTransformsChannel,
                                SceneUpdateChannel)
-from foxglove.messages import (ArrowPrimitive, Color, CubePrimitive, FrameTransform,
-                               FrameTransforms, LinePrimitive, Point3, Pose, Quaternion,
-                               SceneEntity, SceneUpdate, SpherePrimitive, Timestamp, Vector3)
+from foxglove.messages import (CubePrimitive, FrameTransform, FrameTransforms, Point3, Pose,
+                               SceneEntityDeletion, SceneEntityDeletionType, SceneUpdate)
 
-from . import geometry
+from . import entities as ent, geometry
+from .entities import quat as _quat, stamp as _time, vec as _vec
 
 POINSOT_FRAME = 'poinsot'
 POINSOT_BODY_FRAME = 'poinsot_body'
@@ -53,6 +57,9 @@ STATE_SCHEMA = {
     },
 }
 DIAGNOSTICS_TYPE = 'diagnostic_msgs/msg/DiagnosticArray'
+SLOT_SPACING = 2.5   # body sizes between the display slots of a formation's bodies
+CRAFT_ENTITIES = ('body', 'omega', 'angular_momentum', 'label', 'lvlh', 'sun',
+                  'magnetic_field')
 
 
 class PortInUse(RuntimeError):
@@ -86,23 +93,6 @@ class Rejections(logging.Handler):
             return dict(self.counts)
 
 
-def _time(stamp_ns: int):
-    sec, nsec = divmod(int(stamp_ns), 1_000_000_000)
-    return Timestamp(sec=sec, nsec=nsec)
-
-
-def _quat(q):
-    return Quaternion(x=float(q[0]), y=float(q[1]), z=float(q[2]), w=float(q[3]))
-
-
-def _vec(v):
-    return Vector3(x=float(v[0]), y=float(v[1]), z=float(v[2]))
-
-
-def _color(r, g, b, a=1.0):
-    return Color(r=r, g=g, b=b, a=a)
-
-
 def start_server(host: str, port: int, name: str = 'rigid_body_sim', on_reject=None,
                  listener=None):
     """The SDK's WebSocket server on ``host``:``port``, with refused client messages counted.
@@ -123,9 +113,27 @@ def start_server(host: str, port: int, name: str = 'rigid_body_sim', on_reject=N
     return server, rejections
 
 
+class Craft:
+    """One spacecraft as drawn: its body frame, its display slot (an offset in ``world``),
+    its body (None until known) and its latest state."""
+
+    def __init__(self, name: str, frame: str, offset):
+        self.name, self.frame = name, frame
+        self.prefix = f'{name}/' if name else ''
+        self.offset = np.asarray(offset, float)
+        self.body = self.box_edges = None
+        self.q = self.omega = None
+        self.orbit = None   # orbit_view.OrbitFrame of its latest orbit sample
+
+    def ids(self):
+        return [self.prefix + e for e in CRAFT_ENTITIES]
+
+
 class View:
     """Channels and the state they show. Call :meth:`set_body` once the inertia is known,
-    then :meth:`transform` for each attitude and :meth:`sample` for each complete sample."""
+    then :meth:`transform` for each attitude and :meth:`sample` for each complete sample.
+    A formation's spacecraft are added by name (:meth:`add_craft`) and taken out with
+    :meth:`remove_craft`; the unnamed one ('') is the single body of other scenes."""
 
     def __init__(self, frame_id='world', child_frame_id='base_link', body_size=1.0,
                  trace_length=600, scene_period_ns=100_000_000, diagnostics_definition=''):
@@ -140,7 +148,8 @@ class View:
         self.diagnostics = Channel('/diagnostics', message_encoding='cdr', schema=foxglove.Schema(
             name=DIAGNOSTICS_TYPE, encoding='ros2msg', data=diagnostics_definition.encode()))
         self.scene_period_ns = int(scene_period_ns)
-        self.body = None
+        self.crafts = {'': Craft('', child_frame_id, (0.0, 0.0, 0.0))}
+        self._primary = ''
         self.polhode = geometry.Trace(trace_length, 0.0)
         self.herpolhode = geometry.Trace(trace_length, 0.0)
         # the traces as the SDK's points, built once per kept point: rebuilding 2 × 600 of
@@ -148,6 +157,11 @@ class View:
         self._points = {'polhode': deque(maxlen=int(trace_length)),
                         'herpolhode': deque(maxlen=int(trace_length))}
         self.reset()
+
+    @property
+    def body(self):
+        """The body of the Poinsot construction and ``/state`` (the first drawn)."""
+        return self.crafts[self._primary].body if self._primary in self.crafts else None
 
     def reset(self):
         """Forget the reference values (T₀, |L|₀, the Poinsot scale) and the traces: after
@@ -160,27 +174,68 @@ class View:
         for points in self._points.values():
             points.clear()
 
-    def set_body(self, body):
+    # --- the spacecraft --------------------------------------------------------------------
+    def add_craft(self, name: str):
+        """Spacecraft ``name`` (body frame ``<name>/<child_frame_id>``) in the first free
+        display slot along x; returns it (the existing one if known)."""
+        if name in self.crafts:
+            return self.crafts[name]
+        taken = {round(float(c.offset[0]) / (SLOT_SPACING * self.body_size))
+                 for n, c in self.crafts.items() if n}
+        slot = next(i for i in range(len(taken) + 1) if i not in taken)
+        craft = Craft(name, f'{name}/{self.child_frame_id}',
+                      (slot * SLOT_SPACING * self.body_size, 0.0, 0.0))
+        self.crafts[name] = craft
+        return craft
+
+    def remove_craft(self, name: str, stamp_ns: int):
+        """Take spacecraft ``name`` out: its entities are deleted from the scene."""
+        craft = self.crafts.pop(name, None)
+        if craft is None:
+            return
+        if self.scene.has_sinks():
+            t = _time(stamp_ns)
+            self.scene.log(SceneUpdate(deletions=[
+                SceneEntityDeletion(timestamp=t, type=SceneEntityDeletionType.MatchingId, id=i)
+                for i in craft.ids()]), log_time=stamp_ns)
+        if name == self._primary:  # the Poinsot construction moves to the next one
+            self._primary = next((n for n, c in self.crafts.items() if c.q is not None), '')
+            self.reset()
+
+    def drawn(self):
+        """Names of the spacecraft drawn now (body and a state known)."""
+        return [n for n, c in self.crafts.items() if c.body is not None and c.q is not None]
+
+    def set_body(self, body, name: str = ''):
         """``body``: physics.body.RigidBody (principal moments and axes)."""
-        self.body = body
-        self.box_edges, _ = geometry.display_box(body.principal_moments, self.body_size)
+        craft = self.crafts.get(name) or self.add_craft(name)
+        craft.body = body
+        craft.box_edges, _ = geometry.display_box(body.principal_moments, self.body_size)
         # a thin plate has a zero edge: draw it 1 % thick so it stays visible
-        self.box_edges = np.maximum(self.box_edges, 0.01 * self.body_size)
+        craft.box_edges = np.maximum(craft.box_edges, 0.01 * self.body_size)
+
+    def set_orbit(self, frame, name: str = ''):
+        """The orbit's drawing (``orbit_view.OrbitFrame``) at spacecraft ``name``'s latest
+        sample: drawn at the next scene update."""
+        if name in self.crafts:
+            self.crafts[name].orbit = frame
 
     # --- every sample ----------------------------------------------------------------------
-    def transform(self, stamp_ns: int, q):
-        """``world`` → ``base_link`` (q rotates base_link vectors into world)."""
-        if not self.tf.has_sinks():
+    def transform(self, stamp_ns: int, q, name: str = ''):
+        """``world`` → the body frame (q rotates body vectors into world), at its slot."""
+        if not self.tf.has_sinks() or name not in self.crafts:
             return  # nobody subscribed and no MCAP: build nothing
+        craft = self.crafts[name]
         self.tf.log(FrameTransform(timestamp=_time(stamp_ns), parent_frame_id=self.frame_id,
-                                   child_frame_id=self.child_frame_id, rotation=_quat(q)),
+                                   child_frame_id=craft.frame,
+                                   translation=_vec(craft.offset), rotation=_quat(q)),
                     log_time=stamp_ns)
 
     def _poinsot_frames(self, stamp_ns, q):
         """``world`` → ``poinsot`` (fixed, beside the body) → ``poinsot_body`` (the attitude),
         at the scene's rate: the Poinsot view moves with its entities."""
         t = _time(stamp_ns)
-        offset = (0.0, 2.5 * self.body_size, 0.0)
+        offset = self.crafts[self._primary].offset + (0.0, 2.5 * self.body_size, 0.0)
         self.tf_poinsot.log(FrameTransforms(transforms=[
             FrameTransform(timestamp=t, parent_frame_id=self.frame_id,
                            child_frame_id=POINSOT_FRAME, translation=_vec(offset),
@@ -189,23 +244,45 @@ class View:
                            child_frame_id=POINSOT_BODY_FRAME, rotation=_quat(q))]),
             log_time=stamp_ns)
 
-    def sample(self, stamp_ns: int, q, omega, target=None):
-        """One sample: q (base_link → world), ω (base_link, rad/s); plot channel now, scene at
-        ``scene_rate``. From the body: L = R(q)·Iω (world, kg·m²/s) and T = ½ ω·Iω (J)."""
-        if self.body is None:
+    def sample(self, stamp_ns: int, q, omega, target=None, name: str = ''):
+        """One sample of spacecraft ``name``: q (body → world), ω (body, rad/s). The first
+        drawn spacecraft's go to the plot channel now; the scene, of all, at ``scene_rate``.
+        From the body: L = R(q)·Iω (world, kg·m²/s) and T = ½ ω·Iω (J)."""
+        craft = self.crafts.get(name)
+        if craft is None or craft.body is None:
             return
         q = np.asarray(q, float)
         omega = np.asarray(omega, float)
-        L_body = self.body.inertia @ omega
+        craft.q, craft.omega = q, omega
+        if self.crafts.get(self._primary) is None or self.crafts[self._primary].q is None:
+            self._primary = name
+            self.reset()
+        if name == self._primary:
+            self._primary_sample(stamp_ns, q, omega, target)
+        if self.T0 is None:
+            return  # the first body not sampled since a reset: no Poinsot scale yet
+        if self.next_scene_ns is None or stamp_ns >= self.next_scene_ns:
+            self.next_scene_ns = stamp_ns + self.scene_period_ns
+            primary = self.crafts[self._primary]
+            if self.tf_poinsot.has_sinks():
+                self._poinsot_frames(stamp_ns, primary.q)
+            if self.scene.has_sinks():
+                self._scene(stamp_ns, primary)
+
+    def _primary_sample(self, stamp_ns, q, omega, target):
+        """The plot row and the Poinsot traces of the first drawn body."""
+        body = self.body
+        L_body = body.inertia @ omega
         L_world = geometry.rotate_vector(q, L_body)
         T = 0.5 * float(omega @ L_body)
         L = float(np.linalg.norm(L_world))
         if self.T0 is None:
             self.T0, self.L0 = T, L
-            semi = geometry.ellipsoid_semi_axes(self.body.principal_moments, T)
+            semi = geometry.ellipsoid_semi_axes(body.principal_moments, T)
             self.scale = self.body_size / semi.max() if semi.max() > 0 else 1.0
             min_step = 0.002 * self.body_size
             self.polhode.min_step = self.herpolhode.min_step = min_step
+        self._T = T
         error = math.nan
         if target is not None:
             from ..physics import rotation
@@ -231,68 +308,45 @@ class View:
             if trace.add(p):
                 x, y, z = p.tolist()
                 self._points[name].append(Point3(x=x, y=y, z=z))
-        if self.next_scene_ns is None or stamp_ns >= self.next_scene_ns:
-            self.next_scene_ns = stamp_ns + self.scene_period_ns
-            if self.tf_poinsot.has_sinks():
-                self._poinsot_frames(stamp_ns, q)
-            if self.scene.has_sinks():
-                self._scene(stamp_ns, q, omega, L_world, T)
 
     # --- the 3D scene ----------------------------------------------------------------------
-    def _scene(self, stamp_ns, q, omega, L_world, T):
-        t = _time(stamp_ns)
+    def _scene(self, stamp_ns, primary):
+        """Every drawn spacecraft, the orbit's inset, and the first body's Poinsot
+        construction (``poinsot_body``: the energy ellipsoid and the polhode; ``poinsot``:
+        the invariable plane, the contact point and the herpolhode)."""
+        b = ent.Builder(stamp_ns, self.body_size)
         size = self.body_size
-        origin = _vec((0.0, 0.0, 0.0))
-        p2b = _quat(self.body.principal_to_body)
-
-        def entity(frame, eid, **prims):
-            return SceneEntity(timestamp=t, frame_id=frame, id=eid, frame_locked=True, **prims)
-
-        def arrow(vec, length, color):
-            d = float(np.linalg.norm(vec))
-            return ArrowPrimitive(pose=Pose(position=origin,
-                                            orientation=_quat(geometry.arrow_rotation(vec))),
-                                  shaft_length=length * 0.8 if d else 0.0,
-                                  shaft_diameter=0.03 * size, head_length=length * 0.2,
-                                  head_diameter=0.08 * size, color=color)
-
-        def line(points, color):
-            return LinePrimitive(thickness=0.01 * size, scale_invariant=False,
-                                 points=list(points), color=color)
-
-        w_dir = omega / (np.linalg.norm(omega) or 1.0)
+        entities = []
+        for craft in self.crafts.values():
+            if craft.body is not None and craft.q is not None:
+                entities += ent.craft_entities(b, craft, self.frame_id)
+        if primary.orbit is not None:
+            entities += ent.orbit_inset(b, primary, self.frame_id)
+        q, omega, T = primary.q, primary.omega, self._T
+        L_world = geometry.rotate_vector(q, primary.body.inertia @ omega)
         L_norm = float(np.linalg.norm(L_world))
-        entities = [
-            entity(self.child_frame_id, 'body', cubes=[CubePrimitive(
-                pose=Pose(position=origin, orientation=p2b), size=_vec(self.box_edges),
-                color=_color(0.7, 0.7, 0.75, 0.9))]),
-            entity(self.child_frame_id, 'omega', arrows=[arrow(w_dir, 1.2 * size,
-                                                               _color(1.0, 0.3, 0.2))]),
-            entity(self.frame_id, 'angular_momentum', arrows=[arrow(
-                L_world, 1.2 * size, _color(0.2, 0.5, 1.0))]),
-        ]
-        semi = geometry.ellipsoid_semi_axes(self.body.principal_moments, T) * self.scale
-        entities.append(entity(POINSOT_BODY_FRAME, 'energy_ellipsoid', spheres=[SpherePrimitive(
-            pose=Pose(position=origin, orientation=p2b), size=_vec(2.0 * semi),
-            color=_color(0.9, 0.8, 0.3, 0.35))]))
+        p2b = primary.body.principal_to_body
+        semi = geometry.ellipsoid_semi_axes(primary.body.principal_moments, T) * self.scale
+        entities.append(b.entity(POINSOT_BODY_FRAME, 'energy_ellipsoid', spheres=[b.sphere(
+            (0.0, 0.0, 0.0), 2.0 * semi, (0.9, 0.8, 0.3, 0.35), orientation=p2b)]))
         # the traces even when (just after a reset) too short to draw: an entity left out of
         # an update would keep its old points on the client
-        entities.append(entity(POINSOT_BODY_FRAME, 'polhode', lines=[line(
-            self._points['polhode'], _color(1.0, 0.3, 0.2))]))
+        entities.append(b.entity(POINSOT_BODY_FRAME, 'polhode', lines=[b.line(
+            self._points['polhode'], (1.0, 0.3, 0.2, 1.0))]))
         if L_norm > 0.0:
             normal, dist = geometry.invariable_plane(L_world, T)
             centre = normal * dist * self.scale
             plane = 3.0 * semi.max()
-            entities.append(entity(POINSOT_FRAME, 'invariable_plane', cubes=[CubePrimitive(
+            entities.append(b.entity(POINSOT_FRAME, 'invariable_plane', cubes=[CubePrimitive(
                 pose=Pose(position=_vec(centre),
                           orientation=_quat(geometry.plane_rotation(normal))),
-                size=_vec((plane, plane, 0.002 * size)), color=_color(0.3, 0.6, 1.0, 0.25))]))
-            entities.append(entity(POINSOT_FRAME, 'contact', spheres=[SpherePrimitive(
-                pose=Pose(position=_vec(geometry.rotate_vector(q, omega) * self.scale),
-                          orientation=_quat((0, 0, 0, 1))),
-                size=_vec((0.05 * size,) * 3), color=_color(1.0, 0.3, 0.2))]))
-            entities.append(entity(POINSOT_FRAME, 'herpolhode', lines=[line(
-                self._points['herpolhode'], _color(0.2, 0.5, 1.0))]))
+                size=_vec((plane, plane, 0.002 * size)),
+                color=ent.color(0.3, 0.6, 1.0, 0.25))]))
+            entities.append(b.entity(POINSOT_FRAME, 'contact', spheres=[b.sphere(
+                geometry.rotate_vector(q, omega) * self.scale, 0.05 * size,
+                (1.0, 0.3, 0.2, 1.0))]))
+            entities.append(b.entity(POINSOT_FRAME, 'herpolhode', lines=[b.line(
+                self._points['herpolhode'], (0.2, 0.5, 1.0, 1.0))]))
         self.scene.log(SceneUpdate(entities=entities), log_time=stamp_ns)
 
     def publish_diagnostics(self, stamp_ns: int, cdr: bytes):

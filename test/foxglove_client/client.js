@@ -11,6 +11,11 @@
 // --garbage       first send a non-JSON text frame, a binary frame with an unknown opcode,
 //                 a subscribe to an unknown channel id and an unknown op, then carry on
 // --reconnect     connect, receive for half the time, close, connect again for the rest
+// --scene         keep the 3D scene as a client holds it (SceneUpdate deletions applied,
+//                 entities replaced by id): `scene` (id -> entity) and `sceneHistory`, the
+//                 sorted ids after each update that changed them
+// --points        keep the polylines' points (default: their count only)
+// SIGTERM or SIGINT ends every session at once and prints what was seen
 "use strict";
 const { FoxgloveClient } = require("@foxglove/ws-protocol");
 const WebSocket = require("ws");
@@ -19,7 +24,7 @@ const descriptor = require("protobufjs/ext/descriptor");
 
 function parseArgs(argv) {
   const a = { url: "ws://127.0.0.1:8765", seconds: 5, subscribe: [], dump: [], clients: 1,
-    garbage: false, reconnect: false };
+    garbage: false, reconnect: false, scene: false, points: false };
   for (let i = 2; i < argv.length; i++) {
     const k = argv[i];
     if (k === "--url") a.url = argv[++i];
@@ -29,6 +34,8 @@ function parseArgs(argv) {
     else if (k === "--clients") a.clients = Number(argv[++i]);
     else if (k === "--garbage") a.garbage = true;
     else if (k === "--reconnect") a.reconnect = true;
+    else if (k === "--scene") a.scene = true;
+    else if (k === "--points") a.points = true;
     else throw new Error(`unknown argument ${k}`);
   }
   return a;
@@ -50,11 +57,25 @@ function decoderFor(channel) {
   return () => null;
 }
 
+const stops = []; // a signal ends every open session
+
+// The scene as a client keeps it: deletions first (by id, or all), then entities by id.
+function applyScene(seen, msg) {
+  const before = Object.keys(seen.scene).sort().join(",");
+  for (const d of msg.deletions || []) {
+    if (d.type === "MATCHING_ID") delete seen.scene[d.id];
+    else seen.scene = {};
+  }
+  for (const e of msg.entities || []) seen.scene[e.id] = e;
+  const ids = Object.keys(seen.scene).sort();
+  if (ids.join(",") !== before) seen.sceneHistory.push(ids);
+}
+
 // One connection: resolves with what it saw when `seconds` are up.
 function session(args, seconds, label) {
   return new Promise((resolve) => {
     const seen = { label, protocol: null, channels: [], counts: {}, dumped: {}, last: {},
-      errors: [], statuses: [], opened: false };
+      errors: [], statuses: [], opened: false, scene: {}, sceneHistory: [] };
     const ws = new WebSocket(args.url, [FoxgloveClient.SUPPORTED_SUBPROTOCOL, "foxglove.sdk.v1"]);
     const client = new FoxgloveClient({ ws });
     const subs = new Map(); // subscription id -> {topic, decode}
@@ -93,18 +114,26 @@ function session(args, seconds, label) {
         seen.errors.push(`decode ${t}: ${e.message}`);
         return;
       }
-      if (msg && msg.entities) {  // scene updates: keep the polylines' lengths, not points
+      if (msg && msg.entities && !args.points) {  // the polylines' lengths, not points
         for (const e of msg.entities) for (const l of e.lines || []) l.points = l.points.length;
       }
+      if (args.scene && msg && (msg.entities || msg.deletions)) applyScene(seen, msg);
       if (args.dump.includes(t)) (seen.dumped[t] = seen.dumped[t] || []).push(msg);
       else seen.last[t] = msg;
     });
-    setTimeout(() => {
+    let done = false;
+    const end = () => {
+      if (done) return;
+      done = true;
       ws.close();
       resolve(seen);
-    }, seconds * 1000);
+    };
+    stops.push(end);
+    setTimeout(end, seconds * 1000);
   });
 }
+
+for (const sig of ["SIGTERM", "SIGINT"]) process.on(sig, () => stops.forEach((end) => end()));
 
 async function main() {
   const args = parseArgs(process.argv);
