@@ -138,10 +138,13 @@ def _column(v):
     return [[float(x)] for x in v]
 
 
-def build(setup, integrator='rk4', param=10.0, attitude=None, position=None):
+def build(setup, integrator='rk4', param=10.0, attitude=None, position=None, extra=None,
+          gravity_gradient=True):
     """(sim, spacecraft, effector, recorder) of a Basilisk simulation of ``setup``,
     initialised: integrator 'rk4' (``param`` = step = task period) or 'rkf78' (``param`` =
-    relTol, task = sample period). ``attitude``/``position`` replace the initial ones."""
+    relTol, task = sample period). ``attitude``/``position`` replace the initial ones;
+    ``extra(sim, spacecraft)`` adds further modules before the initialisation (its result is
+    kept alive with sim); ``gravity_gradient`` False leaves the effector out (None)."""
     from Basilisk.architecture import bskLogging
     from Basilisk.simulation import (GravityGradientEffector, gravityEffector, spacecraft,
                                      svIntegrators)
@@ -165,10 +168,12 @@ def build(setup, integrator='rk4', param=10.0, attitude=None, position=None):
     sc.hub.sigma_BNInit = _column(quat_to_mrp(setup.attitude if attitude is None
                                               else attitude))
     sc.hub.omega_BN_BInit = _column(setup.angular_velocity)
-    gg = GravityGradientEffector.GravityGradientEffector()
-    gg.ModelTag = 'gravity_gradient'
-    gg.addPlanetName(earth.planetName)
-    sc.addDynamicEffector(gg)
+    gg = None
+    if gravity_gradient:
+        gg = GravityGradientEffector.GravityGradientEffector()
+        gg.ModelTag = 'gravity_gradient'
+        gg.addPlanetName(earth.planetName)
+        sc.addDynamicEffector(gg)
     if integrator == 'rk4':
         integ = svIntegrators.svIntegratorRK4(sc)
     elif integrator == 'rkf78':
@@ -178,12 +183,13 @@ def build(setup, integrator='rk4', param=10.0, attitude=None, position=None):
         raise ValueError(f'Basilisk integrator {integrator!r}: rk4 or rkf78')
     sc.setIntegrator(integ)
     sim.AddModelToTask('dyn', sc)
-    sim.AddModelToTask('dyn', gg)
+    if gg is not None:
+        sim.AddModelToTask('dyn', gg)
     rec = sc.scStateOutMsg.recorder(macros.sec2nano(setup.sample_period))
     sim.AddModelToTask('dyn', rec)
-    sim.InitializeSimulation()
     # keep Python references to everything Basilisk holds by pointer
-    sim._bench_keep = (earth, integ)
+    sim._bench_keep = [earth, integ, extra(sim, sc) if extra else None]
+    sim.InitializeSimulation()
     return sim, sc, gg, rec
 
 
