@@ -54,13 +54,15 @@ venv: $(STAMP)
 # Rebuilt only when a dependency pin, the package metadata or an interface definition
 # changes; code is an editable install, and config/ and launch/ are linked, so edits need no
 # reinstall. The interface build skips itself when its inputs are unchanged.
-$(STAMP): requirements.txt setup.py setup.cfg package.xml .ci/make_venv.sh .ci/step.sh \
-          .ci/build_interfaces.sh .ci/wheel_cmake_paths.cmake $(INTERFACES)
+$(STAMP): requirements.txt requirements-peers.txt setup.py setup.cfg package.xml \
+          .ci/make_venv.sh .ci/step.sh .ci/build_interfaces.sh .ci/wheel_cmake_paths.cmake $(INTERFACES)
 	@echo "setting up $(VENV) (once; the details go to $(SETUP_LOG))"
 	@rm -f $(SETUP_LOG)
 	@sh .ci/step.sh $(SETUP_LOG) "setup 1/5: Python virtual environment" sh .ci/make_venv.sh $(VENV)
 	@sh .ci/step.sh $(SETUP_LOG) "setup 2/5: dependencies (ROS 2 Jazzy wheels, numpy, scipy, numba, ...)" \
 	  $(VENV)/bin/pip install --disable-pip-version-check -q -r requirements.txt
+	@sh .ci/step.sh $(SETUP_LOG) "setup 2/5: the bench's peer (Basilisk, bsk; its pins clash with ours)" \
+	  $(VENV)/bin/pip install --disable-pip-version-check -q --no-deps -r requirements-peers.txt
 	@sh .ci/step.sh $(SETUP_LOG) "setup 3/5: this package (editable) and its ament layout" \
 	  $(MAKE) --no-print-directory ament-layout
 	@sh .ci/step.sh $(SETUP_LOG) "setup 4/5: message interfaces (tf2_msgs, simulation_interfaces)" \

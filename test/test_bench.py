@@ -139,6 +139,23 @@ def test_sampling_and_cli_overhead_on_generated_scenes_report_the_worst(quick_ru
         assert all(w in r['note'] for w in ('p10', 'median', 'p90', 'worst')), r['note']
 
 
+def test_basilisk_section_measures_both_and_judges_every_level(quick_run):
+    """Basilisk (installed with the venv) and ours on the gravity-gradient scene: RK4, RKF78,
+    auto and fixed methods with finite figures, Basilisk's orbit error beside each of its
+    rows, and a verdict at every error level."""
+    from rigid_body_sim.bench import basilisk_gg, targets
+    rows = _read(quick_run / 'basilisk.csv')
+    ok = [r for r in rows if r['status'] == 'ok']
+    assert {'bsk_rk4', 'bsk_rkf78', 'auto', 'splitting6', 'rk4'} <= {r['method'] for r in ok}
+    for r in ok:
+        assert float(r['cpu_s']) > 0 and math.isfinite(float(r['attitude_error'])), r
+        assert math.isfinite(float(r['orbit_error'])) == (r['family'] == 'peer'), r
+    judged = [r for r in _read(quick_run / 'targets.csv') if r['target'] == basilisk_gg.TARGET]
+    assert [float(r['level']) for r in judged] == list(targets.LEVELS)
+    assert {r['verdict'] for r in judged} <= {'PASS', 'MISS', 'n/a'}
+    assert any(r['verdict'] in ('PASS', 'MISS') and float(r['measured']) > 0 for r in judged)
+
+
 def test_targets_table_has_ratios_for_every_scene(quick_run):
     rows = _read(quick_run / 'targets.csv')
     scenes = {r['scene'] for r in rows if r['target'].startswith('cpu ratio')}

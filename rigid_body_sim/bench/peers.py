@@ -26,8 +26,10 @@ from typing import Callable, Dict
 
 import numpy as np
 
-# bsk 2.12.1 caps matplotlib below our pin: install it without its dependencies.
-INSTALL_HINT = ".venv/bin/pip install mujoco==4.0.0 && .venv/bin/pip install --no-deps bsk==2.12.1"
+# bsk (pinned in requirements-peers.txt, `make venv` installs it) caps matplotlib below our
+# pin: it is installed without its dependencies.
+INSTALL_HINT = (".venv/bin/pip install mujoco==4.0.0 && "
+                ".venv/bin/pip install --no-deps -r requirements-peers.txt")
 
 
 class PeerMethod:

@@ -83,6 +83,65 @@ def targets_section(out):
     return lines
 
 
+BASILISK = 'Basilisk CPU / ours at equal attitude error (gravity gradient)'
+
+
+def basilisk_section(out):
+    """Basilisk's rows (bench/basilisk_gg.py): the ratio per scene and what it reached."""
+    rows = _rows(out, 'targets.csv') or []
+    ratio = [r for r in rows if r['target'] == BASILISK]
+    runs = _rows(out, 'basilisk.csv')
+    if not ratio or runs is None:
+        return _missing('basilisk.csv' if runs is None else 'its rows in targets.csv')
+    lines = ['- **Basilisk CPU / our CPU at the same attitude error** (gravity gradient; '
+             'target ≥ 10× at every level Basilisk reaches):']
+    for scene in dict.fromkeys(r['scene'] for r in ratio):
+        rs = [r for r in ratio if r['scene'] == scene and r['verdict'] in ('PASS', 'MISS')]
+        peer = [r for r in runs if r['scene'] == scene and r['family'] == 'peer'
+                and r['status'] == 'ok']
+        best = min(peer, key=lambda r: float(r['attitude_error'])) if peer else None
+        reach = (f'; Basilisk reaches {_f(best["attitude_error"])} rad at best '
+                 f'({best["method"]}, its orbit {_f(best["orbit_error"])} rad off ours)'
+                 if best else '')
+        lines.append(f'  - {scene}: {_span([r["measured"] for r in rs], unit="×")} '
+                     f'({sum(r["verdict"] == "MISS" for r in rs)} MISS of {len(rs)} levels'
+                     f'{reach}).')
+    return lines
+
+
+def replace_targets(out, target, new_rows):
+    """Put ``new_rows`` in place of ``target``'s rows in out/targets.csv and targets.md
+    (after the work-precision rows when it had none), every other row as it was: a section
+    run alone (``python -m rigid_body_sim.bench.basilisk_gg``) updates a full run's tables,
+    with a line saying which command measured its rows, and where."""
+    from . import _markdown_targets, machine, targets
+    from .common import write_csv
+    kept = [r for r in _rows(out, 'targets.csv') or [] if r['target'] != target]
+    at = max((i + 1 for i, r in enumerate(kept) if r['target'].startswith('cpu ratio')),
+             default=0)
+    write_csv(os.path.join(out, 'targets.csv'), targets.FIELDS,
+              kept[:at] + list(new_rows) + kept[at:])
+    path = os.path.join(out, 'targets.md')
+    if os.path.exists(path):
+        with open(path, encoding='utf-8') as f:
+            lines = f.read().rstrip('\n').split('\n')
+    else:
+        lines = _markdown_targets([], machine(), 'rigid-body-sim bench').rstrip('\n').split('\n')
+    note = f'Rows "{target}":'
+    drop = {i for i, line in enumerate(lines) if line.startswith(note)}
+    drop |= {i + 1 for i in drop}  # the blank line after the note
+    lines = [line for i, line in enumerate(lines)
+             if i not in drop and not line.startswith(f'| {target} |')]
+    mine = _markdown_targets(new_rows, '', '').rstrip('\n').split('\n')[6:]
+    table = [i for i, line in enumerate(lines) if line.startswith(('| cpu ratio', '|---'))]
+    at = table[-1] + 1 if table else len(lines)
+    lines[at:at] = mine
+    lines[4:4] = [f'{note} `python -m rigid_body_sim.bench.basilisk_gg --out {out}` on: '
+                  f'{machine()}', '']
+    with open(path, 'w', encoding='utf-8') as f:
+        f.write('\n'.join(lines) + '\n')
+
+
 def generated_section(out):
     rows = _rows(out, 'generated.csv')
     if rows is None:
@@ -219,6 +278,7 @@ def live_section(out):
 
 
 SECTIONS = (('Speed against accuracy', targets_section),
+            ('Against Basilisk on the gravity-gradient scenes', basilisk_section),
             ('auto on generated scenes', generated_section),
             ('What a user\'s run adds', sampling_section),
             ('Throughput, per-step cost, kernels, long horizons', machine_section),

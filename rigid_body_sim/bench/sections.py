@@ -13,8 +13,8 @@ from typing import Callable
 
 from . import batch as batch_mod
 from . import compile as compile_cost
-from . import (exact_horizon, generated, live, longhorizon, perstep, sampling, selection,
-               stability, targets, workprecision)
+from . import (basilisk_gg, exact_horizon, generated, live, longhorizon, perstep, sampling,
+               selection, stability, targets, workprecision)
 from .common import reference, write_csv
 
 BUDGETS = {True: {'ours': 0.2, 'peer': 0.2}, False: {'ours': 4.0, 'peer': 3.0}}
@@ -62,6 +62,13 @@ def _work_precision(run):
     run.csv('work_precision.csv', workprecision.FIELDS, rows)
     workprecision.print_best(rows, run.scenes, run.log)
     return rows
+
+
+def _basilisk(run):
+    rows, t_rows, _ = basilisk_gg.run(run.quick, run.log)
+    if rows:
+        run.csv('basilisk.csv', basilisk_gg.FIELDS, rows)
+    return t_rows
 
 
 def _stability(run):
@@ -175,6 +182,8 @@ def _returned(name):
 SECTIONS = (
     Section('work_precision', '1. work-precision', _work_precision,
             lambda run: targets.work_precision(run.results['work_precision'], run.scenes)),
+    Section('basilisk', '1b. Basilisk 2.12 on the gravity-gradient scenes (bsk)', _basilisk,
+            _returned('basilisk')),
     Section('stability', '2. stability where methods fail', _stability, _stability_targets),
     Section('long_horizon', '3. long horizon (generic tumble)', _long_horizon),
     Section('batch', '4. batch throughput', _batch, _batch_targets),
@@ -192,5 +201,5 @@ SECTIONS = (
             _returned('exact_horizon')),
 )
 SECTION_BY_NAME = {s.name: s for s in SECTIONS}
-TARGET_ORDER = ('work_precision', 'selection', 'generated', 'exact_horizon', 'stability',
-                'batch', 'perstep', 'sampling', 'live', 'compile')
+TARGET_ORDER = ('work_precision', 'basilisk', 'selection', 'generated', 'exact_horizon',
+                'stability', 'batch', 'perstep', 'sampling', 'live', 'compile')
