@@ -39,6 +39,7 @@ class SampleBlock:
     # gimbal angles, gimbal rates, singularity measure, |h_A|); None without actuators
     actuators: Optional[np.ndarray] = None
     sensors: Optional[object] = None  # engine.sensing.SensorReadings taken meanwhile
+    magnetometer: Optional[object] = None  # engine.magnetic.MagnetometerReadings, likewise
 
     def __len__(self):
         return len(self.t_ns)
