@@ -240,3 +240,45 @@ def test_methods_without_the_term_refuse_the_rods():
     with pytest.raises(ValueError, match='exact does not integrate the environment\'s torques '
                        r'\(magnetorquer.max_dipole\)'):
         create('exact', Dynamics(np.array([0.03, 0.025, 0.01]), environment=env))
+
+
+def _readings(**overrides):
+    p = scene(**{'magnetometer.enabled': True, 'magnetometer.rate': 4.0, 'duration': 50.0,
+                 **overrides})
+    engine = Engine(EngineConfig.from_parameters(p))
+    engine.apply_dipole_command([0.1, -0.2, 0.05])
+    blocks = list(engine.run())
+    t = np.concatenate([b.magnetometer.t_ns for b in blocks if b.magnetometer is not None])
+    field = np.concatenate([b.magnetometer.field for b in blocks if b.magnetometer is not None])
+    return engine, SampleBlock.concatenate(blocks), t, field
+
+
+def test_the_magnetometer_reads_the_field_its_bias_noise_and_the_rods():
+    """Readings every 0.25 s in the body frame: the truth (the field turned by the attitude
+    at that instant) + bias + coupling × the rods' dipole (NOS3 #145), + white noise of
+    the set σ, the same for the same seed and another for another."""
+    bias, coupling = [2e-7, -1e-7, 3e-7], 4e-6
+    clean, block, t, field = _readings(**{'magnetometer.bias': bias,
+                                          'magnetometer.torquer_coupling': coupling})
+    np.testing.assert_array_equal(t, np.arange(201) * 250_000_000)
+    o = clean.config.environment.magnetic.field
+    samples = {int(ns): q for ns, q in zip(block.t_ns, block.attitude)}  # 1 Hz samples
+    checked = 0
+    for ns, reading in zip(t, field):
+        if int(ns) in samples:
+            truth = Rotation.from_quat(samples[int(ns)]).inv().apply(o.at(ns * 1e-9))
+            expected = truth + bias + coupling * np.array([0.1, -0.2, 0.05])
+            np.testing.assert_allclose(reading, expected, rtol=0, atol=1e-15)
+            checked += 1
+    assert checked == 51
+    sigma = 5e-8
+    _, _, _, noisy = _readings(**{'magnetometer.bias': bias, 'magnetometer.noise': sigma,
+                                  'magnetometer.torquer_coupling': coupling, 'seed': 3})
+    _, _, _, again = _readings(**{'magnetometer.bias': bias, 'magnetometer.noise': sigma,
+                                  'magnetometer.torquer_coupling': coupling, 'seed': 3})
+    _, _, _, other = _readings(**{'magnetometer.bias': bias, 'magnetometer.noise': sigma,
+                                  'magnetometer.torquer_coupling': coupling, 'seed': 4})
+    np.testing.assert_array_equal(noisy, again)
+    error = noisy - field
+    assert 0.8 * sigma < error.std() < 1.2 * sigma and abs(error.mean()) < 0.3 * sigma
+    assert not np.array_equal(noisy, other)
