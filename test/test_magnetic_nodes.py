@@ -69,6 +69,8 @@ def test_dipole_commands_are_checked_counted_and_the_magnetometer_publishes(
         _diag(diag, namespace).get(k) == v for k, v in want.items()), 30.0), \
         (_diag(diag, namespace), sim.output())
     d = _diag(diag, namespace)
+    assert len(d['magnetorquer_dipole'].split()) == 3  # the held dipole and its torque
+    assert len(d['magnetorquer_torque'].split()) == 3
     assert d['commands_rejected.non_finite'] == '0'  # the torque commands' own counts
     assert d['commands_accepted'] == '0'
     out = sim.output()

@@ -186,6 +186,12 @@ class Magnetics:
         env[k.MAG_DIPOLE:k.MAG_DIPOLE + 3] = m if aligned else self.body.to_principal(m)
         return not np.array_equal(before, env[k.MAG_MODEL:k.MAG_END])
 
+    def torque(self, t: float, attitude) -> np.ndarray:
+        """The rods' torque m × B_body (N·m, body frame) at time t and attitude (body →
+        inertial), the held dipole: the magnetorquers' share of the environment's."""
+        b = rotation.rotate(rotation.conjugate(attitude), self.field.at(t))
+        return np.cross(self.dipole(), b)
+
     def drain(self):
         return None if self.meter is None else self.meter.drain()
 

@@ -45,7 +45,12 @@ def _craft_counts(craft) -> dict:
     return {**craft.commands.counts(),
             **(craft.joints.counts() if craft.joints is not None else {}),
             **({'dipole_commands_accepted': hold.accepted,
-                'dipole_commands_saturated': hold.saturated, **craft.dipoles.counts()}
+                'dipole_commands_saturated': hold.saturated, **craft.dipoles.counts(),
+                'magnetorquer_dipole': ' '.join(f'{v:.6g}' for v in
+                                                craft.engine.magnetics.dipole()),
+                'magnetorquer_torque': ' '.join(f'{v:.6g}' for v in
+                                                craft.engine.magnetics.torque(
+                                                    craft.engine.t, craft.engine.attitude))}
                if hold is not None else {}),
             **{f'messages_built.{k}': n for k, n in craft.msgs.built().items()}}
 
