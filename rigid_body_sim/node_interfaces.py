@@ -25,6 +25,7 @@ FEEDBACK_TRUTH = 'feedback: truth'
 FEEDBACK_SENSORS = 'feedback: sensors'
 ORBIT = 'orbit.model'
 GRAVITY_GRADIENT = 'environment.gravity_gradient'
+ENVIRONMENT_TORQUE = 'environment.gravity_gradient or magnetorquer.max_dipole'
 MAGNETORQUERS = 'magnetorquer.max_dipole'
 MAGNETOMETER = 'magnetometer.enabled'
 BDOT = 'mode: bdot'
@@ -71,7 +72,8 @@ SIMULATOR = NodeInterfaces('attitude_simulator', 'simulator', (
           'frame_id; inertial velocity [m/s] and LVLH rate [rad/s] resolved in '
           'orbit.frame_id (child_frame_id)', ORBIT),
     Topic('pub', 'environment_torque', 'geometry_msgs/msg/WrenchStamped',
-          'gravity-gradient torque, body frame [N*m]', GRAVITY_GRADIENT),
+          'the environment\'s torque, body frame [N*m]: gravity gradient + the '
+          'magnetorquers\' m x B', ENVIRONMENT_TORQUE),
     Topic('pub', 'odometry', 'nav_msgs/msg/Odometry',
           'pose in frame_id, angular velocity in child_frame_id'),
     Topic('pub', 'angular_velocity', 'geometry_msgs/msg/Vector3Stamped', 'body frame [rad/s]'),

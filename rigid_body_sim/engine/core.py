@@ -516,7 +516,9 @@ class Engine:
                     self.fault = f'state became non-finite at t = {self.t:.9g} s'
                     raise IntegrationError(self.method, self.step_max, self.t, self.fault)
                 b.add(t_event, self._q, self._m, self._tau_body, None if self.actuators is None
-                      else self.actuators.row(self._m, self.dynamics.moments))
+                      else self.actuators.row(self._m, self.dynamics.moments),
+                      None if self.magnetics is None or self.magnetics.hold is None
+                      else self.magnetics.dipole())
                 if t_event == self._next_sample:
                     self._next_sample += p
             if t_event >= end:
