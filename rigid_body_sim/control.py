@@ -63,7 +63,7 @@ from .control_kernel import MODE_CODES, control_torque
 from .physics import rotation
 from .physics.body import RigidBody
 
-MODES = ('detumble', 'slew', 'off')
+MODES = ('detumble', 'slew', 'off', 'bdot')  # bdot: the rods, no torque (bdot.py)
 
 # A target quaternion whose norm is further than this from 1 is rejected, not normalised:
 # it is most likely not a rotation at all (a typo, a field order mix-up, Euler angles).
@@ -353,8 +353,9 @@ class Mission:
     """A scene's schedule for the controller, as data (same live and offline).
 
     free_time: s of state time (from the first state seen) with no torque: the free phase.
-    detumble_exit_rate: rad/s; in ``detumble``, once |ω| falls below it the controller
-        switches itself to ``slew`` (go to the target and hold). 0 = never.
+    detumble_exit_rate: rad/s; in ``detumble`` (or ``bdot``: the rods' detumbling), once
+        |ω| falls below it the controller switches itself to ``slew`` (go to the target
+        and hold). 0 = never.
     """
 
     def __init__(self, free_time: float = 0.0, detumble_exit_rate: float = 0.0):
@@ -376,7 +377,7 @@ class Mission:
             self.start = t
         if t - self.start < self.free_time:
             return True, None
-        if (controller.mode == 'detumble' and self.detumble_exit_rate > 0.0
+        if (controller.mode in ('detumble', 'bdot') and self.detumble_exit_rate > 0.0
                 and float(np.linalg.norm(angular_velocity)) < self.detumble_exit_rate):
             controller.set_mode('slew')
             return False, 'slew'

@@ -10,7 +10,7 @@ import math
 
 from .physics.jit import jit
 
-MODE_CODES = {'off': 0, 'detumble': 1, 'slew': 2}
+MODE_CODES = {'off': 0, 'detumble': 1, 'slew': 2, 'bdot': 0}  # bdot: no torque (the rods)
 
 
 @jit

@@ -25,6 +25,10 @@ FEEDBACK_TRUTH = 'feedback: truth'
 FEEDBACK_SENSORS = 'feedback: sensors'
 ORBIT = 'orbit.model'
 GRAVITY_GRADIENT = 'environment.gravity_gradient'
+ENVIRONMENT_TORQUE = 'environment.gravity_gradient or magnetorquer.max_dipole'
+MAGNETORQUERS = 'magnetorquer.max_dipole'
+MAGNETOMETER = 'magnetometer.enabled'
+BDOT = 'mode: bdot'
 
 
 class Topic(NamedTuple):
@@ -68,7 +72,8 @@ SIMULATOR = NodeInterfaces('attitude_simulator', 'simulator', (
           'frame_id; inertial velocity [m/s] and LVLH rate [rad/s] resolved in '
           'orbit.frame_id (child_frame_id)', ORBIT),
     Topic('pub', 'environment_torque', 'geometry_msgs/msg/WrenchStamped',
-          'gravity-gradient torque, body frame [N*m]', GRAVITY_GRADIENT),
+          'the environment\'s torque, body frame [N*m]: gravity gradient + the '
+          'magnetorquers\' m x B', ENVIRONMENT_TORQUE),
     Topic('pub', 'odometry', 'nav_msgs/msg/Odometry',
           'pose in frame_id, angular velocity in child_frame_id'),
     Topic('pub', 'angular_velocity', 'geometry_msgs/msg/Vector3Stamped', 'body frame [rad/s]'),
@@ -86,12 +91,18 @@ SIMULATOR = NodeInterfaces('attitude_simulator', 'simulator', (
     Topic('pub', 'gyro', 'sensor_msgs/msg/Imu', 'noisy, biased body rate (no orientation)', GYRO),
     Topic('pub', 'star_tracker', 'geometry_msgs/msg/QuaternionStamped',
           'noisy attitude fixes, none during outages', STAR_TRACKER),
+    Topic('pub', 'magnetic_field', 'sensor_msgs/msg/MagneticField', 'magnetometer: the '
+          'field in the body frame [T] with its bias, noise and the rods\' coupling',
+          MAGNETOMETER),
     Topic('pub', '/clock', 'rosgraph_msgs/msg/Clock', 'sim time', CLOCK),
     Topic('pub', '/diagnostics', 'diagnostic_msgs/msg/DiagnosticArray',
           '1 Hz: integrator and why, real-time factor, drifts, rejected commands, deadlines'),
     Topic('sub', 'torque_command', 'geometry_msgs/msg/Vector3Stamped',
           'body-frame torque [N*m], held for command_timeout'),
     Topic('sub', 'wrench_command', 'geometry_msgs/msg/WrenchStamped', 'its torque part'),
+    Topic('sub', 'dipole_command', 'geometry_msgs/msg/Vector3Stamped', 'the magnetorquers\' '
+          'dipole, body frame [A*m^2], clipped per rod, held for command_timeout',
+          MAGNETORQUERS),
     Topic('sub', 'actuator_command', 'std_msgs/msg/Float64MultiArray',
           'N wheel torques then K gimbal rates (actuators.command: forward)', ACTUATORS),
     Topic('sub', 'robot_joint_commands', 'sensor_msgs/msg/JointState',
@@ -151,6 +162,10 @@ CONTROLLER = NodeInterfaces('attitude_controller', 'controller', (
           FEEDBACK_SENSORS),
     Topic('sub', 'attitude_target', 'geometry_msgs/msg/QuaternionStamped',
           'new slew target (NaN, zero or non-unit rejected)'),
+    Topic('pub', 'dipole_command', 'geometry_msgs/msg/Vector3Stamped', 'B-dot: the '
+          'magnetorquers\' dipole, body frame [A*m^2], at control_rate', BDOT),
+    Topic('sub', 'magnetic_field', 'sensor_msgs/msg/MagneticField', 'B-dot: magnetometer '
+          'readings', BDOT),
 ))
 
 VIEWER = NodeInterfaces('attitude_viewer', 'viewer', (
@@ -186,6 +201,7 @@ RECORDED_BY_DEFAULT = [
     'attitude_target', '/diagnostics', '/tf', 'gyro', 'star_tracker',
     'wheel_states', 'gimbal_states', 'actuator_command',  # scenes with wheels / CMGs
     'orbit', 'environment_torque',  # scenes with an orbit (as offline bags carry them)
+    'magnetic_field', 'dipole_command',  # scenes with a magnetometer, magnetorquers
 ]
 
 # Their types, the nodes' own: the recorder subscribes to them before their publishers exist.

@@ -275,6 +275,13 @@ class BagSink:
                                        p['orbit.frame_id'])
             for topic, name in self.orbit.topic_types():
                 self.writer.add_topic(f'/{topic}', name)
+        self.magnetometer = None  # magnetic_field, for a scene with a magnetometer
+        magnetic = None if config.environment is None else config.environment.magnetic
+        if magnetic is not None and magnetic.magnetometer is not None:
+            from .nodes import magnetic_messages
+            self.magnetometer = magnetic_messages.MagnetometerMessages(
+                magnetic.magnetometer, p['child_frame_id'])
+            self.writer.add_topic(f'/{magnetic_messages.TOPIC}', magnetic_messages.TYPE)
         self.msgs.prepare()  # the encoder's templates now, not in the first sample's time
         self.record = run_record(scene, parameters or scene.simulator, extra)
         self.writer.add_run_configuration(self.record)
@@ -286,10 +293,15 @@ class BagSink:
 
     def __call__(self, block: SampleBlock):
         write = self.writer.write
-        if self.sensors is not None and block.sensors is not None:
+        sensed = self.sensors is not None and block.sensors is not None
+        magnetic = self.magnetometer is not None and block.magnetometer is not None
+        if sensed or magnetic:  # readings at their own instants, merged in time order
             records = [(int(block.t_ns[i]), topic, data) for i in range(len(block))
                        for topic, data in self.msgs.serialized(block, i, int(block.t_ns[i]))]
-            records += self.sensors.serialized(block.sensors)
+            if sensed:
+                records += self.sensors.serialized(block.sensors)
+            if magnetic:
+                records += self.magnetometer.serialized(block.magnetometer)
             if self.orbit is not None:
                 records += [(int(block.t_ns[i]), topic, data) for i in range(len(block))
                             for topic, data in self.orbit.serialized(block, i,

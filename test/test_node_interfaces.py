@@ -88,9 +88,18 @@ def test_running_nodes_match_the_table(ros_process, rclpy_node, namespace, tmp_p
         (ni.VIEWER, ns_truth, (),
          [venv_exe('viewer'), '--ros-args', '-r', f'__ns:={ns_truth}', '-p', 'port:=0']),
         (ni.SIMULATOR, ns_truth + '_orbit',  # an orbit with the gravity gradient
-         (ni.ORBIT, ni.GRAVITY_GRADIENT) + ((ni.SIM_INTERFACES,) if AVAILABLE else ()),
+         (ni.ORBIT, ni.GRAVITY_GRADIENT, ni.ENVIRONMENT_TORQUE)
+         + ((ni.SIM_INTERFACES,) if AVAILABLE else ()),
          [venv_exe('simulator'), '--ros-args', '-r', f'__ns:={ns_truth}_orbit',
           '--params-file', 'config/gravity_gradient.yaml']),
+        (ni.SIMULATOR, ns_truth + '_mag',  # magnetorquers and a magnetometer, no gradient
+         (ni.ORBIT, ni.MAGNETORQUERS, ni.MAGNETOMETER, ni.ENVIRONMENT_TORQUE)
+         + ((ni.SIM_INTERFACES,) if AVAILABLE else ()),
+         [venv_exe('simulator'), '--ros-args', '-r', f'__ns:={ns_truth}_mag',
+          '--params-file', 'config/bdot_detumble.yaml']),
+        (ni.CONTROLLER, ns_truth + '_mag', (ni.FEEDBACK_TRUTH, ni.BDOT),
+         [venv_exe('controller'), '--ros-args', '-r', f'__ns:={ns_truth}_mag',
+          '--params-file', 'config/bdot_detumble.yaml']),
     ]
     import os
     repo = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))

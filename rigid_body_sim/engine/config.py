@@ -10,7 +10,7 @@ from typing import Mapping, Optional
 
 import numpy as np
 
-from .. import control
+from .. import bdot, control
 from ..physics import Dissipation, RigidBody, get_integrator, rotation
 from ..sensors.specs import SensorSettings, check_feedback
 from . import specs
@@ -40,11 +40,14 @@ class ControlSettings:
     detumble_exit_rate: float = 0.0
     feedback: str = 'truth'             # or 'sensors' (the estimator's output)
     estimator_bandwidth: float = 0.5    # rad/s
+    bdot_gain: float = 0.0              # kg·m²/s, mode bdot (``bdot``)
 
     def bandwidth(self) -> float:
         """The law's rate scale (1/s): its fastest gain over the principal moments."""
         cfg = self.config
         i = cfg.body.principal_moments
+        if self.mode == 'bdot':  # the rods' law: ω decays at k/I at most (bdot.py)
+            return self.bdot_gain / float(i.min())
         return float(max(np.max(np.sqrt(cfg.kp_principal / i)), np.max(cfg.kd_principal / i),
                          np.max(cfg.rate_gain_principal / i)))
 
@@ -56,10 +59,13 @@ class ControlSettings:
         except ValueError as exc:
             raise ValueError(f'target_attitude: {exc}') from None
         control.Mission(p['mission.free_time'], p['mission.detumble_exit_rate'])  # validates
-        return cls(control.config_from_parameters(p), p['mode'], target,
+        config = control.config_from_parameters(p)
+        gain = bdot.gain_from_parameters(p, float(config.body.principal_moments.min())) \
+            if p['mode'] == 'bdot' else 0.0
+        return cls(config, p['mode'], target,
                    seconds_to_ns(1.0 / p['control_rate'], 'control period'),
                    p['mission.free_time'], p['mission.detumble_exit_rate'],
-                   p['feedback'], p['estimator.bandwidth'])
+                   p['feedback'], p['estimator.bandwidth'], gain)
 
 
 @dataclass(frozen=True, eq=False)
@@ -134,6 +140,8 @@ class EngineConfig:
         env = self.environment
         if env is not None and env.gravity_gradient:
             rate = max(rate, env.gravity_gradient_rate(self.body.principal_moments))
+        if env is not None and env.magnetorquers:
+            rate = max(rate, env.magnetic.torque_rate(self.body.principal_moments))
         return rate
 
     def replace(self, **changes) -> 'EngineConfig':
@@ -161,12 +169,14 @@ class EngineConfig:
         sensors = SensorSettings.from_parameters(p)
         environment = environment_from_parameters(p)
         q, w = initial_state_in_world(environment, p['initial_attitude_frame'], q, w)
-        if environment is not None and environment.gravity_gradient:
+        if environment is not None and environment.terms:
             if p['integrator'] != specs.AUTO and \
                     not get_integrator(p['integrator']).environment:
+                keys = ' and '.join(k for k, on in (
+                    ('environment.gravity_gradient', environment.gravity_gradient),
+                    ('magnetorquer.max_dipole', environment.magnetorquers)) if on)
                 raise ValueError(f'integrator: {p["integrator"]} does not integrate '
-                                 'environment.gravity_gradient; use auto, a splitting, rk4, '
-                                 'euler or dop853')
+                                 f'{keys}; use auto, a splitting, rk4, euler or dop853')
         if ctl is not None:
             check_feedback(sensors, ctl.feedback, ctl.estimator_bandwidth)
         config = cls(body, dissipation, q, w, integrator=p['integrator'], step=p['step'],

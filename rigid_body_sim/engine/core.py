@@ -27,6 +27,7 @@ from ..physics.auto import select, selecting
 from ..physics.orbit import OrbitError
 from . import closed_loop, health, sensing
 from .actuators import Actuators
+from .magnetic import Magnetics
 from .config import NS, EngineConfig
 from .samples import BlockBuilder, SampleBlock
 from .sources import NEVER, CommandHold, ControlLaw
@@ -68,6 +69,12 @@ class Engine:
         self.command = CommandHold(config.max_torque, config.command_timeout_ns)
         self.sources = [self.command]
         self._law = self._sensors = None
+        env = config.environment
+        # the rods' held dipole, the magnetometer, the in-process B-dot (engine.magnetic)
+        self.magnetics = None if env is None or env.magnetic is None else Magnetics(
+            env.magnetic, config.body, config.command_timeout_ns, config.control)
+        if self.magnetics is not None:
+            self.sources.extend(self.magnetics.sources)
         if config.sensors is not None:  # read before the law at a shared instant
             self._sensors = sensing.SensorSuite(config.sensors, sensing.estimator_bandwidth(
                 config.control))
@@ -77,8 +84,12 @@ class Engine:
                 else None
             self._law = ControlLaw(config.control, clip=config.max_torque, observer=observer)
             self.sources.append(self._law)
+            if self.magnetics is not None and self.magnetics.law is not None:
+                # B-dot commands while the law's mode is bdot (its mission may leave it)
+                self.magnetics.law.active = lambda: self._law.controller.mode == 'bdot'
         self._builder = BlockBuilder(config.body, block_size)
-        self._compiled_samples = compiled_loop and self._sensors is None
+        self._compiled_samples = compiled_loop and self._sensors is None and \
+            self.magnetics is None
         self.steps = 0
         self.evaluations = 0   # closed-form evaluations (exact, torque-free)
         self._integ, self._retired_nfev = None, 0  # evaluations of methods replaced since
@@ -125,7 +136,7 @@ class Engine:
         """Whether the environment's orbit is re-anchored at each interval (SGP4's
         osculating conic, ``Sgp4Orbit.elements``), so steps run interval by interval."""
         env = self.config.environment
-        return env is not None and env.gravity_gradient and env.orbit.anchored
+        return env is not None and bool(env.terms) and env.orbit.anchored
 
     def _anchor_orbit(self, t_ns: int, t_end: int):
         """The osculating conic at the interval's midpoint (its error grows as the square of
@@ -341,6 +352,8 @@ class Engine:
             p = config.sample_period_ns
             self._next_sample = (self.t_ns // p + 1) * p
         self.command.set_limits(config.max_torque, config.command_timeout_ns, self.t_ns)
+        if self.magnetics is not None and self.magnetics.hold is not None:
+            self.magnetics.hold.set_limits(None, config.command_timeout_ns, self.t_ns)
         for s in self.sources:
             if isinstance(s, ControlLaw):
                 s.clip = config.max_torque
@@ -356,6 +369,13 @@ class Engine:
         if self.actuators is None:
             raise ValueError('the scene has no actuators (actuators.wheels / actuators.cmgs)')
         self.actuators.command(values)
+
+    def apply_dipole_command(self, dipole_body):
+        """Hold a commanded dipole of the magnetorquers (body frame, A·m², finite) from now
+        for the timeout, clipped per rod. ValueError if the scene has no rods."""
+        if self.magnetics is None or self.magnetics.hold is None:
+            raise ValueError('the scene has no magnetorquers (magnetorquer.max_dipole)')
+        self.magnetics.hold.set(dipole_body, self.t_ns)
 
     def apply_command(self, torque_body):
         """Hold a commanded body-frame torque (N·m, finite) from now for the timeout."""
@@ -384,7 +404,8 @@ class Engine:
     # ------------------------------------------------------------------ stepping
     def _free_exact(self) -> bool:
         return (self.method == 'exact' and self._tau_p is None
-                and not self.dynamics.dissipation.active and not self.dynamics.gravity_gradient)
+                and not self.dynamics.dissipation.active
+                and not self.dynamics.environment_active)
 
     def _anchored(self):
         if self._anchor is None:
@@ -405,6 +426,10 @@ class Engine:
         h = span / (n * NS)
         if self.orbit_anchored:
             self._anchor_orbit(self.t_ns, t_end)
+        if self.magnetics is not None and self.magnetics.anchor(
+                self.dynamics.environment, self.t_ns / NS, t_end / NS, self._aligned) \
+                and self._integ.adaptive:
+            self._integ.reset()  # its step in progress saw the previous dipole or field
         self._q, self._m = self._integ.run(self._q, self._m, h, n, self._tau_p, self.t_ns / NS)
         self.steps += n
 
@@ -491,16 +516,21 @@ class Engine:
                     self.fault = f'state became non-finite at t = {self.t:.9g} s'
                     raise IntegrationError(self.method, self.step_max, self.t, self.fault)
                 b.add(t_event, self._q, self._m, self._tau_body, None if self.actuators is None
-                      else self.actuators.row(self._m, self.dynamics.moments))
+                      else self.actuators.row(self._m, self.dynamics.moments),
+                      None if self.magnetics is None or self.magnetics.hold is None
+                      else self.magnetics.dipole())
                 if t_event == self._next_sample:
                     self._next_sample += p
             if t_event >= end:
                 self.finished = True
             if deadline is not None and time.monotonic() > deadline:
                 break
+        block = b.block()
         if self._sensors is not None:
-            return replace(b.block(), sensors=self._sensors.drain())
-        return b.block()
+            block = replace(block, sensors=self._sensors.drain())
+        if self.magnetics is not None and self.magnetics.meter is not None:
+            block = replace(block, magnetometer=self.magnetics.drain())
+        return block
 
     def run(self, until_ns: Optional[int] = None) -> Iterator[SampleBlock]:
         """Blocks of samples up to ``until_ns`` (default: the end of the run), as a stream:

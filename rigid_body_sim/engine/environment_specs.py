@@ -14,6 +14,7 @@ from scipy.spatial.transform import Rotation
 from ..param_spec import ParamSpec
 from ..physics import orbit as orbit_models
 from ..physics.orbit import frames, kernel as orbit_kernel
+from .magnetic_specs import MAGNETIC, MagneticSettings, magnetic_from_parameters
 
 ENVIRONMENT = (
     ParamSpec('orbit.model', 'none', 'the orbit: none (no orbit, no environment), kepler '
@@ -48,7 +49,7 @@ ENVIRONMENT = (
               note='lvlh needs orbit.model'),
     ParamSpec('environment.gravity_gradient', False, 'the gravity-gradient torque 3 mu/r^3 '
               'c x (I c) along the orbit (needs orbit.model)', kind='bool', read_only=True),
-)
+) + MAGNETIC  # magnetic: the field, the magnetorquers, the magnetometer (magnetic_specs)
 
 
 @dataclass(frozen=True, eq=False)
@@ -57,19 +58,28 @@ class EnvironmentSettings:
     orbit: Optional[orbit_models.Orbit] = None
     gravity_gradient: bool = False
     epoch: Optional[datetime] = None
+    magnetic: Optional[MagneticSettings] = None  # the field, rods, magnetometer (or None)
+
+    @property
+    def magnetorquers(self) -> bool:
+        return self.magnetic is not None and self.magnetic.magnetorquers
 
     @property
     def terms(self):
         """Names of the environment's torques in the model (for ``auto``'s reason)."""
-        return ('gravity gradient',) if self.gravity_gradient else ()
+        return tuple(name for name, on in (('gravity gradient', self.gravity_gradient),
+                                           ('magnetorquers', self.magnetorquers)) if on)
 
     def elements(self, t: float):
         """The kernels' element array (``physics.orbit.kernel``) near sim time t with the
-        environment's torques switched on, None if none acts (the free body)."""
-        if not self.gravity_gradient:
+        environment's torques switched on, None if none acts (the free body). The rods'
+        dipole is zero here: the engine writes the held one (``engine.magnetic``)."""
+        if not self.terms:
             return None
         elements = self.orbit.elements(t)
-        elements[orbit_kernel.ON] = 1.0
+        elements[orbit_kernel.ON] = 1.0 if self.gravity_gradient else 0.0
+        if self.magnetorquers:
+            self.magnetic.field.fill(elements, t, t)
         return elements
 
     def gravity_gradient_rate(self, moments) -> float:
@@ -121,6 +131,7 @@ def environment_from_parameters(p) -> Optional[EnvironmentSettings]:
         if gg:
             raise ValueError('environment.gravity_gradient: needs an orbit (orbit.model '
                              'kepler, j2 or sgp4)')
+        magnetic_from_parameters(p, None, epoch)  # refuses a field without an orbit
         return None
     if model == 'sgp4':
         lines = [line for line in p['orbit.tle'] if line.strip()]
@@ -130,7 +141,8 @@ def environment_from_parameters(p) -> Optional[EnvironmentSettings]:
             orbit = orbit_models.from_tle(lines, epoch)
         except ValueError as exc:
             raise ValueError(f'orbit.tle: {exc}') from None
-        return EnvironmentSettings(orbit, gg, epoch)
+        return EnvironmentSettings(orbit, gg, epoch,
+                                   magnetic_from_parameters(p, orbit, epoch or orbit.epoch))
     a, e = p['orbit.semi_major_axis'], p['orbit.eccentricity']
     if a * (1.0 - e) <= orbit_models.RADIUS:
         raise ValueError(f'orbit.semi_major_axis: the perigee a(1 - e) = '
@@ -139,4 +151,4 @@ def environment_from_parameters(p) -> Optional[EnvironmentSettings]:
     cls = orbit_models.J2Orbit if model == 'j2' else orbit_models.KeplerOrbit
     orbit = cls(a, e, p['orbit.inclination'], p['orbit.raan'],
                 p['orbit.argument_of_periapsis'], p['orbit.true_anomaly'])
-    return EnvironmentSettings(orbit, gg, epoch)
+    return EnvironmentSettings(orbit, gg, epoch, magnetic_from_parameters(p, orbit, epoch))

@@ -39,6 +39,9 @@ class SampleBlock:
     # gimbal angles, gimbal rates, singularity measure, |h_A|); None without actuators
     actuators: Optional[np.ndarray] = None
     sensors: Optional[object] = None  # engine.sensing.SensorReadings taken meanwhile
+    magnetometer: Optional[object] = None  # engine.magnetic.MagnetometerReadings, likewise
+    # with magnetorquers: the rods' held dipole at each sample (n, 3), body frame, A·m²
+    dipole: Optional[np.ndarray] = None
 
     def __len__(self):
         return len(self.t_ns)
@@ -164,13 +167,14 @@ class BlockBuilder:
         self._m = np.empty((capacity, 3))
         self._tau = np.empty((capacity, 3))
         self._extra = None  # actuator rows, allocated on the first one
+        self._dipole = None  # the rods' dipole per row, allocated on the first one
         self.n = 0
 
     @property
     def full(self) -> bool:
         return self.n >= self.capacity
 
-    def add(self, t_ns, q, m, torque_body, extra=None):
+    def add(self, t_ns, q, m, torque_body, extra=None, dipole=None):
         i = self.n
         self._t[i], self._q[i], self._m[i] = t_ns, q, m
         self._tau[i] = 0.0 if torque_body is None else torque_body
@@ -178,6 +182,10 @@ class BlockBuilder:
             if self._extra is None or self._extra.shape[1] != len(extra):
                 self._extra = np.zeros((self.capacity, len(extra)))
             self._extra[i] = extra
+        if dipole is not None:
+            if self._dipole is None:
+                self._dipole = np.zeros((self.capacity, 3))
+            self._dipole[i] = dipole
         self.n += 1
 
     def add_many(self, t_ns, q, m):
@@ -196,6 +204,7 @@ class BlockBuilder:
         n = self.n
         out = SampleBlock(self._t[:n].copy(), self._q[:n].copy(), self._m[:n].copy(),
                           self._tau[:n].copy(), self.body,
-                          None if self._extra is None else self._extra[:n].copy())
+                          None if self._extra is None else self._extra[:n].copy(),
+                          dipole=None if self._dipole is None else self._dipole[:n].copy())
         self.n = 0
         return out

@@ -116,7 +116,9 @@ SIMULATOR_DECLARED = SIMULATOR + SCENE_RECORD  # every parameter the simulator n
 D = control.PARAMETER_DEFAULTS
 CONTROLLER = (
     ParamSpec('mode', D['mode'], 'detumble: tau = -K_w w; slew: go to the target and hold; '
-              'off: zero torque', kind='string', choices=control.MODES, false_is='off',
+              'off: zero torque; bdot: the magnetorquers\' dipole m = -k dB/dt / |B|^2 from '
+              'magnetic_field, on dipole_command (bdot.*)', kind='string',
+              choices=control.MODES, false_is='off',
               note='switchable at runtime'),
     ParamSpec('inertia', D['inertia'], 'inertia of the controlled body: 3 principal moments or '
               '9 values row-major, body frame (same format as the simulator\'s)',
@@ -158,9 +160,20 @@ CONTROLLER = (
     ParamSpec('mission.free_time', D['mission.free_time'], 'free phase: no torque for this '
               'long after the first state received (state time)', kind='float', unit='s',
               low=0.0, high=1e9),
-    ParamSpec('mission.detumble_exit_rate', D['mission.detumble_exit_rate'], 'in detumble, '
-              'switch to slew once |w| falls below this; 0 = never', kind='float',
+    ParamSpec('mission.detumble_exit_rate', D['mission.detumble_exit_rate'], 'in detumble '
+              '(or bdot), switch to slew once |w| falls below this; 0 = never', kind='float',
               unit='rad/s', low=0.0, high=1e6),
+    ParamSpec('bdot.gain', 0.0, 'B-dot gain k (m = -k dB/dt / |B|^2); 0 = Avanzini-Giulietti '
+              '2n(1 + sin xi_m) I_min from bdot.orbit_rate and bdot.magnetic_inclination',
+              kind='float', unit='kg*m^2/s', low=0.0, high=1e9),
+    ParamSpec('bdot.orbit_rate', 0.0, 'orbit mean motion n for the B-dot gain rule',
+              kind='float', unit='rad/s', low=0.0, high=1.0),
+    ParamSpec('bdot.magnetic_inclination', 1.5707963267948966, 'inclination xi_m of the orbit '
+              'to the geomagnetic equator, for the B-dot gain rule', kind='float', unit='rad',
+              low=0.0, high=3.141592653589793),
+    ParamSpec('bdot.max_dipole', [0.0, 0.0, 0.0], 'the rods\' largest dipoles the B-dot '
+              'command is clipped to (the simulator clips to its own too); all zero = no clip',
+              kind='float_array', unit='A*m^2', sizes=(3,), low=0.0, high=1e6),
     ParamSpec('child_frame_id', 'base_link', 'body frame: frame_id of torque_command',
               kind='string'),
     ParamSpec('qos', 'reliable', 'QoS of state subscriptions and torque_command',

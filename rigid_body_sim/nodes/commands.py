@@ -40,11 +40,14 @@ class Rejections:
 
 
 class CommandFilter(Rejections):
-    """Validates commands against the simulator's parameters ``params`` (a live dict)."""
+    """Validates commands against the simulator's parameters ``params`` (a live dict).
+    ``what``: the command's quantity (torque; dipole on ``dipole_command``, counted as
+    ``dipole_commands_rejected.<reason>``)."""
 
-    def __init__(self, node, params):
-        super().__init__(node, REJECT_REASONS, 'commands_rejected', 'torque not applied')
-        self.params = params
+    def __init__(self, node, params, what: str = 'torque'):
+        super().__init__(node, REJECT_REASONS, 'commands_rejected' if what == 'torque' else
+                         f'{what}_commands_rejected', f'{what} not applied')
+        self.params, self.what = params, what
 
     def accept(self, header, vector, source: str, now_stamp_ns) -> bool:
         """True if the command may be applied; ``now_stamp_ns``: this node's current stamp,
@@ -53,12 +56,13 @@ class CommandFilter(Rejections):
         p = self.params
         x, y, z = vector.x, vector.y, vector.z
         if not (math.isfinite(x) and math.isfinite(y) and math.isfinite(z)):
-            return self.reject('non_finite', source, f'torque ({x}, {y}, {z}) is not finite')
+            return self.reject('non_finite', source, f'{self.what} ({x}, {y}, {z}) is not '
+                               'finite')
         frame = header.frame_id.lstrip('/')
         if frame not in ('', p['child_frame_id']):
-            return self.reject('wrong_frame', source, f'frame_id {header.frame_id!r}: torque '
-                                f'must be in the body frame {p["child_frame_id"]!r} (or frame_id '
-                                'empty)')
+            return self.reject('wrong_frame', source, f'frame_id {header.frame_id!r}: '
+                               f'{self.what} must be in the body frame '
+                               f'{p["child_frame_id"]!r} (or frame_id empty)')
         stamp = header.stamp.sec + 1e-9 * header.stamp.nanosec
         if stamp != 0.0 and now_stamp_ns is not None:
             now = now_stamp_ns * 1e-9

@@ -52,6 +52,7 @@ from sensor_msgs.msg import Imu
 from .. import control
 from ..engine import ControlLaw, ControlSettings, specs
 from ..sensors.estimator import AttitudeEstimator
+from .bdot_commands import BdotCommands
 from .common import (changed_values, coerce_parameters, declare_parameters, diagnostic_status,
                      frame_id_problem, qos_profile, stamp_to_seconds, validate_update)
 from .process import run_node
@@ -141,6 +142,8 @@ class Controller(Node):
             self.create_subscription(Vector3Stamped, 'angular_velocity',
                                      self._on_angular_velocity, qos)
         self.create_subscription(QuaternionStamped, 'attitude_target', self._on_target, qos)
+        self._bdot = None if self._p['mode'] != 'bdot' else BdotCommands(  # the rods' law
+            self, self._p, float(self._ctl.config.body.principal_moments.min()), qos)
         self._timer = None if self._p['lockstep'] else \
             self.create_timer(1.0 / self._p['control_rate'], self._tick)
         # Load the law's kernel now, before the simulator's t = 0 (it waits for us), not
@@ -275,7 +278,7 @@ class Controller(Node):
             else:
                 self._stale_reason = ''
         if self._stale_reason:
-            if self._ctl.mode != 'off':
+            if self._ctl.mode not in ('off', 'bdot'):  # bdot needs the magnetometer only
                 self._warn('no_state' if self._q is None or self._w is None else 'stale',
                            f'{self._stale_reason}: commanding zero torque')
         self._command(self._w_stamp, self.get_clock().now().to_msg())
@@ -303,6 +306,8 @@ class Controller(Node):
         msg.vector.x, msg.vector.y, msg.vector.z = torque
         self._pub.publish(msg)
         self._published += 1
+        if self._bdot is not None and self._ctl.mode == 'bdot':
+            self._bdot.publish(stamp)
 
     # ------------------------------------------------------------------ parameters
     def _validate_parameters(self, params) -> SetParametersResult:
@@ -369,8 +374,10 @@ class Controller(Node):
             values.update(gyro_readings=self._estimator.readings,
                           star_tracker_fixes=self._estimator.fixes,
                           gyro_bias_estimate=' '.join(f'{x:.6g}' for x in self._estimator.bias))
+        if self._bdot is not None:
+            values.update(self._bdot.values())
         if self._stale_reason:
-            level = 'OK' if self._ctl.mode == 'off' else 'WARN'
+            level = 'OK' if self._ctl.mode in ('off', 'bdot') else 'WARN'
             message = f'{self._ctl.mode}: zero torque, {self._stale_reason}'
         elif self._ctl.mode == 'off':
             level, message = 'OK', 'off: zero torque'

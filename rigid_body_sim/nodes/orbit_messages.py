@@ -10,7 +10,8 @@ scenes with an ``orbit.model``; nothing is built without one).
 * ``/tf``: ``frame_id`` → orbit frame, the rotation only (the body's own transform has no
   translation either, so both frames share the origin in a 3D view).
 * ``environment_torque`` (geometry_msgs/WrenchStamped, the body frame ``child_frame_id``):
-  the gravity-gradient torque at the sample (N·m), with the term on.
+  the environment's torque at the sample (N·m): the gravity gradient's and the
+  magnetorquers' m × B (the dipole held at the sample), each with its term on.
 """
 import numpy as np
 from builtin_interfaces.msg import Time
@@ -41,7 +42,8 @@ class OrbitMessages:
         self.stamp = Time()
         self.odometry = Odometry()
         self.transform = TransformStamped()
-        self.torque = WrenchStamped() if config.environment.gravity_gradient else None
+        env = config.environment
+        self.torque = WrenchStamped() if env.gravity_gradient or env.magnetorquers else None
         # the whole mass distribution (wheel rotors included), principal frame
         self._inertia = mass_inertia(config.actuators, config.body)
         for msg in (self.odometry, self.transform) + ((self.torque,) if self.torque else ()):
@@ -78,8 +80,15 @@ class OrbitMessages:
         twist.angular.x, twist.angular.y, twist.angular.z = \
             (axes.T @ frames.lvlh_rate(r, v)).tolist()
         if self.torque is not None:
-            tau = self.config.body.to_body(gravity_gradient(
-                self.config.environment.orbit.mu, self._inertia, block.q[i], r))
+            env = self.config.environment
+            tau = np.zeros(3)
+            if env.gravity_gradient:
+                tau += self.config.body.to_body(gravity_gradient(
+                    env.orbit.mu, self._inertia, block.q[i], r))
+            if env.magnetorquers and block.dipole is not None:
+                b = rotation.rotate(rotation.conjugate(block.attitude[i]),
+                                    env.magnetic.field.at(t))
+                tau += np.cross(block.dipole[i], b)
             w = self.torque.wrench.torque
             w.x, w.y, w.z = (float(c) for c in tau)
 

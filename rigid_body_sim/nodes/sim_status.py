@@ -42,8 +42,17 @@ def summary(sim) -> str:
 def _craft_counts(craft) -> dict:
     """A spacecraft's command counts, its joint commands', and the messages built per topic
     (only topics with subscribers are built)."""
+    hold = craft.engine.magnetics.hold if craft.dipoles is not None else None
     return {**craft.commands.counts(),
             **(craft.joints.counts() if craft.joints is not None else {}),
+            **({'dipole_commands_accepted': hold.accepted,
+                'dipole_commands_saturated': hold.saturated, **craft.dipoles.counts(),
+                'magnetorquer_dipole': ' '.join(f'{v:.6g}' for v in
+                                                craft.engine.magnetics.dipole()),
+                'magnetorquer_torque': ' '.join(f'{v:.6g}' for v in
+                                                craft.engine.magnetics.torque(
+                                                    craft.engine.t, craft.engine.attitude))}
+               if hold is not None else {}),
             **{f'messages_built.{k}': n for k, n in craft.msgs.built().items()}}
 
 

@@ -412,17 +412,21 @@ class Simulator(Control, Fleet, Holds, Node):
         return bool(self._crafts) and all(c.engine.finished for c in self._crafts.values())
 
     # ------------------------------------------------------------------ inputs
-    def _on_command(self, craft, header, vector, source):
+    def _on_command(self, craft, header, vector, source, dipole=False):
+        """A torque command, or with ``dipole`` the magnetorquers' (dipole_command): the
+        same checks, counted apart; a dipole is held outside lockstep's handshake."""
         engine = craft.engine
         if self._fault or engine.finished:
             return
+        check = craft.dipoles if dipole else craft.commands
         now = self.stamp_ns(engine.t_ns) if self._started else None  # None: before t = 0
-        if not craft.commands.accept(header, vector, source, now):
+        if not check.accept(header, vector, source, now):
             return
-        if self._lockstep:
+        if self._lockstep and not dipole:
             return self._on_lockstep_command(header, vector, source)
         self._catch_up()  # what was due before the arrival runs with the previous command
-        engine.apply_command((vector.x, vector.y, vector.z))
+        apply = engine.apply_dipole_command if dipole else engine.apply_command
+        apply((vector.x, vector.y, vector.z))
 
     def _actuators_ready(self, craft) -> bool:
         """Before a joint command: False if the run stopped, else what was due ran."""

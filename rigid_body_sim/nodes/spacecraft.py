@@ -14,6 +14,7 @@ under ``<name>/`` and takes commands there. /tf and /clock are the node's, share
 import time
 
 from geometry_msgs.msg import Vector3Stamped, WrenchStamped
+from sensor_msgs.msg import MagneticField
 from std_msgs.msg import Float64MultiArray
 
 from ..engine import Engine, EngineConfig, lockstep
@@ -21,6 +22,7 @@ from .commands import CommandFilter
 from .common import qos_profile
 from .orbit_messages import OrbitPublishers
 from .joint_commands import JointCommands
+from .magnetic_messages import TOPIC as MAGNETOMETER_TOPIC, MagnetometerMessages
 from .sensor_messages import SensorMessages
 from .state_messages import StateMessages
 
@@ -84,6 +86,20 @@ class Spacecraft:
             sub(WrenchStamped, self.prefix + 'wrench_command', lambda m: on_command(
                 self, m.header, m.wrench.torque, self.prefix + 'wrench_command'), qos)
         ] if name else []
+        # magnetorquers: dipole_command, checked by the torque commands' rules; the
+        # magnetometer's readings on magnetic_field (magnetic_messages)
+        self.dipoles, self.mag_msgs, self.mag_pub = None, None, None
+        magnetics = self.engine.magnetics
+        if magnetics is not None and magnetics.hold is not None:
+            self.dipoles = CommandFilter(node, values, what='dipole')
+            self.command_subs.append(sub(
+                Vector3Stamped, self.prefix + 'dipole_command', lambda m: on_command(
+                    self, m.header, m.vector, self.prefix + 'dipole_command', dipole=True),
+                qos))
+        if magnetics is not None and magnetics.meter is not None:
+            self.mag_msgs = MagnetometerMessages(magnetics.meter.settings,
+                                                 values['child_frame_id'])
+            self.mag_pub = pub(MagneticField, self.prefix + MAGNETOMETER_TOPIC, state_qos)
         self.actuator_warn = 0.0
         self.joints = None
         if actuators is not None:  # ros2_control forward-command convention
@@ -105,7 +121,8 @@ class Spacecraft:
         return self.p['frame_id'], self.p['child_frame_id']
 
     def publishers(self):
-        return [p for p, _ in self.pubs] + list(self.sensor_pubs.values())
+        return [p for p, _ in self.pubs] + list(self.sensor_pubs.values()) + \
+            ([self.mag_pub] if self.mag_pub is not None else [])
 
     def refresh(self):
         """Only topics with subscribers are built and published (a late one joins here)."""
@@ -117,10 +134,14 @@ class Spacecraft:
         self.engine.reconfigure(check_parameters(values, self.controller))
         old, self.p = self.p, values
         self.commands.params = values
+        if self.dipoles is not None:
+            self.dipoles.params = values
         if (old['frame_id'], old['child_frame_id']) != self.frames:
             self.msgs.set_frames(*self.frames)
             if self.sensor_msgs is not None:
                 self.sensor_msgs.set_frames(*self.frames)
+            if self.mag_msgs is not None:
+                self.mag_msgs.set_frame(self.frames[1])
 
     def publish_sensors(self, block, stamp_ns):
         """The block's sensor readings, at their own instants, stamped by ``stamp_ns``."""
@@ -129,13 +150,17 @@ class Spacecraft:
                              if p.get_subscription_count() > 0)
             for _, name, msg in self.sensor_msgs.messages(block.sensors, stamp_ns, only):
                 self.sensor_pubs[name].publish(msg)
+        if block.magnetometer is not None and self.mag_pub.get_subscription_count() > 0:
+            for _, msg in self.mag_msgs.messages(block.magnetometer, stamp_ns):
+                self.mag_pub.publish(msg)
 
     def destroy(self, node):
         """Take its publishers and subscriptions off the graph (the shared /tf stays)."""
         for p, name in self.pubs:
             if name != '/tf':
                 node.destroy_publisher(p)
-        for p in self.sensor_pubs.values():
+        for p in list(self.sensor_pubs.values()) + \
+                ([self.mag_pub] if self.mag_pub is not None else []):
             node.destroy_publisher(p)
         for s in self.command_subs:
             node.destroy_subscription(s)

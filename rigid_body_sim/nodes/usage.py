@@ -67,9 +67,11 @@ EXECUTABLES = {
          'pub /clock (rosgraph_msgs/Clock) with publish_clock: true',
          'pub gyro (Imu), star_tracker (QuaternionStamped) with sensors.*.enabled',
          'pub wheel_states, gimbal_states (sensor_msgs/JointState) with actuators',
+         'pub magnetic_field (sensor_msgs/MagneticField) with magnetometer.enabled',
          'sub torque_command (geometry_msgs/Vector3Stamped, body frame, N*m), '
          'wrench_command (WrenchStamped)',
-         'sub actuator_command (std_msgs/Float64MultiArray) with actuators'),
+         'sub actuator_command (std_msgs/Float64MultiArray) with actuators',
+         'sub dipole_command (Vector3Stamped, body frame, A*m^2) with magnetorquers'),
         ('~/reset (std_srvs/Trigger): back to the initial state',
          '~/get_simulator_features, ~/get_simulation_state, ~/set_simulation_state, '
          '~/step_simulation, ~/simulate_steps (action), ~/reset_simulation, '
@@ -85,7 +87,8 @@ EXECUTABLES = {
         ('sub attitude (QuaternionStamped), angular_velocity (Vector3Stamped); with '
          'feedback: sensors, gyro (Imu) and star_tracker (QuaternionStamped) instead',
          'sub attitude_target (QuaternionStamped): replaces target_attitude',
-         'pub torque_command (geometry_msgs/Vector3Stamped, body frame, N*m); /diagnostics'),
+         'pub torque_command (geometry_msgs/Vector3Stamped, body frame, N*m); /diagnostics',
+         'mode bdot: sub magnetic_field (MagneticField), pub dipole_command (A*m^2)'),
         (),
         '--ros-args --params-file {config}/slew.yaml'),
     'recorder': Executable(

@@ -14,6 +14,7 @@ from typing import Optional
 import numpy as np
 
 from . import rotation
+from . import dynamics_kernel
 from .orbit import kernel as orbit_kernel
 
 DISSIPATION_MODELS = ('none', 'double_bracket', 'viscous')
@@ -77,14 +78,33 @@ class Dynamics:
         """Whether the gravity-gradient torque acts (an orbit with the term switched on)."""
         return self.environment is not None and bool(self.environment[orbit_kernel.ON] != 0)
 
+    @property
+    def magnetorquers(self) -> bool:
+        """Whether the magnetorquers' m × B acts (``environment.magnetic_kernel``)."""
+        return self.environment is not None and \
+            bool(self.environment[orbit_kernel.MAG_MODEL] != 0)
+
+    @property
+    def environment_active(self) -> bool:
+        """Whether any environment torque is in the model (the methods that do not
+        integrate them refuse, and the free body's closed form does not apply)."""
+        return self.gravity_gradient or self.magnetorquers
+
+    @property
+    def environment_terms(self) -> str:
+        """The scene keys of the environment's torques in the model, for messages."""
+        return ' and '.join(k for k, on in (('environment.gravity_gradient',
+                                             self.gravity_gradient),
+                                            ('magnetorquer.max_dipole', self.magnetorquers))
+                            if on)
+
     def environment_torque(self, q, t: float):
         """The environment's torque at attitude q (principal → inertial) and time t,
         principal frame, N·m (zeros for the free body)."""
-        out = np.zeros(3)
-        if self.environment is not None:
-            orbit_kernel.gravity_gradient(np.asarray(q, float), float(t), self.environment,
-                                          self.moments, out)
-        return out
+        if self.environment is None:
+            return np.zeros(3)
+        return np.array(dynamics_kernel.environment_torque(
+            np.asarray(q, float), float(t), self.environment, self.moments))
 
     def angular_velocity(self, m):
         """Ω = m / I, principal frame, rad/s."""

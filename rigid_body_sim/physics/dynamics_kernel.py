@@ -21,6 +21,7 @@ is the double bracket by its exact flow (``splitting2_lstable``).
 import math
 
 from .jit import depends_on, inline, jit
+from .environment import magnetic_kernel
 from .orbit import kernel as orbit_kernel
 
 MODEL_CODES = {'none': 0, 'double_bracket': 1, 'viscous': 2}
@@ -217,19 +218,56 @@ def _rates(q, m, moments, tau, model, coefficient, dq, dm):
 
 
 @jit
+def environment_torque(q, t, env, moments):
+    """The environment's torque at time t (principal frame, N·m) as three floats: each term
+    the scene names (its slot in ``env`` non-zero) adds its own: the gravity gradient
+    (``orbit.kernel``), the magnetorquers' m × B (``environment.magnetic_kernel``)."""
+    tx = 0.0
+    ty = 0.0
+    tz = 0.0
+    if env[orbit_kernel.ON] != 0.0:
+        tx, ty, tz = orbit_kernel.gravity_gradient_torque(q, t, env, moments)
+    if env[orbit_kernel.MAG_MODEL] != 0.0:
+        mx, my, mz = magnetic_kernel.magnetorquer_torque(q, t, env)
+        tx += mx
+        ty += my
+        tz += mz
+    return tx, ty, tz
+
+
+@jit
+def environment_torque_full(q, t, env, inertia):
+    """The same for a full inertia matrix (3, 3) in the frame of q (the gyrostat's)."""
+    tx = 0.0
+    ty = 0.0
+    tz = 0.0
+    if env[orbit_kernel.ON] != 0.0:
+        tx, ty, tz = orbit_kernel.gravity_gradient_torque_full(q, t, env, inertia)
+    if env[orbit_kernel.MAG_MODEL] != 0.0:
+        mx, my, mz = magnetic_kernel.magnetorquer_torque(q, t, env)
+        tx += mx
+        ty += my
+        tz += mz
+    return tx, ty, tz
+
+
+@jit
 def _environment(q, t, env, moments, dm):
-    """dm += the environment's torque at time t (the gravity gradient, ``orbit.kernel``).
+    """dm += the environment's torque at time t (:func:`environment_torque`).
     The loops call it after ``_rates`` under ``if env is not None``: for the free body
     (env None) numba prunes the branch, so their code is what it was before the orbit
     existed (a parameter of ``_rates`` instead kept LLVM from inlining it: rk4's step
     3-4× slower with the term off)."""
-    gx, gy, gz = orbit_kernel.gravity_gradient_torque(q, t, env, moments)
+    gx, gy, gz = environment_torque(q, t, env, moments)
     dm[0] += gx
     dm[1] += gy
     dm[2] += gz
 
 
-_environment = depends_on(_environment, orbit_kernel)  # it embeds the orbit's kernel
+# they embed the terms' kernels
+environment_torque = depends_on(environment_torque, orbit_kernel, magnetic_kernel)
+environment_torque_full = depends_on(environment_torque_full, orbit_kernel, magnetic_kernel)
+_environment = depends_on(_environment, orbit_kernel, magnetic_kernel)
 
 
 @jit

@@ -109,3 +109,81 @@ def field(model, position, epoch, t=0.0):
     else:
         b = igrf_field_ecef(ecef, when)
     return earth.ecef_to_eci(b, angle)
+
+
+class FieldAlongOrbit:
+    """The field (T, inertial frame) along ``orbit`` by ``model``, t s after ``epoch``.
+
+    The orbit does not depend on the attitude, so B_world is a function of time alone.
+    ``dipole``: the closed form, the Earth's moment taken at the epoch (its secular change,
+    ~1e-4 a year, is far below a run) and turning at the sidereal rate from GMST at the
+    epoch; the compiled loops evaluate the same closed form (``magnetic_kernel``).
+    ``igrf``: ppigrf's values at the epoch's coefficients on a grid every ``spacing`` s,
+    computed a chunk at a time as the run reaches it, and linear between them;
+    :meth:`line` gives the loops that line for an engine interval. Its error against
+    ppigrf at the same instants is Δ²/8·|B̈| (B turns at about twice the orbital rate):
+    measured in test_magnetic.py.
+    """
+    CHUNK = 512  # grid points per ppigrf call
+
+    def __init__(self, model, orbit, epoch, spacing=5.0):
+        if model not in MODELS:
+            raise ValueError(f'environment.magnetic_field: {model!r} is not one of {MODELS}')
+        self.model, self.orbit, self.spacing = model, orbit, float(spacing)
+        self.epoch = check_epoch(epoch)
+        self.angle0 = float(earth.gmst(self.epoch))
+        self.moment = dipole_moment(self.epoch)
+        self._table = np.zeros((0, 3))
+
+    def angle(self, t):
+        """The Earth's rotation angle (rad) at sim time t: GMST at the epoch + ω_E t."""
+        return self.angle0 + earth.EARTH_ROTATION_RATE * np.asarray(t, float)
+
+    def positions(self, times):
+        return np.array([self.orbit.state(float(t))[0] for t in np.atleast_1d(times)])
+
+    def exact(self, times):
+        """The model's own values (n, 3) at sim times (ppigrf for igrf: slow)."""
+        times = np.atleast_1d(np.asarray(times, float))
+        angle = self.angle(times)
+        ecef = earth.eci_to_ecef(self.positions(times), angle)
+        b = dipole_field(ecef, self.moment) if self.model == 'dipole' else \
+            igrf_field_ecef(ecef, self.epoch)
+        return earth.ecef_to_eci(b, angle)
+
+    def _grid(self, last: int):
+        """The table through grid point ``last``."""
+        while len(self._table) <= last:
+            first = len(self._table)
+            times = self.spacing * np.arange(first, first + self.CHUNK)
+            self._table = np.concatenate([self._table, self.exact(times)])
+
+    def at(self, t: float) -> np.ndarray:
+        """B (T, inertial, (3,)) at sim time t ≥ 0: exact for the dipole, the table's line
+        for igrf."""
+        if self.model == 'dipole':
+            return self.exact(t)[0]
+        x = max(0.0, float(t)) / self.spacing
+        k = int(x)
+        self._grid(k + 1)
+        f = x - k
+        return (1.0 - f) * self._table[k] + f * self._table[k + 1]
+
+    def line(self, t0: float, t1: float):
+        """(B at t0, Ḃ) of the chord over [t0, t1] through the table (igrf)."""
+        b0 = self.at(t0)
+        return b0, (self.at(t1) - b0) / (t1 - t0) if t1 > t0 else np.zeros(3)
+
+    def fill(self, env, t0: float = 0.0, t1: float = 0.0):
+        """The magnetic slots of the loops' array ``env`` (``orbit.kernel`` layout) for the
+        interval [t0, t1], the rods' dipole slots left alone."""
+        from ..orbit import kernel as k
+        if self.model == 'dipole':
+            env[k.MAG_MODEL] = 1.0
+            env[k.MAG_MOMENT:k.MAG_MOMENT + 3] = self.moment
+            env[k.MAG_ANGLE0], env[k.MAG_SPIN] = self.angle0, earth.EARTH_ROTATION_RATE
+            return
+        b0, rate = self.line(t0, t1)
+        env[k.MAG_MODEL], env[k.MAG_T0] = 2.0, t0
+        env[k.MAG_B0:k.MAG_B0 + 3] = b0
+        env[k.MAG_B_RATE:k.MAG_B_RATE + 3] = rate

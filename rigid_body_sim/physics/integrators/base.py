@@ -142,9 +142,11 @@ class Integrator:
     def __init__(self, dynamics: Dynamics, **options):
         if options:
             raise TypeError(f'{self.name} takes no options {sorted(options)}')
-        if dynamics.gravity_gradient and not self.environment:
-            raise ValueError(f'integrator {self.name} does not integrate the gravity-gradient '
-                             'torque (environment.gravity_gradient); use auto or a splitting, '
+        if dynamics.environment_active and not self.environment:
+            what = 'the gravity-gradient torque' if dynamics.gravity_gradient else \
+                'the environment\'s torques'
+            raise ValueError(f'integrator {self.name} does not integrate {what} '
+                             f'({dynamics.environment_terms}); use auto or a splitting, '
                              'rk4, euler or dop853')
         self.dynamics = dynamics
         self.nfev = 0
@@ -152,7 +154,7 @@ class Integrator:
     def _one_body_only(self, q, t):
         """IntegrationError if a batch (q (..., 4), N > 1 bodies) meets the environment's
         torques: only the one-body loops evaluate them."""
-        if np.ndim(q) > 1 and self.dynamics.gravity_gradient:
+        if np.ndim(q) > 1 and self.dynamics.environment_active:
             raise IntegrationError(self.name, 0.0, t, 'the environment\'s torques (gravity '
                                    'gradient) are integrated for one body at a time, not a '
                                    'batch')

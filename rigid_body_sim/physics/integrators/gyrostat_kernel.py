@@ -28,8 +28,9 @@ import math
 import numpy as np
 
 from .. import dynamics_kernel
-from ..dynamics_kernel import _finite, _rotate_half
+from ..dynamics_kernel import _finite, _rotate_half, environment_torque_full
 from ..jit import depends_on, inline, jit
+from ..environment import magnetic_kernel
 from ..orbit import kernel as orbit_kernel
 
 # status slots (counters of steps on which a limit acted, and the last values)
@@ -258,8 +259,8 @@ def gyrostat_run(q, m, hw, delta, h, n, moments, split_axes, tau_ext, has_ext,
                     H[r] += half * tau_ext[r]
                     m[r] = H[r] - hA[r]
             if phase == 1 and env is not None:
-                gx, gy, gz = orbit_kernel.gravity_gradient_torque_full(
-                    q, t0 + (step + 1) * h, env, inertia_full)
+                gx, gy, gz = environment_torque_full(q, t0 + (step + 1) * h, env,
+                                                     inertia_full)
                 H[0] += half * gx
                 H[1] += half * gy
                 H[2] += half * gz
@@ -299,8 +300,7 @@ def gyrostat_run(q, m, hw, delta, h, n, moments, split_axes, tau_ext, has_ext,
                 for r in range(3):
                     H[r] += half * tau_ext[r]
             if phase == 0 and env is not None:
-                gx, gy, gz = orbit_kernel.gravity_gradient_torque_full(q, t0 + step * h, env,
-                                                                       inertia_full)
+                gx, gy, gz = environment_torque_full(q, t0 + step * h, env, inertia_full)
                 H[0] += half * gx
                 H[1] += half * gy
                 H[2] += half * gz
@@ -355,7 +355,7 @@ def _flow(q, H, hA, axis, t, moments):
 
 # numba's disk cache checks only this file; gyrostat_run embeds dynamics_kernel's _finite and
 # _rotate_half
-depends_on(gyrostat_run, dynamics_kernel, orbit_kernel)
+depends_on(gyrostat_run, dynamics_kernel, orbit_kernel, magnetic_kernel)
 
 
 def warm():

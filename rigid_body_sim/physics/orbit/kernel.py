@@ -8,6 +8,9 @@ anomaly (rad) — and their secular rates [RAAN_RATE], [ARGP_RATE], [M_RATE] (ra
 two-body n for Kepler, J2's drifts for ``j2``). ``orbit.py`` builds it; SGP4 re-anchors
 an osculating set at each interval. The free body passes None instead.
 
+Each further term has a block of slots after them (the magnetic one: the field's model
+and the magnetorquers' dipole, read by ``physics/environment/magnetic_kernel.py``).
+
 Plain numerical Python compiled by ``jit`` (NUMBA_DISABLE_JIT=1 runs it as Python).
 """
 import math
@@ -16,7 +19,20 @@ import numpy as np
 
 from ..jit import inline, jit
 
-ON, MU, A, E, INC, RAAN, ARGP, M0, T0, RAAN_RATE, ARGP_RATE, M_RATE, SIZE = range(13)
+ON, MU, A, E, INC, RAAN, ARGP, M0, T0, RAAN_RATE, ARGP_RATE, M_RATE = range(12)
+# magnetic (magnetic_kernel): [MAG_MODEL] 0 no magnetorquer torque, 1 the tilted dipole in
+# closed form, 2 the field as a line B0 + Ḃ·(t − MAG_T0) re-anchored per interval (IGRF);
+# the Earth's dipole (A·m², ECEF), the rotation angle at t = 0 and the spin rate; the
+# line's B0 and Ḃ (T, T/s, inertial) and its anchor; the rods' dipole (A·m², principal)
+MAG_MODEL = M_RATE + 1
+MAG_MOMENT = MAG_MODEL + 1                      # 3 slots
+MAG_ANGLE0, MAG_SPIN = MAG_MOMENT + 3, MAG_MOMENT + 4
+MAG_B0 = MAG_SPIN + 1                           # 3 slots
+MAG_B_RATE = MAG_B0 + 3                         # 3 slots
+MAG_T0 = MAG_B_RATE + 3
+MAG_DIPOLE = MAG_T0 + 1                         # 3 slots
+MAG_END = MAG_DIPOLE + 3
+SIZE = MAG_END
 KEPLER_TOL = 1e-15   # |ΔE| (rad) that ends Newton's iteration
 KEPLER_MAX_ITER = 50
 TWO_PI = 2.0 * math.pi
