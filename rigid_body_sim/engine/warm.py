@@ -52,6 +52,9 @@ def warm_live(engine: Engine) -> None:
     advance(3)
     copy.apply_command((0.0, 0.0, 0.0))
     advance(3)
+    if copy.magnetics is not None and copy.magnetics.hold is not None:  # magnetorquers
+        copy.apply_dipole_command((1e-3, 1e-3, 1e-3))
+        advance(3)
     # past the command's expiry: the hold then has no event left and the block path runs
     # the samples in one compiled loop (splitting_run), a path of its own
     if 0 < c.command_timeout_ns < 600 * NS:
