@@ -9,10 +9,10 @@ import math
 from typing import Optional
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from ..param_spec import ParamSpec
 from ..physics import orbit as orbit_models
+from ..physics import rotation
 from ..physics.orbit import frames, kernel as orbit_kernel
 from .magnetic_specs import MAGNETIC, MagneticSettings, magnetic_from_parameters
 
@@ -116,10 +116,10 @@ def initial_state_in_world(settings: Optional[EnvironmentSettings], frame: str, 
         raise ValueError('initial_attitude_frame: lvlh needs an orbit (orbit.model kepler, '
                          'j2 or sgp4)')
     r, v = settings.orbit.state(0.0)
-    lvlh = Rotation.from_quat(frames.lvlh_attitude(r, v))
-    body = lvlh * Rotation.from_quat(attitude)
-    w = np.asarray(angular_velocity, float) + body.inv().apply(frames.lvlh_rate(r, v))
-    return body.as_quat(), w
+    body = rotation.multiply(frames.lvlh_attitude(r, v), rotation.validated(attitude))
+    w = np.asarray(angular_velocity, float) + rotation.rotate(rotation.conjugate(body),
+                                                              frames.lvlh_rate(r, v))
+    return body, w
 
 
 def environment_from_parameters(p) -> Optional[EnvironmentSettings]:

@@ -2,7 +2,6 @@
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from . import rotation
 
@@ -63,7 +62,7 @@ class RigidBody:
                 raise ValueError(
                     f'principal moments {moments.tolist()} violate the triangle inequality '
                     f'({a:g} + {b:g} < {c:g}): no real mass distribution has them')
-        quat = Rotation.from_matrix(axes).as_quat()  # scipy uses (x, y, z, w) too
+        quat = rotation.from_matrix(axes)  # (x, y, z, w), as scipy's to the bit
         for arr in (tensor, moments, axes, quat):
             arr.setflags(write=False)
         return cls(tensor, moments, axes, quat)

@@ -1,9 +1,13 @@
 """Quaternion helpers on batched numpy arrays, ROS order (x, y, z, w).
 
-scipy's Rotation does the one-off conversions; these few vectorised functions exist
-because the integrators call them every step on (N, 4) batches, where building
-Rotation objects would dominate the cost.
+These few vectorised functions exist because the integrators call them every step on
+(N, 4) batches, where building scipy Rotation objects would dominate the cost. The one
+conversion a run needs at set-up, a rotation matrix to its quaternion (``from_matrix``),
+is scipy's algorithm too, to the bit: importing ``scipy.spatial`` for it cost every node
+and CLI process 0.3 CPU-s of its 1 s start-up (``test_rotation.py`` checks the bits).
 """
+import math
+
 import numpy as np
 
 
@@ -90,3 +94,39 @@ def validated(q, name='quaternion'):
     if np.any(norm < 1e-6):
         raise ValueError(f'{name} has zero norm; a rotation needs a unit quaternion (x, y, z, w)')
     return q / norm
+
+
+def from_matrix(matrix):
+    """The unit quaternion (x, y, z, w) of a 3×3 rotation matrix (columns: the rotated
+    frame's axes), as ``scipy.spatial.transform.Rotation.from_matrix(m).as_quat()`` gives
+    it, bit for bit: Shepperd's choice of the largest of the diagonal and the trace, and a
+    matrix off orthogonality by more than 1e-12 first replaced by the nearest orthogonal
+    one (SVD). ValueError for a determinant ≤ 0 (left-handed or singular)."""
+    m = np.array(matrix, float)
+    if m.shape != (3, 3):
+        raise ValueError(f'a rotation matrix is 3x3, got shape {m.shape}')
+    if not np.all(np.isfinite(m)) or np.linalg.det(m) <= 0:
+        raise ValueError(f'not a rotation matrix (non-positive determinant or not finite): '
+                         f'{m.tolist()}')
+    if not np.allclose(m @ m.T, np.eye(3), rtol=1e-5, atol=1e-12):
+        u, _, vt = np.linalg.svd(m)
+        m = u @ vt
+    trace = m[0, 0] + m[1, 1] + m[2, 2]
+    decision = (m[0, 0], m[1, 1], m[2, 2], trace)
+    choice = max(range(4), key=decision.__getitem__)  # the first maximum, as argmax
+    q = [0.0, 0.0, 0.0, 0.0]
+    if choice != 3:
+        i = choice
+        j = (i + 1) % 3
+        k = (j + 1) % 3
+        q[i] = 1 - trace + 2 * m[i, i]
+        q[j] = m[j, i] + m[i, j]
+        q[k] = m[k, i] + m[i, k]
+        q[3] = m[k, j] - m[j, k]
+    else:
+        q[0] = m[2, 1] - m[1, 2]
+        q[1] = m[0, 2] - m[2, 0]
+        q[2] = m[1, 0] - m[0, 1]
+        q[3] = 1 + trace
+    norm = math.sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
+    return np.array([x / norm for x in q])

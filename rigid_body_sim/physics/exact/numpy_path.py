@@ -8,12 +8,27 @@ which near the separatrix carries k'² only to eps/k'².
 import functools
 
 import numpy as np
-from scipy.spatial.transform import Rotation
-from scipy.special import ellipj, elliprf, elliprj
 
 from .. import rotation
 from .kernel import CLOSED as _CLOSED, SEPARATRIX as _SEPARATRIX
 from .extended import LD, cel, reduce_4pi
+
+# scipy.special is imported at the first evaluation, not with the module: every process
+# that steps a body imports this one, most never take this path (rotation.py: start-up)
+def ellipj(u, m):
+    from scipy.special import ellipj as f
+    return f(u, m)
+
+
+def elliprf(x, y, z):
+    from scipy.special import elliprf as f
+    return f(x, y, z)
+
+
+def elliprj(x, y, z, p):
+    from scipy.special import elliprj as f
+    return f(x, y, z, p)
+
 
 @functools.lru_cache(maxsize=8)
 def _frame_quaternions(order):
@@ -22,7 +37,7 @@ def _frame_quaternions(order):
     if np.linalg.det(wa) < 0:          # odd sort: flip the intermediate axis
         wa[1] *= -1.0
     wb = np.array([wa[2], -wa[1], wa[0]])
-    return [(w, Rotation.from_matrix(w.T).as_quat()) for w in (wa, wb)]
+    return [(w, rotation.from_matrix(w.T)) for w in (wa, wb)]
 
 
 def _carlson_pi(sn, cn, dn, n_):

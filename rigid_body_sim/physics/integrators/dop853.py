@@ -1,7 +1,6 @@
 """Adaptive DOP853, the high-accuracy reference method: compiled for one body, scipy's
 solve_ivp for a batch."""
 import numpy as np
-from scipy.integrate import solve_ivp
 
 from .. import dynamics_kernel
 from . import dop853_dense, dop853_kernel
@@ -94,6 +93,7 @@ class DOP853(Integrator):
             return np.concatenate((dyn.attitude_rate(qq, mm).ravel(),
                                    dyn.momentum_rate(mm, torque).ravel()))
 
+        from scipy.integrate import solve_ivp  # batches only: not at every process's start
         sol = solve_ivp(rhs, (0.0, h), np.concatenate((q.ravel(), m.ravel())), method='DOP853',
                         rtol=self.rtol, atol=self.atol)
         self.nfev += sol.nfev

@@ -43,9 +43,9 @@ output → dense output:
 import math
 
 import numpy as np
-from scipy.integrate._ivp import dop853_coefficients as _coefficients
 
 from .. import dynamics_kernel
+from .dop853_tableau import coefficients as _coefficients
 from . import dop853_kernel
 from .dop853_kernel import (DIM, N_STAGES, NON_FINITE, OK, _initial_step, _rhs,
                             _rhs_environment, attempt)

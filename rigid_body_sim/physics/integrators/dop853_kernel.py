@@ -19,9 +19,9 @@ dynamics_kernel.py too.
 import math
 
 import numpy as np
-from scipy.integrate._ivp import dop853_coefficients as _coefficients
 
 from .. import dynamics_kernel
+from .dop853_tableau import coefficients as _coefficients
 from ..dynamics_kernel import _environment, _finite, _rates
 from ..jit import COMPILED, depends_on, jit
 from ..environment import magnetic_kernel

@@ -3,7 +3,8 @@ nadir (−r̂), y = z × x = −orbit normal. Frames per REP-103 (right-handed);
 (x, y, z, w).
 """
 import numpy as np
-from scipy.spatial.transform import Rotation
+
+from ..rotation import from_matrix
 
 
 def lvlh_axes(r, v) -> np.ndarray:
@@ -18,7 +19,7 @@ def lvlh_axes(r, v) -> np.ndarray:
 
 def lvlh_attitude(r, v) -> np.ndarray:
     """Quaternion (x, y, z, w) of the rotation LVLH → inertial (the orbit frame's pose)."""
-    return Rotation.from_matrix(lvlh_axes(r, v)).as_quat()
+    return from_matrix(lvlh_axes(r, v))
 
 
 def lvlh_rate(r, v) -> np.ndarray:
