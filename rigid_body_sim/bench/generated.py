@@ -23,6 +23,7 @@ solution checked against the 40-digit closed form torque-free; else ``dop853`` d
 ladder of rtol): see :mod:`.oracle`. A row is judged when the bound decides it.
 """
 import math
+import os
 from dataclasses import dataclass
 
 import numpy as np
@@ -51,10 +52,12 @@ class Scene:
     coefficient: float = 0.0
     control_rate: float = 0.0
     natural_frequency: float = 0.0
+    orbit: tuple = ()   # ((key, value), …) of orbit.*: an orbit scene (gravity gradient on)
+    frame: str = 'world'  # of attitude and omega (lvlh: relative to the orbit frame)
 
     @property
     def name(self) -> str:
-        return f'gen{self.seed}-{self.index}'
+        return f'gen{self.seed}-{"gg" if self.orbit else ""}{self.index}'
 
     @property
     def dissipative(self) -> bool:
@@ -62,7 +65,8 @@ class Scene:
 
     def describe(self) -> str:
         extra = (f', coefficient {self.coefficient:.3g}' if self.dissipative else
-                 f', control {self.control_rate:.3g} Hz' if self.kind == 'detumble' else '')
+                 f', control {self.control_rate:.3g} Hz' if self.kind == 'detumble' else
+                 _orbit_words(self) if self.orbit else '')
         return (f'{self.name} {self.kind}: I = {", ".join(f"{i:.3g}" for i in self.moments)}, '
                 f'|ω| = {np.linalg.norm(self.omega):.3g} rad/s, {self.rotation:.3g} rad over '
                 f'{self.duration:.4g} s at {self.publish_rate:.3g} Hz, budget '
@@ -75,6 +79,9 @@ class Scene:
                'accuracy': self.budget, 'publish_rate': self.publish_rate,
                'duration': self.duration, 'real_time_factor': 0.0,
                'step': 1.0 / self.publish_rate}
+        if self.orbit:
+            sim.update(dict(self.orbit), **{'environment.gravity_gradient': True,
+                                            'initial_attitude_frame': self.frame})
         if self.dissipative:
             sim.update({'dissipation.model': self.kind,
                         'dissipation.coefficient': self.coefficient})
@@ -167,6 +174,76 @@ def scenes(seed: int, count: int, quick: bool = False):
     return [draw(seed, i, quick) for i in range(count)]
 
 
+# ---------------------------------------------------------------------------- orbit scenes
+GG_STREAM = 30     # the orbit family's scenes come from their own streams: [seed, 30, index]
+GG_ORBITS = {True: (0.5, 3.0), False: (0.5, 10.0)}  # run length in orbits (log-uniform)
+LOW_PERIGEE = 200e3   # m above the surface: the lowest perigee drawn
+GEO = 42.164e6        # m: the largest semi-major axis drawn
+
+
+def draw_gravity_gradient(seed: int, index: int, quick: bool = False) -> Scene:
+    """Orbit scene ``index`` of ``seed``: the gravity gradient along a Kepler or J2 orbit.
+
+    * orbit: a log-uniform in 400 km up to GEO's radius; circular or (half the scenes)
+      e up to 0.7 with the perigee at least 200 km up; inclination uniform on the sphere,
+      node, periapsis and true anomaly uniform;
+    * the body: moments as the free family's; libration about LVLH (half: a turn of
+      0.01–0.3 rad from it, a rate relative to it of 0.01–0.3 n) or a tumble in the inertial
+      frame at n to 10³ n (|ω|·T at most 10⁴ rad with ``quick``, 10⁵ without);
+    * 0.5–10 orbits (0.5–3 with ``quick``), 50–2000 samples, the duration off the sample
+      grid; budget: a decade from 1e-2 to 1e-10 rad."""
+    from ..physics.orbit import MU, RADIUS
+    rng = np.random.default_rng([seed, GG_STREAM, index])
+    while True:
+        moments = sorted(_log_uniform(rng, 0.2, 3.0) for _ in range(3))
+        if moments[0] + moments[1] >= moments[2]:
+            break
+    rng.shuffle(moments)
+    a = _log_uniform(rng, RADIUS + 400e3, GEO)
+    e = 0.0 if rng.uniform() < 0.5 else \
+        float(rng.uniform(0.01, min(0.7, 1.0 - (RADIUS + LOW_PERIGEE) / a)))
+    model = 'j2' if rng.uniform() < 0.5 else 'kepler'
+    angles = [float(math.acos(rng.uniform(-1.0, 1.0)))] + \
+        [float(x) for x in rng.uniform(0.0, 2.0 * math.pi, 3)]
+    n = math.sqrt(MU / a ** 3)
+    direction = rng.normal(size=3)
+    direction /= np.linalg.norm(direction)
+    orbits = _log_uniform(rng, *GG_ORBITS[quick])
+    duration = orbits * 2.0 * math.pi / n
+    if rng.uniform() < 0.5:   # libration about LVLH
+        frame, angle = 'lvlh', _log_uniform(rng, 0.01, 0.3)
+        axis = rng.normal(size=3)
+        axis /= np.linalg.norm(axis)
+        q = np.append(axis * math.sin(angle / 2.0), math.cos(angle / 2.0))
+        omega = _log_uniform(rng, 0.01, 0.3) * n * direction
+        spin = n + float(np.linalg.norm(omega))  # roughly: the orbit frame's rate and its own
+    else:                     # a tumble in the inertial frame
+        frame = 'world'
+        q = rng.normal(size=4)
+        q /= np.linalg.norm(q)
+        spin = min(_log_uniform(rng, n, 1e3 * n), (1e4 if quick else 1e5) / duration)
+        omega = spin * direction
+    samples = _log_uniform(rng, 50.0, 2000.0)
+    period = max(1e-6, round(duration / samples, 6))
+    duration = (math.floor(duration / period) + rng.uniform(0.1, 0.9)) * period
+    budget = 10.0 ** -int(rng.integers(2, 11))
+    orbit = (('orbit.model', model), ('orbit.semi_major_axis', a),
+             ('orbit.eccentricity', e), ('orbit.inclination', angles[0]),
+             ('orbit.raan', angles[1]), ('orbit.argument_of_periapsis', angles[2]),
+             ('orbit.true_anomaly', angles[3]))
+    return Scene(seed, index, 'gravity_gradient', tuple(moments), tuple(omega.tolist()),
+                 (float(q[0]), float(q[1]), float(q[2]), float(q[3])), spin * duration,
+                 duration, 1.0 / period, budget, orbit=orbit, frame=frame)
+
+
+def _orbit_words(scene: Scene) -> str:
+    o = dict(scene.orbit)
+    return (f', {o["orbit.model"]} orbit a = {o["orbit.semi_major_axis"] / 1e3:.6g} km, '
+            f'e = {o["orbit.eccentricity"]:.3g}, ω given in {scene.frame}')
+
+
+
+
 # ---------------------------------------------------------------------------- measuring
 # the reference and the oracle live in .oracle; these names are the suite's (and tests')
 timed, error, JUDGE = oracle_mod.timed, oracle_mod.error, oracle_mod.JUDGE
@@ -191,6 +268,12 @@ FIELDS = ('scene', 'kind', 'budget', 'rotation', 'duration', 'publish_rate', 'st
           'reference', 'reference_error', 'reason', 'note')
 SEED = 20261125
 COUNTS = {True: 20, False: 200}
+# The families of the suite: (draw(seed, index, quick), scenes (quick, full)); a family's
+# scenes are named and seeded apart (gen<seed>-<index>, gen<seed>-gg<index>)
+FAMILIES = {
+    'body': (draw, COUNTS),
+    'gravity_gradient': (draw_gravity_gradient, {True: 4, False: 30}),
+}
 JUDGED = ('ok', 'auto missed')
 
 
@@ -253,24 +336,44 @@ def summary(rows) -> dict:
             'cpu_ratio_worst': float(np.max(ratios))}
 
 
-def run(quick, log=print, seed=SEED, count=None):
-    """(rows, target rows, summary) of the generalisation suite."""
-    from . import targets
+def run(quick, log=print, seed=SEED, count=None, families=tuple(FAMILIES)):
+    """(rows, target rows, summary of the free-body family) of the generalisation suite:
+    ``families`` (FAMILIES' names), ``count`` scenes of the body family or of the one
+    family run (default: each family's own count). Target rows per family (TARGET_NAMES)."""
     from .. import compiled
     compiled.warm()  # kernels loaded before any clock starts (else the first run pays)
-    count = COUNTS[quick] if count is None else count
-    rows = []
-    for scene in scenes(seed, count, quick):
-        log(f'  {scene.describe()}')
-        row = judge(scene, log=None, cap=oracle_mod.SWEEP_CAP[quick])
-        rows.append(row)
-        log(f'    {row["status"]}: auto → {row.get("auto_method", "-")} '
-            f'error/budget {row.get("error_ratio", math.nan):.2g}, '
-            f'{row.get("auto_cpu_s", math.nan):.3g} s; oracle {row.get("oracle_method", "-")} '
-            f'{row.get("oracle_param", math.nan):.3g} {row.get("oracle_cpu_s", math.nan):.3g} s;'
-            f' ratio {row.get("cpu_ratio", math.nan):.2f}'
-            + (f'; {row["note"]}' if row.get('note') else ''))
-    s = summary(rows)
+    rows, t_rows, first = [], [], None
+    for family in families:
+        draw_scene, counts = FAMILIES[family]
+        alone = family == 'body' or len(families) == 1  # count is the body family's
+        n = count if count is not None and alone else counts[quick]
+        mine = []
+        for i in range(n):
+            scene = draw_scene(seed, i, quick)
+            log(f'  {scene.describe()}')
+            row = judge(scene, log=None, cap=oracle_mod.SWEEP_CAP[quick])
+            mine.append(row)
+            log(f'    {row["status"]}: auto → {row.get("auto_method", "-")} '
+                f'error/budget {row.get("error_ratio", math.nan):.2g}, '
+                f'{row.get("auto_cpu_s", math.nan):.3g} s; oracle '
+                f'{row.get("oracle_method", "-")} {row.get("oracle_param", math.nan):.3g} '
+                f'{row.get("oracle_cpu_s", math.nan):.3g} s; ratio '
+                f'{row.get("cpu_ratio", math.nan):.2f}'
+                + (f'; {row["note"]}' if row.get('note') else ''))
+        s = summary(mine)
+        first = s if first is None else first
+        rows += mine
+        t_rows += family_targets(family, s, seed)
+    return rows, t_rows, first
+
+
+TARGET_NAMES = {'body': 'generated', 'gravity_gradient': 'generated, gravity gradient'}
+
+
+def family_targets(family, s, seed) -> list:
+    """The three target rows of a family's summary ``s`` (error, median and worst CPU)."""
+    from . import targets
+    name = TARGET_NAMES[family]
     where = (f'seed {seed}, {s["judged"]} of {s["scenes"]} scenes judged'
              + (f', {s["undecided"]} undecided' if s['undecided'] else ''))
     spread = (f'{where}; {s["with_oracle"]} with an oracle; CPU ratio p10 '
@@ -278,46 +381,74 @@ def run(quick, log=print, seed=SEED, count=None):
               f'{s["cpu_ratio_median"]:.2f}, p90 {s["cpu_ratio_p90"]:.2f}, worst '
               f'{s["cpu_ratio_worst"]:.2f}; {s["failed"]} failed')
     ok = s['judged'] > 0
-    t_rows = [
-        targets.simple('generated: auto worst attitude error / budget', s['worst_error_ratio'],
+    return [
+        targets.simple(f'{name}: auto worst attitude error / budget', s['worst_error_ratio'],
                        1.0, s['worst_error_ratio'] <= 1.0 if ok else None,
                        f'{where}; {s["missed"]} missed; median {s["error_ratio_p50"]:.2g}'),
-        targets.simple('generated: auto CPU / oracle, median', s['cpu_ratio_median'], 1.5,
+        targets.simple(f'{name}: auto CPU / oracle, median', s['cpu_ratio_median'], 1.5,
                        s['cpu_ratio_median'] <= 1.5 if ok else None, spread),
-        targets.simple('generated: auto CPU / oracle, worst scene', s['cpu_ratio_worst'], 3.0,
+        targets.simple(f'{name}: auto CPU / oracle, worst scene', s['cpu_ratio_worst'], 3.0,
                        s['cpu_ratio_worst'] <= 3.0 if ok else None, spread)]
-    return rows, t_rows, s
+
+
+def merge(out, family, rows, t_rows, seed=SEED):
+    """A family run alone into a full run's files in ``out``: its rows in place of that
+    family's in generated.csv, its target rows in targets.csv / targets.md, summary.md
+    rendered again (``report``); the other families' rows as they were."""
+    from . import report
+    from .common import write_csv
+    path = os.path.join(out, 'generated.csv')
+    kept = report._rows(out, 'generated.csv') or []
+    kept = [r for r in kept if _family_of(r) != family]
+    write_csv(path, FIELDS, kept + list(rows))
+    report.replace_targets(out, tuple(r['target'] for r in t_rows), t_rows,
+                           command=f'python -m rigid_body_sim.bench.generated --family '
+                                   f'{family} --seed {seed} --out {out}',
+                           after='generated')
+    return report.write(out)
+
+
+def _family_of(row) -> str:
+    return 'gravity_gradient' if row.get('kind') == 'gravity_gradient' else 'body'
 
 
 def main(argv=None):
     import argparse
-    import csv
     import json
     parser = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
     parser.add_argument('--quick', action='store_true', help=f'{COUNTS[True]} scenes, '
                         'rotations up to 1e4 rad')
     parser.add_argument('--seed', type=int, default=SEED, help=f'default {SEED}')
-    parser.add_argument('--count', type=int, default=None, help='scenes (default 20 / 200)')
-    parser.add_argument('--only', type=int, default=None, help='just scene INDEX of the seed')
+    parser.add_argument('--count', type=int, default=None, help='scenes of the body family, '
+                        'or of --family (default: FAMILIES\' counts)')
+    parser.add_argument('--family', choices=tuple(FAMILIES), default=None,
+                        help='this family only (default: all)')
+    parser.add_argument('--only', type=int, default=None, help='just scene INDEX of the seed '
+                        '(of --family, default body)')
     parser.add_argument('--csv', default='', help='write the rows here')
+    parser.add_argument('--out', default='', metavar='DIR', help='with --family: its rows '
+                        'and targets into a full run\'s files in DIR (others kept)')
     args = parser.parse_args(argv)
     if args.only is not None:
         from .. import compiled
         compiled.warm()
-        scene = draw(args.seed, args.only, args.quick)
+        scene = FAMILIES[args.family or 'body'][0](args.seed, args.only, args.quick)
         print(scene.describe())
         row = judge(scene, log=print)
         print(json.dumps(row, indent=1, default=str))
         return 0
-    rows, t_rows, s = run(args.quick, seed=args.seed, count=args.count)
+    if args.out and not args.family:
+        parser.error('--out needs --family (a whole run: rigid-body-sim bench)')
+    families = (args.family,) if args.family else tuple(FAMILIES)
+    rows, t_rows, s = run(args.quick, seed=args.seed, count=args.count, families=families)
     for r in t_rows:
         print(f'{r["verdict"]:5s} {r["target"]}: {r["measured"]:.3g} (required '
               f'{r["required"]:g}) {r["note"]}')
     if args.csv:
-        with open(args.csv, 'w', newline='') as fh:
-            w = csv.DictWriter(fh, fieldnames=FIELDS, extrasaction='ignore')
-            w.writeheader()
-            w.writerows(rows)
+        from .common import write_csv
+        write_csv(args.csv, FIELDS, rows)
+    if args.out:
+        print(merge(args.out, args.family, rows, t_rows, args.seed))
     print(json.dumps(s))
     return 0
 

@@ -109,16 +109,23 @@ def basilisk_section(out):
     return lines
 
 
-def replace_targets(out, target, new_rows):
-    """Put ``new_rows`` in place of ``target``'s rows in out/targets.csv and targets.md
-    (after the work-precision rows when it had none), every other row as it was: a section
-    run alone (``python -m rigid_body_sim.bench.basilisk_gg``) updates a full run's tables,
-    with a line saying which command measured its rows, and where."""
+def replace_targets(out, target, new_rows,
+                    command='python -m rigid_body_sim.bench.basilisk_gg --out {out}',
+                    after='cpu ratio'):
+    """Put ``new_rows`` in place of ``target``'s rows (a name, or a tuple of names) in
+    out/targets.csv and targets.md (where they were, else after the last row whose target
+    starts with ``after``: the work-precision rows by default),
+    every other row as it was: a section run alone (``python -m
+    rigid_body_sim.bench.basilisk_gg``) updates a full run's tables, with a line saying
+    which command (``command``, {out}: the directory) measured its rows, and where."""
     from . import _markdown_targets, machine, targets
     from .common import write_csv
-    kept = [r for r in _rows(out, 'targets.csv') or [] if r['target'] != target]
-    at = max((i + 1 for i, r in enumerate(kept) if r['target'].startswith('cpu ratio')),
-             default=0)
+    names = (target,) if isinstance(target, str) else tuple(target)
+    old = _rows(out, 'targets.csv') or []
+    kept = [r for r in old if r['target'] not in names]
+    was = next((i for i, r in enumerate(old) if r['target'] in names), None)
+    at = was if was is not None else max(
+        (i + 1 for i, r in enumerate(kept) if r['target'].startswith(after)), default=0)
     write_csv(os.path.join(out, 'targets.csv'), targets.FIELDS,
               kept[:at] + list(new_rows) + kept[at:])
     path = os.path.join(out, 'targets.md')
@@ -127,17 +134,20 @@ def replace_targets(out, target, new_rows):
             lines = f.read().rstrip('\n').split('\n')
     else:
         lines = _markdown_targets([], machine(), 'rigid-body-sim bench').rstrip('\n').split('\n')
-    note = f'Rows "{target}":'
+    note = 'Rows ' + ', '.join(f'"{n}"' for n in names) + ':'
     drop = {i for i, line in enumerate(lines) if line.startswith(note)}
     drop |= {i + 1 for i in drop}  # the blank line after the note
+    mine_at = next((i for i, line in enumerate(lines)
+                    if any(line.startswith(f'| {n} |') for n in names)), None)
+    if mine_at is not None:
+        mine_at -= sum(1 for i in drop if i < mine_at)
     lines = [line for i, line in enumerate(lines)
-             if i not in drop and not line.startswith(f'| {target} |')]
+             if i not in drop and not any(line.startswith(f'| {n} |') for n in names)]
     mine = _markdown_targets(new_rows, '', '').rstrip('\n').split('\n')[6:]
-    table = [i for i, line in enumerate(lines) if line.startswith(('| cpu ratio', '|---'))]
-    at = table[-1] + 1 if table else len(lines)
+    table = [i for i, line in enumerate(lines) if line.startswith(('|---', f'| {after}'))]
+    at = mine_at if mine_at is not None else table[-1] + 1 if table else len(lines)
     lines[at:at] = mine
-    lines[4:4] = [f'{note} `python -m rigid_body_sim.bench.basilisk_gg --out {out}` on: '
-                  f'{machine()}', '']
+    lines[4:4] = [f'{note} `{command.format(out=out)}` on: {machine()}', '']
     with open(path, 'w', encoding='utf-8') as f:
         f.write('\n'.join(lines) + '\n')
 
@@ -146,11 +156,18 @@ def generated_section(out):
     rows = _rows(out, 'generated.csv')
     if rows is None:
         return _missing('generated.csv')
+    orbit = [r for r in rows if r['kind'] == 'gravity_gradient']
+    body = [r for r in rows if r['kind'] != 'gravity_gradient']
+    return (_generated_lines('Generated scenes', body) if body else []) + \
+        (_generated_lines('Generated orbit scenes (gravity gradient)', orbit) if orbit else [])
+
+
+def _generated_lines(title, rows):
     judged = [r for r in rows if r['status'] in ('ok', 'auto missed')]
     ok = [r for r in judged if r['status'] == 'ok' and r['cpu_ratio']]
     seeds = sorted({r['scene'][3:].rsplit('-', 1)[0] for r in rows})
     kinds = {k: sum(r['kind'] == k for r in rows) for k in dict.fromkeys(r['kind'] for r in rows)}
-    return [f'- **Generated scenes** (seed {", ".join(seeds)}; {len(rows)} scenes: '
+    return [f'- **{title}** (seed {", ".join(seeds)}; {len(rows)} scenes: '
             + ', '.join(f'{n} {k}' for k, n in kinds.items()) + '):',
             f'  - judged {len(judged)}, undecided '
             f'{sum(r["status"].startswith("undecided") for r in rows)}, failed '
@@ -167,7 +184,7 @@ def generated_section(out):
 
 def _count(items):
     items = list(items)
-    return sorted(((m, items.count(m)) for m in set(items)), key=lambda x: -x[1])
+    return sorted(((m, items.count(m)) for m in set(items)), key=lambda x: (-x[1], x[0]))
 
 
 def sampling_section(out):

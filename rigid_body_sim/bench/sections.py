@@ -14,7 +14,7 @@ from typing import Callable
 from . import batch as batch_mod
 from . import compile as compile_cost
 from . import (basilisk_gg, exact_horizon, generated, live, longhorizon, perstep, sampling,
-               selection, stability, targets, workprecision)
+               selection, stability, targets, term_off, workprecision)
 from .common import reference, write_csv
 
 BUDGETS = {True: {'ours': 0.2, 'peer': 0.2}, False: {'ours': 4.0, 'peer': 3.0}}
@@ -121,6 +121,12 @@ def _perstep(run):
     return fig
 
 
+def _term_off(run):
+    rows, t_rows = term_off.run(run.quick, run.log)
+    run.csv('term_off.csv', term_off.FIELDS, rows)
+    return t_rows
+
+
 def _sampling(run):
     rows, sm_targets = sampling.run(run.quick, run.log, run.generated_count)
     run.csv('sampling.csv', sampling.FIELDS, rows)
@@ -189,6 +195,8 @@ SECTIONS = (
     Section('batch', '4. batch throughput', _batch, _batch_targets),
     Section('perstep', '4b. cost per step (one body) and per offline sample', _perstep,
             lambda run: perstep.targets_from(run.results['perstep'], run.quick)),
+    Section('term_off', '4d. a term that is off costs nothing (free body vs an orbit, no '
+            'term)', _term_off, _returned('term_off')),
     Section('sampling', '4c. sampling and CLI overhead (samples kept; the CLI in a fresh '
             'process)', _sampling, _returned('sampling')),
     Section('live', '5. live', _live, lambda run: live.targets_from(run.results['live'])),
@@ -202,4 +210,4 @@ SECTIONS = (
 )
 SECTION_BY_NAME = {s.name: s for s in SECTIONS}
 TARGET_ORDER = ('work_precision', 'basilisk', 'selection', 'generated', 'exact_horizon',
-                'stability', 'batch', 'perstep', 'sampling', 'live', 'compile')
+                'stability', 'batch', 'perstep', 'term_off', 'sampling', 'live', 'compile')

@@ -126,16 +126,20 @@ class EngineConfig:
             h = min(h, self.control.period_ns / NS)
         return h
 
-    def torque_rate(self) -> float:
-        """Rate scale (1/s) of the torque ``auto`` must expect: the control law's
-        bandwidth (in process, or ``law_bandwidth`` of an outside one whose gains are
-        known), else that of the largest command, √(√3·max_torque/I_min); with the
-        gravity gradient at least its own, √(3μ/r_p³ · (I_max − I_min)/I_min)."""
-        if self.control is not None:
+    def torque_rate(self, commanded: bool = True) -> float:
+        """Rate scale (1/s) of the torque ``auto`` must expect: with commands
+        (``commanded``), the control law's bandwidth (in process, or ``law_bandwidth`` of an
+        outside one whose gains are known), else that of the largest command,
+        √(√3·max_torque/I_min); with the gravity gradient at least its own,
+        √(3μ/r_p³ · (I_max − I_min)/I_min). Before any command (``commanded`` False) only
+        the environment's: the engine chooses again at the first command, so a scene's
+        max_torque must not set the step of a run that has none."""
+        rate = 0.0
+        if commanded and self.control is not None:
             rate = self.control.bandwidth()
-        elif self.law_bandwidth > 0.0:
+        elif commanded and self.law_bandwidth > 0.0:
             rate = self.law_bandwidth
-        else:
+        elif commanded:
             rate = math.sqrt(math.sqrt(3.0) * self.max_torque / self.body.principal_moments.min())
         env = self.environment
         if env is not None and env.gravity_gradient:

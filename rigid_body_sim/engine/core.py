@@ -265,7 +265,8 @@ class Engine:
         left = (self.end_ns - self.t_ns) / NS if c.duration_ns > 0 else 0.0
         kw = dict(torque=self._torque_seen, accuracy=c.accuracy, duration=left,
                   max_step=c.event_spacing(),
-                  torque_rate=c.torque_rate() if torque else 0.0, dynamics=self.dynamics,
+                  torque_rate=c.torque_rate(self._torque_seen) if torque else 0.0,
+                  dynamics=self.dynamics,
                   environment=terms)
         state = (self.body, c.dissipation, self.attitude, self.angular_velocity)
         if not torque and not c.dissipation.active:

@@ -32,7 +32,7 @@ from typing import Mapping, Optional, Tuple
 import numpy as np
 
 FILE_NAME = 'auto_costs.json'
-FORMAT = 1                 # the measurement scheme below: a change of it recalibrates
+FORMAT = 2                 # the measurement scheme below: a change of it recalibrates
 REFERENCE = 'splitting2'   # costs are stored as ratios to this method's torque-free cost
 CLAMP = (0.25, 4.0)        # a calibrated cost stays within this factor of its class constant
 REPEATS = 5
@@ -48,6 +48,14 @@ KINDS = ('free', 'double_bracket', 'viscous')
 DAMP_SUBSTEP = 0.068       # µs per double-bracket substep outside a composition, uncalibrated
 VISCOUS_FACTOR = 1.3       # splitting2's viscous cost / free cost, uncalibrated
 ADAPTIVE_EVALS = 12        # evaluations per step of the adaptive method (DOP853)
+# µs per evaluation of an environment torque, uncalibrated (the class constants' units):
+# the gravity gradient solves Kepler's equation and turns the conic into the inertial frame
+# at each evaluation: 0.25–0.27 µs on an Intel Xeon where splitting2's free step took
+# 0.097 (2.7× it; rk4, euler and the splittings alike, per kick or stage), where the
+# classes' constants had the environment cost nothing and auto took splitting6 (14
+# evaluations a step) over rk4 (4)
+TERM_COSTS = {'gravity gradient': 0.25}
+TERM_ORBIT = (7.0e6, 0.1, 0.9, 0.3, 0.5, 0.7)  # the timed orbit: a, e, i, node, periapsis, ν
 
 
 @dataclass(frozen=True)
@@ -58,10 +66,15 @@ class Costs:
     viscous_factor: float = VISCOUS_FACTOR
     damp_substep: Optional[float] = None  # µs per double-bracket substep (None: DAMP_SUBSTEP)
     source: str = 'class constants'
+    environment: Mapping[str, float] = field(default_factory=dict)  # µs per evaluation
 
     def cost(self, candidate) -> Tuple[float, float]:
         """µs per step of ``candidate`` (free, weakly damped): calibrated, else its own."""
         return self.per_step.get(candidate.name, candidate.cost)
+
+    def term_cost(self, term: str) -> float:
+        """µs per evaluation of the environment's torque ``term`` ('gravity gradient')."""
+        return self.environment.get(term, TERM_COSTS[term])
 
 
 def _candidates():
@@ -74,7 +87,8 @@ def kernel_files():
     this calibration)."""
     from .. import jit
     from ..integrators import INTEGRATORS
-    files = {jit.__file__, __file__}  # this file: how they are timed
+    from ..orbit import kernel as orbit_kernel
+    files = {jit.__file__, __file__, orbit_kernel.__file__}  # this file: how they are timed
     for cls in INTEGRATORS.values():
         files.add(inspect.getsourcefile(cls))
         files.update(m.__file__ for m in cls.kernel_modules)
@@ -160,6 +174,30 @@ def measure(steps=STEPS, repeats=REPEATS, methods=None) -> dict:
     return measured
 
 
+def measure_environment(steps=STEPS, repeats=REPEATS) -> dict:
+    """µs per evaluation of each environment torque (TERM_COSTS): rk4's compiled loop with
+    the term on less the same loop with none, over its 4 evaluations a step, the least of
+    ``repeats`` timings each."""
+    from ..dynamics import Dynamics
+    from ..integrators import create
+    from ..orbit import KeplerOrbit, kernel as orbit_kernel
+    elements = KeplerOrbit(*TERM_ORBIT).elements(0.0)
+    elements[orbit_kernel.ON] = 1.0
+    q0, m0 = np.array([0.0, 0.0, 0.0, 1.0]), np.array(M0)
+    timed = {}
+    for label, env in (('off', None), ('on', elements)):
+        integ = create('rk4', Dynamics(np.array(MOMENTS), environment=env))
+        integ.run(q0, m0, STEP, 10)
+        best = math.inf
+        for _ in range(repeats):
+            t0 = time.process_time()
+            integ.run(q0, m0, STEP, steps)
+            best = min(best, time.process_time() - t0)
+        timed[label] = 1e6 * best / steps
+    evals = type(integ).environment_evaluations
+    return {'gravity gradient': max(timed['on'] - timed['off'], 0.0) / evals}
+
+
 def calibrate(steps=STEPS, repeats=REPEATS) -> Optional[dict]:
     """The calibration record (ratios to REFERENCE torque-free, keyed), or None where the
     kernels are not compiled (NUMBA_DISABLE_JIT: Python loops say nothing of their cost)."""
@@ -167,11 +205,13 @@ def calibrate(steps=STEPS, repeats=REPEATS) -> Optional[dict]:
     if not jit.COMPILED:
         return None
     measured = measure(steps, repeats)
+    terms = measure_environment(steps, repeats)
     base = measured[REFERENCE]['free']
     return {'key': key(), 'cpu': cpu_model(), 'reference': REFERENCE, 'steps': steps,
-            'repeats': repeats, 'measured_us': measured,
+            'repeats': repeats, 'measured_us': measured, 'environment_us': terms,
             'ratios': {n: {k: v / base for k, v in kinds.items()}
-                       for n, kinds in measured.items()}}
+                       for n, kinds in measured.items()},
+            'environment': {t: v / base for t, v in terms.items()}}
 
 
 def save(record, path=None) -> str:
@@ -238,8 +278,10 @@ def costs_from(record) -> Costs:
     viscous = _clamp(ref['viscous'] / ref['free'], VISCOUS_FACTOR)
     # splitting2 damped at the timed step: its free step and one substep (two half-steps)
     substep = _clamp((ref['double_bracket'] - ref['free']) * unit / 2, DAMP_SUBSTEP)
+    environment = {t: _clamp(r * unit, TERM_COSTS[t])
+                   for t, r in record.get('environment', {}).items() if t in TERM_COSTS}
     return Costs(per_step, viscous, substep,
-                 f'costs calibrated on {record.get("cpu", "this CPU")}')
+                 f'costs calibrated on {record.get("cpu", "this CPU")}', environment)
 
 
 def _clamp(value, own):

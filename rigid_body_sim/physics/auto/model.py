@@ -43,10 +43,14 @@ def is_symmetric(moments, rtol=1e-12):
 class RunModel:
     """The time scales of a run, and the cost and a-priori error of a method on it."""
 
-    def __init__(self, dyn, q, m, accuracy, horizon, max_step, torque_rate, costs=None):
+    def __init__(self, dyn, q, m, accuracy, horizon, max_step, torque_rate, costs=None,
+                 environment=()):
         self.dyn, self.q, self.m = dyn, q, m
         # per-step costs: measured on this machine if calibrated, else the classes' own
         self.costs = costs or calibration.current()
+        # µs per evaluation of the environment's torques ('gravity gradient'): a method pays
+        # it at each of its evaluations (Candidate.environment_evals) every step
+        self.term_cost = sum(self.costs.term_cost(t) for t in environment)
         self.accuracy, self.horizon, self.max_step = accuracy, horizon, max_step
         self.G = math.sqrt(sum(x * x for x in m.tolist()))  # floats: numpy's per-call cost
         self.stiffness = dyn.dissipation_stiffness(self.G)
@@ -81,7 +85,7 @@ class RunModel:
         """CPU s per step of c at h."""
         key = ('cost', c.name, h)
         if key not in self.memo:
-            self.memo[key] = self._step_cost(c, h)
+            self.memo[key] = self._step_cost(c, h) + self.term_cost * c.environment_evals * 1e-6
         return self.memo[key]
 
     def _step_cost(self, c, h):
@@ -111,7 +115,8 @@ class RunModel:
                 self.max_step)
         call = c.call[0 if self.damping is None else 1] * 1e-6
         return (RUN_COST + self.events * (EVENT_COST + call)
-                + self.horizon / h * min(self.costs.cost(c)) * 1e-6)
+                + self.horizon / h * (min(self.costs.cost(c))
+                                      + self.term_cost * c.environment_evals) * 1e-6)
 
     def tolerance(self, c):
         """(rtol, run cost s, a-priori error rad) of an adaptive candidate: the loosest rtol
@@ -125,7 +130,8 @@ class RunModel:
             room = self.accuracy - ROUNDOFF * steps * turned
             rtol = min(max(room / scale, RTOL_RANGE[0]), RTOL_RANGE[1])
         call = c.call[0 if self.damping is None else 1] * 1e-6
-        per_step = self.costs.cost(c)[0 if self.damping is None else 1] * 1e-6
+        per_step = (self.costs.cost(c)[0 if self.damping is None else 1]
+                    + self.term_cost * c.environment_evals) * 1e-6
         cost = RUN_COST + self.events * (EVENT_COST + call) + steps * per_step
         return rtol, cost, scale * rtol + ROUNDOFF * steps * turned
 

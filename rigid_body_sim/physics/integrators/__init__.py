@@ -25,7 +25,8 @@ INTEGRATORS = {cls.name: cls for cls in _METHODS}
 # auto's candidates: every registered method that states its facts (``Integrator.auto``),
 # in the registry's order (auto breaks ties of cost in it)
 AUTO_CANDIDATES = tuple(replace(cls.auto, name=cls.name, stages=cls.stages,
-                                environment=cls.environment)
+                                environment=cls.environment,
+                                environment_evals=cls.environment_evaluations)
                         for cls in _METHODS if cls.auto is not None)
 
 # the methods a scene without actuators can run (the others carry wheels/CMGs)

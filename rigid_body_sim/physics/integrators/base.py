@@ -76,6 +76,7 @@ class Candidate:
     name: str = ''
     stages: float = 0.0
     environment: bool = False  # the class's ``environment``: auto asks it with those torques
+    environment_evals: float = 0.0  # the class's ``environment_evaluations`` (its cost there)
 
 
 # The kinds of dynamics a method's order is stated for (``Integrator.orders``), as the tests
@@ -122,6 +123,10 @@ class Integrator:
             the orbit, ``Dynamics.environment``) for one body: a term of its right-hand
             side (Runge–Kutta, dop853) or a kick at fixed attitude at the kick's instant
             (the splittings). Built on a dynamics with them, the others refuse.
+        environment_evaluations: evaluations of the environment's torques per step (the
+            kicks of a splitting, the stages of a Runge–Kutta method, dop853's per own
+            step): with the gravity gradient each costs several times a free step
+            (Kepler's equation and the orbit's rotation), so auto's cost model counts them.
         nfev: right-hand-side evaluations (or equivalent sub-flows) so far.
     """
     name: ClassVar[str] = ''
@@ -138,6 +143,7 @@ class Integrator:
     requires_actuators: ClassVar[bool] = False
     kernel_modules: ClassVar[tuple] = ()
     environment: ClassVar[bool] = False
+    environment_evaluations: ClassVar[float] = 0.0
 
     def __init__(self, dynamics: Dynamics, **options):
         if options:

@@ -40,6 +40,7 @@ class _ExplicitRK(Integrator):
         return np.ones(1), np.array([0, 2, 1])  # unused by the Runge–Kutta loops
 
     environment = True  # a term of the right-hand side (explicit_kernel)
+    environment_evaluations = 1  # one per stage (Euler; RK4 states its 4)
 
     def run(self, q, m, h, n, torque=None, t0=0.0):
         if np.ndim(q) != 1 or np.ndim(m) != 1:
@@ -82,6 +83,7 @@ class RK4(_ExplicitRK):
     stability = 'real-axis limit hλ ≈ 2.785 (stiff dissipation); imaginary-axis limit hλ = 2√2'
     _kernel_loop = staticmethod(explicit_kernel.rk4_run)
     stages = 4
+    environment_evaluations = 4
 
     def _step(self, q, m, h, torque, t):
         dq1, dm1 = self._rates(q, m, torque)

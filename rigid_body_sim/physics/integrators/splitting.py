@@ -121,6 +121,7 @@ class Splitting2(Integrator):
     auto = Candidate((0.092, 0.23), 0.30)
     kernel_modules = (splitting_kernel, splitting_batch_kernel)
     environment = True  # a kick at fixed attitude at the kick's instant (splitting_kernel)
+    environment_evaluations = 2  # two kicks per stage (splitting_kernel): 2·len(weights)
     preserves = frozenset({'angular_momentum_norm', 'unit_quaternion', 'poisson',
                            'time_reversible'})
     stability = 'no step-size limit for free rotation (error bounded, |m| exact at any h)'
@@ -349,6 +350,7 @@ class Splitting4(Splitting2):
     order = 4
     orders = same_order(4)
     stages = 3
+    environment_evaluations = 6
     auto = Candidate((0.24, 0.83), 0.07, call=(2.5, 11.0))
     weights = (_YOSHIDA4_OUTER, 1.0 - 2.0 * _YOSHIDA4_OUTER, _YOSHIDA4_OUTER)
 
@@ -359,5 +361,6 @@ class Splitting6(Splitting2):
     order = 6
     orders = same_order(6)
     stages = 7
+    environment_evaluations = 14
     auto = Candidate((0.52, 1.96), 1.2e-3, call=(2.5, 11.0))
     weights = (_Y6[2], _Y6[1], _Y6[0], 1.0 - 2.0 * sum(_Y6), _Y6[0], _Y6[1], _Y6[2])

@@ -1,0 +1,70 @@
+"""The generalisation suite's orbit family (bench.generated.draw_gravity_gradient): seeded,
+in its ranges, valid scenes with the gravity gradient on; a family run alone replaces only
+its own rows and targets in a full run's files."""
+import csv
+import math
+
+
+from rigid_body_sim.bench import generated
+from rigid_body_sim.offline import simulate
+from rigid_body_sim.physics.orbit import MU, RADIUS
+
+SEED = 1
+
+
+def test_the_orbit_family_is_seeded_apart_and_stays_in_its_ranges():
+    draw = generated.draw_gravity_gradient
+    assert draw(SEED, 3, True) == draw(SEED, 3, True)
+    assert draw(SEED, 3, True) != draw(SEED + 1, 3, True)
+    assert draw(SEED, 3).name == f'gen{SEED}-gg3' != generated.draw(SEED, 3).name
+    drawn = [draw(SEED, i) for i in range(40)]
+    frames, circular = set(), 0
+    for s in drawn:
+        o = dict(s.orbit)
+        a, e = o['orbit.semi_major_axis'], o['orbit.eccentricity']
+        assert RADIUS + 400e3 <= a <= generated.GEO and 0.0 <= e <= 0.7
+        assert a * (1.0 - e) >= RADIUS + generated.LOW_PERIGEE
+        assert o['orbit.model'] in ('kepler', 'j2') and s.kind == 'gravity_gradient'
+        orbits = s.duration * math.sqrt(MU / a ** 3) / (2 * math.pi)
+        assert 0.5 * 0.99 <= orbits <= 10.0 * 1.01
+        assert s.budget in {10.0 ** -k for k in range(2, 11)}
+        frames.add(s.frame)
+        circular += e == 0.0
+        p = s.scene_file().simulator
+        assert p['environment.gravity_gradient'] and p['initial_attitude_frame'] == s.frame
+    assert frames == {'world', 'lvlh'} and 0 < circular < len(drawn)
+
+
+def test_an_orbit_scene_runs_with_the_gradient_named():
+    scene = generated.draw_gravity_gradient(SEED, 0, True)
+    result = simulate(scene.scene_file(), keep='none')
+    assert 'gravity gradient' in result.reason
+
+
+def test_a_family_run_alone_replaces_only_its_rows(tmp_path, monkeypatch):
+    body = {f: '' for f in generated.FIELDS}
+    body.update(scene='gen1-0', kind='free', status='ok')
+    old_gg = dict(body, scene='gen1-gg0', kind='gravity_gradient')
+    with open(tmp_path / 'generated.csv', 'w', newline='') as f:
+        w = csv.DictWriter(f, fieldnames=generated.FIELDS)
+        w.writeheader()
+        w.writerows([body, old_gg])
+    s = generated.summary([])
+    t_rows = generated.family_targets('gravity_gradient', s, SEED)
+    new = dict(old_gg, scene='gen1-gg1')
+    generated.merge(str(tmp_path), 'gravity_gradient', [new], t_rows, SEED)
+    with open(tmp_path / 'generated.csv', newline='') as f:
+        scenes = [r['scene'] for r in csv.DictReader(f)]
+    assert scenes == ['gen1-0', 'gen1-gg1']
+    with open(tmp_path / 'targets.csv', newline='') as f:
+        names = [r['target'] for r in csv.DictReader(f)]
+    assert names == [r['target'] for r in t_rows]
+    assert all(n.startswith('generated, gravity gradient:') for n in names)
+    text = (tmp_path / 'targets.md').read_text()
+    assert '--family gravity_gradient' in text and (tmp_path / 'summary.md').exists()
+
+
+def test_a_family_without_judged_rows_is_not_judged():
+    s = generated.summary([])
+    rows = generated.family_targets('gravity_gradient', s, SEED)
+    assert [r['verdict'] for r in rows] == ['n/a'] * 3

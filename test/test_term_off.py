@@ -1,0 +1,35 @@
+"""A term that is off costs nothing (bench.term_off): the free body's loops are compiled
+without the environment's term, and the search that says so can see it where it is."""
+import numpy as np
+import pytest
+
+from rigid_body_sim.bench import term_off
+from rigid_body_sim.physics import jit
+from rigid_body_sim.physics.orbit import kernel as orbit_kernel
+
+pytestmark = pytest.mark.fast
+
+
+@jit.jit
+def _always_pays(q, t0, env):
+    """A loop that evaluates the term whatever env is (what the free body must not do)."""
+    moments = np.ones(3)
+    x = 0.0
+    if env is not None:
+        x = orbit_kernel.gravity_gradient_torque(q, t0, env, moments)[0]
+    return x + orbit_kernel.eccentric_anomaly(t0, 0.1)
+
+
+def test_the_free_bodys_loops_name_none_of_the_term():
+    found = term_off.inspect_code()
+    assert set(found) == {'splitting_run', 'rk4_run', 'rk4_steps', 'euler_run', 'euler_steps'}
+    for name, (off, on) in found.items():
+        assert off == (), name
+        assert 'gravity_gradient' in on and 'eccentric_anomaly' in on, name
+
+
+def test_a_loop_that_pays_for_the_term_when_it_is_off_is_caught():
+    found = term_off.inspect_code([('always', _always_pays,
+                                    (np.array([0.0, 0.0, 0.0, 1.0]), 1.0))])
+    off, on = found['always']
+    assert 'eccentric_anomaly' in off and 'gravity_gradient' in on
