@@ -25,6 +25,8 @@ FEEDBACK_TRUTH = 'feedback: truth'
 FEEDBACK_SENSORS = 'feedback: sensors'
 ORBIT = 'orbit.model'
 GRAVITY_GRADIENT = 'environment.gravity_gradient'
+ENVIRONMENT_TORQUE = 'environment.gravity_gradient, solar_radiation_pressure or drag'
+SUN_SENSOR = 'sun_sensor'
 
 
 class Topic(NamedTuple):
@@ -68,7 +70,8 @@ SIMULATOR = NodeInterfaces('attitude_simulator', 'simulator', (
           'frame_id; inertial velocity [m/s] and LVLH rate [rad/s] resolved in '
           'orbit.frame_id (child_frame_id)', ORBIT),
     Topic('pub', 'environment_torque', 'geometry_msgs/msg/WrenchStamped',
-          'gravity-gradient torque, body frame [N*m]', GRAVITY_GRADIENT),
+          'the environment\'s torque (the sum of the terms the scene names: gravity '
+          'gradient, solar radiation pressure, drag), body frame [N*m]', ENVIRONMENT_TORQUE),
     Topic('pub', 'odometry', 'nav_msgs/msg/Odometry',
           'pose in frame_id, angular velocity in child_frame_id'),
     Topic('pub', 'angular_velocity', 'geometry_msgs/msg/Vector3Stamped', 'body frame [rad/s]'),
@@ -86,6 +89,8 @@ SIMULATOR = NodeInterfaces('attitude_simulator', 'simulator', (
     Topic('pub', 'gyro', 'sensor_msgs/msg/Imu', 'noisy, biased body rate (no orientation)', GYRO),
     Topic('pub', 'star_tracker', 'geometry_msgs/msg/QuaternionStamped',
           'noisy attitude fixes, none during outages', STAR_TRACKER),
+    Topic('pub', 'sun_direction', 'geometry_msgs/msg/Vector3Stamped', 'unit vector to the '
+          'Sun, body frame (noisy); none in the Earth\'s shadow', SUN_SENSOR),
     Topic('pub', '/clock', 'rosgraph_msgs/msg/Clock', 'sim time', CLOCK),
     Topic('pub', '/diagnostics', 'diagnostic_msgs/msg/DiagnosticArray',
           '1 Hz: integrator and why, real-time factor, drifts, rejected commands, deadlines'),

@@ -161,12 +161,16 @@ class EngineConfig:
         sensors = SensorSettings.from_parameters(p)
         environment = environment_from_parameters(p)
         q, w = initial_state_in_world(environment, p['initial_attitude_frame'], q, w)
-        if environment is not None and environment.gravity_gradient:
+        if environment is not None and environment.terms:
             if p['integrator'] != specs.AUTO and \
                     not get_integrator(p['integrator']).environment:
+                keys = [k for k in ('environment.gravity_gradient',
+                                    'environment.solar_radiation_pressure')
+                        if p[k]] + (['environment.drag'] if p['environment.drag'] != 'none'
+                                    else [])
                 raise ValueError(f'integrator: {p["integrator"]} does not integrate '
-                                 'environment.gravity_gradient; use auto, a splitting, rk4, '
-                                 'euler or dop853')
+                                 f'{", ".join(keys)}; use auto, a splitting, rk4, euler or '
+                                 'dop853')
         if ctl is not None:
             check_feedback(sensors, ctl.feedback, ctl.estimator_bandwidth)
         config = cls(body, dissipation, q, w, integrator=p['integrator'], step=p['step'],

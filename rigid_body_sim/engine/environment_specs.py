@@ -14,6 +14,7 @@ from scipy.spatial.transform import Rotation
 from ..param_spec import ParamSpec
 from ..physics import orbit as orbit_models
 from ..physics.orbit import frames, kernel as orbit_kernel
+from .sunlight_specs import SUNLIGHT, Sunlight, sunlight_from_parameters
 
 ENVIRONMENT = (
     ParamSpec('orbit.model', 'none', 'the orbit: none (no orbit, no environment), kepler '
@@ -48,28 +49,41 @@ ENVIRONMENT = (
               note='lvlh needs orbit.model'),
     ParamSpec('environment.gravity_gradient', False, 'the gravity-gradient torque 3 mu/r^3 '
               'c x (I c) along the orbit (needs orbit.model)', kind='bool', read_only=True),
-)
+) + SUNLIGHT  # sunlight, drag, the facets and the sun sensor (sunlight_specs)
 
 
 @dataclass(frozen=True, eq=False)
 class EnvironmentSettings:
-    """The orbit (None: none) and which environment torques act."""
+    """The orbit (None: none) and which environment torques act (``sunlight``: SRP and
+    drag on the facets, None if neither)."""
     orbit: Optional[orbit_models.Orbit] = None
     gravity_gradient: bool = False
     epoch: Optional[datetime] = None
+    sunlight: Optional[Sunlight] = None
 
     @property
     def terms(self):
         """Names of the environment's torques in the model (for ``auto``'s reason)."""
-        return ('gravity gradient',) if self.gravity_gradient else ()
+        return (('gravity gradient',) if self.gravity_gradient else ()) + \
+            (() if self.sunlight is None else self.sunlight.terms)
 
-    def elements(self, t: float):
+    @property
+    def anchored(self) -> bool:
+        """Whether the kernels' array is re-made at each interval between events (SGP4's
+        osculating conic, NRLMSIS's local density fit)."""
+        return bool(self.terms) and (self.orbit.anchored or (
+            self.sunlight is not None and self.sunlight.anchored))
+
+    def elements(self, t: float, to_frame=None):
         """The kernels' element array (``physics.orbit.kernel``) near sim time t with the
-        environment's torques switched on, None if none acts (the free body)."""
-        if not self.gravity_gradient:
+        environment's torques switched on, None if none acts (the free body);
+        ``to_frame`` maps the facets' body-axes vectors to the loops' (principal) frame."""
+        if not self.terms:
             return None
         elements = self.orbit.elements(t)
-        elements[orbit_kernel.ON] = 1.0
+        elements[orbit_kernel.ON] = 1.0 if self.gravity_gradient else 0.0
+        if self.sunlight is not None:
+            elements = self.sunlight.fill(elements, self.orbit, t, to_frame)
         return elements
 
     def gravity_gradient_rate(self, moments) -> float:
@@ -121,6 +135,7 @@ def environment_from_parameters(p) -> Optional[EnvironmentSettings]:
         if gg:
             raise ValueError('environment.gravity_gradient: needs an orbit (orbit.model '
                              'kepler, j2 or sgp4)')
+        sunlight_from_parameters(p, model, epoch)  # refuses a term without an orbit
         return None
     if model == 'sgp4':
         lines = [line for line in p['orbit.tle'] if line.strip()]
@@ -130,7 +145,8 @@ def environment_from_parameters(p) -> Optional[EnvironmentSettings]:
             orbit = orbit_models.from_tle(lines, epoch)
         except ValueError as exc:
             raise ValueError(f'orbit.tle: {exc}') from None
-        return EnvironmentSettings(orbit, gg, epoch)
+        epoch = epoch or orbit.epoch
+        return EnvironmentSettings(orbit, gg, epoch, sunlight_from_parameters(p, model, epoch))
     a, e = p['orbit.semi_major_axis'], p['orbit.eccentricity']
     if a * (1.0 - e) <= orbit_models.RADIUS:
         raise ValueError(f'orbit.semi_major_axis: the perigee a(1 - e) = '
@@ -139,4 +155,4 @@ def environment_from_parameters(p) -> Optional[EnvironmentSettings]:
     cls = orbit_models.J2Orbit if model == 'j2' else orbit_models.KeplerOrbit
     orbit = cls(a, e, p['orbit.inclination'], p['orbit.raan'],
                 p['orbit.argument_of_periapsis'], p['orbit.true_anomaly'])
-    return EnvironmentSettings(orbit, gg, epoch)
+    return EnvironmentSettings(orbit, gg, epoch, sunlight_from_parameters(p, model, epoch))

@@ -19,8 +19,9 @@ def diagnostics(engine, state, baseline) -> dict:
     na = 'n/a (torque applied)'
     if engine.actuators is not None:  # allocated torque is internal: H is still kept
         torque_on = state.tau_p is not None
-    if engine.dynamics.gravity_gradient:  # the environment's torque acts all along
-        torque_on, na = True, 'n/a (environment torque: gravity gradient)'
+    if engine.dynamics.environment is not None:  # the environment's torque acts all along
+        torque_on = True
+        na = f'n/a (environment torque: {", ".join(engine.environment_terms)})'
 
     def rel(a, b):
         return (a - b) / b if b > 0 else 0.0

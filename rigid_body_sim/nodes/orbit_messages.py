@@ -10,7 +10,8 @@ scenes with an ``orbit.model``; nothing is built without one).
 * ``/tf``: ``frame_id`` → orbit frame, the rotation only (the body's own transform has no
   translation either, so both frames share the origin in a 3D view).
 * ``environment_torque`` (geometry_msgs/WrenchStamped, the body frame ``child_frame_id``):
-  the gravity-gradient torque at the sample (N·m), with the term on.
+  the environment's torque at the sample (N·m): the sum of the terms on (gravity gradient,
+  the facets' solar radiation pressure and drag).
 """
 import numpy as np
 from builtin_interfaces.msg import Time
@@ -21,6 +22,7 @@ from rclpy.serialization import serialize_message
 from ..engine.actuators import mass_inertia
 from ..engine.specs import frame_id_problem
 from ..physics import rotation
+from ..physics.environment import facets_kernel
 from .state_messages import type_name
 from ..physics.orbit import frames
 
@@ -41,7 +43,12 @@ class OrbitMessages:
         self.stamp = Time()
         self.odometry = Odometry()
         self.transform = TransformStamped()
-        self.torque = WrenchStamped() if config.environment.gravity_gradient else None
+        self.torque = WrenchStamped() if config.environment.terms else None
+        env = config.environment
+        # the facets' terms read the loops' array (principal axes); re-made per sample only
+        # where it is anchored to an interval (SGP4, NRLMSIS)
+        self._facets = None if env.sunlight is None else \
+            env.elements(0.0, config.body.to_principal)
         # the whole mass distribution (wheel rotors included), principal frame
         self._inertia = mass_inertia(config.actuators, config.body)
         for msg in (self.odometry, self.transform) + ((self.torque,) if self.torque else ()):
@@ -78,8 +85,16 @@ class OrbitMessages:
         twist.angular.x, twist.angular.y, twist.angular.z = \
             (axes.T @ frames.lvlh_rate(r, v)).tolist()
         if self.torque is not None:
-            tau = self.config.body.to_body(gravity_gradient(
-                self.config.environment.orbit.mu, self._inertia, block.q[i], r))
+            env = self.config.environment
+            tau = np.zeros(3)
+            if env.gravity_gradient:
+                tau += gravity_gradient(env.orbit.mu, self._inertia, block.q[i], r)
+            if self._facets is not None:
+                if env.anchored:
+                    self._facets = env.elements(t, self.config.body.to_principal)
+                tau += facets_kernel.facets_torque(np.asarray(block.q[i], float), t,
+                                                   self._facets)
+            tau = self.config.body.to_body(tau)
             w = self.torque.wrench.torque
             w.x, w.y, w.z = (float(c) for c in tau)
 

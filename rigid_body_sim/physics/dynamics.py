@@ -13,7 +13,7 @@ from typing import Optional
 
 import numpy as np
 
-from . import rotation
+from . import dynamics_kernel, rotation
 from .orbit import kernel as orbit_kernel
 
 DISSIPATION_MODELS = ('none', 'double_bracket', 'viscous')
@@ -56,9 +56,10 @@ class Dynamics:
     scale of the dissipation's stiffness and of its path from the minor to the major axis.
 
     ``environment``: the orbit's element array (``orbit.kernel`` layout) whose torques act
-    (the gravity gradient, environment[ON] = 1); None: the free body (the loops are then
-    compiled without the term). The methods that integrate it read it from here and see it
-    changed in place (an SGP4 orbit re-anchored at each interval)."""
+    (the gravity gradient with environment[ON] = 1, the facets' SRP and drag); None: the
+    free body (the loops are then compiled without the term). The methods that integrate
+    it read it from here and see it changed in place (an SGP4 orbit re-anchored at each
+    interval)."""
     moments: np.ndarray
     dissipation: Dissipation = Dissipation()
     environment: Optional[np.ndarray] = None
@@ -77,14 +78,18 @@ class Dynamics:
         """Whether the gravity-gradient torque acts (an orbit with the term switched on)."""
         return self.environment is not None and bool(self.environment[orbit_kernel.ON] != 0)
 
+    @property
+    def environment_acts(self) -> bool:
+        """Whether any environment torque acts (gravity gradient, SRP, drag)."""
+        return self.environment is not None
+
     def environment_torque(self, q, t: float):
         """The environment's torque at attitude q (principal → inertial) and time t,
         principal frame, N·m (zeros for the free body)."""
-        out = np.zeros(3)
-        if self.environment is not None:
-            orbit_kernel.gravity_gradient(np.asarray(q, float), float(t), self.environment,
-                                          self.moments, out)
-        return out
+        if self.environment is None:
+            return np.zeros(3)
+        return np.array(dynamics_kernel.environment_torque(
+            np.asarray(q, float), float(t), self.environment, self.moments))
 
     def angular_velocity(self, m):
         """Ω = m / I, principal frame, rad/s."""

@@ -21,6 +21,7 @@ is the double bracket by its exact flow (``splitting2_lstable``).
 import math
 
 from .jit import depends_on, inline, jit
+from .environment import facets_kernel
 from .orbit import kernel as orbit_kernel
 
 MODEL_CODES = {'none': 0, 'double_bracket': 1, 'viscous': 2}
@@ -217,19 +218,39 @@ def _rates(q, m, moments, tau, model, coefficient, dq, dm):
 
 
 @jit
+def environment_torque(q, t, env, moments):
+    """The environment's torque at attitude q and time t (principal frame, N·m), one line
+    per term switched on in ``env`` (``orbit.kernel``): the gravity gradient, then the
+    facets' solar radiation pressure and drag (``environment.facets_kernel``)."""
+    tx = 0.0
+    ty = 0.0
+    tz = 0.0
+    if env[orbit_kernel.ON] != 0.0:
+        tx, ty, tz = orbit_kernel.gravity_gradient_torque(q, t, env, moments)
+    if env[orbit_kernel.SRP_ON] != 0.0 or env[orbit_kernel.DRAG_ON] != 0.0:
+        fx, fy, fz = facets_kernel.facets_torque(q, t, env)
+        tx += fx
+        ty += fy
+        tz += fz
+    return tx, ty, tz
+
+
+@jit
 def _environment(q, t, env, moments, dm):
-    """dm += the environment's torque at time t (the gravity gradient, ``orbit.kernel``).
+    """dm += the environment's torque at time t (``environment_torque``).
     The loops call it after ``_rates`` under ``if env is not None``: for the free body
     (env None) numba prunes the branch, so their code is what it was before the orbit
     existed (a parameter of ``_rates`` instead kept LLVM from inlining it: rk4's step
     3-4× slower with the term off)."""
-    gx, gy, gz = orbit_kernel.gravity_gradient_torque(q, t, env, moments)
+    gx, gy, gz = environment_torque(q, t, env, moments)
     dm[0] += gx
     dm[1] += gy
     dm[2] += gz
 
 
-_environment = depends_on(_environment, orbit_kernel)  # it embeds the orbit's kernel
+# they embed the orbit's and the facets' kernels
+environment_torque = depends_on(environment_torque, orbit_kernel, facets_kernel)
+_environment = depends_on(_environment, orbit_kernel, facets_kernel)
 
 
 @jit

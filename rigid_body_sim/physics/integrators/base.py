@@ -142,20 +142,21 @@ class Integrator:
     def __init__(self, dynamics: Dynamics, **options):
         if options:
             raise TypeError(f'{self.name} takes no options {sorted(options)}')
-        if dynamics.gravity_gradient and not self.environment:
-            raise ValueError(f'integrator {self.name} does not integrate the gravity-gradient '
-                             'torque (environment.gravity_gradient); use auto or a splitting, '
-                             'rk4, euler or dop853')
+        if dynamics.environment_acts and not self.environment:
+            what = 'the gravity-gradient torque (environment.gravity_gradient)' if \
+                dynamics.gravity_gradient else 'the facets\' torques (SRP, drag)'
+            raise ValueError(f'integrator {self.name} does not integrate {what}; use auto or '
+                             'a splitting, rk4, euler or dop853')
         self.dynamics = dynamics
         self.nfev = 0
 
     def _one_body_only(self, q, t):
         """IntegrationError if a batch (q (..., 4), N > 1 bodies) meets the environment's
         torques: only the one-body loops evaluate them."""
-        if np.ndim(q) > 1 and self.dynamics.gravity_gradient:
+        if np.ndim(q) > 1 and self.dynamics.environment_acts:
             raise IntegrationError(self.name, 0.0, t, 'the environment\'s torques (gravity '
-                                   'gradient) are integrated for one body at a time, not a '
-                                   'batch')
+                                   'gradient, SRP, drag) are integrated for one body at a '
+                                   'time, not a batch')
 
     def step(self, q, m, h: float, torque: Optional[np.ndarray] = None, t: float = 0.0):
         """Advance (q, m) by h seconds; returns new arrays. Raises IntegrationError."""

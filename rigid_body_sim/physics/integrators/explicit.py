@@ -50,7 +50,7 @@ class _ExplicitRK(Integrator):
     def step(self, q, m, h, torque=None, t=0.0):
         """As Integrator.step; with the environment's torques, one body's step runs the
         compiled loop (the numpy rates have no attitude or time to evaluate them at)."""
-        if self.dynamics.gravity_gradient:
+        if self.dynamics.environment_acts:
             self._one_body_only(q, t)
             return self._run_kernel(self._kernel, q, m, h, 1, torque, t)
         return super().step(q, m, h, torque, t)

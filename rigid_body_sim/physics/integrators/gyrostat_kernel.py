@@ -30,6 +30,7 @@ import numpy as np
 from .. import dynamics_kernel
 from ..dynamics_kernel import _finite, _rotate_half
 from ..jit import depends_on, inline, jit
+from ..environment import facets_kernel
 from ..orbit import kernel as orbit_kernel
 
 # status slots (counters of steps on which a limit acted, and the last values)
@@ -134,6 +135,23 @@ def actuator_momentum(hw, delta, wa, g, s0, h0, spin, out):
         for j in range(delta.shape[0]):
             for r in range(3):
                 out[r] += h0[j] * spin[j, r]
+
+
+@jit
+def _environment_full(q, t, env, inertia):
+    """The environment's torque with the whole mass distribution (``dynamics_kernel.
+    environment_torque`` with the gravity gradient of a full inertia matrix)."""
+    tx = 0.0
+    ty = 0.0
+    tz = 0.0
+    if env[orbit_kernel.ON] != 0.0:
+        tx, ty, tz = orbit_kernel.gravity_gradient_torque_full(q, t, env, inertia)
+    if env[orbit_kernel.SRP_ON] != 0.0 or env[orbit_kernel.DRAG_ON] != 0.0:
+        fx, fy, fz = facets_kernel.facets_torque(q, t, env)
+        tx += fx
+        ty += fy
+        tz += fz
+    return tx, ty, tz
 
 
 @jit
@@ -258,8 +276,7 @@ def gyrostat_run(q, m, hw, delta, h, n, moments, split_axes, tau_ext, has_ext,
                     H[r] += half * tau_ext[r]
                     m[r] = H[r] - hA[r]
             if phase == 1 and env is not None:
-                gx, gy, gz = orbit_kernel.gravity_gradient_torque_full(
-                    q, t0 + (step + 1) * h, env, inertia_full)
+                gx, gy, gz = _environment_full(q, t0 + (step + 1) * h, env, inertia_full)
                 H[0] += half * gx
                 H[1] += half * gy
                 H[2] += half * gz
@@ -299,8 +316,7 @@ def gyrostat_run(q, m, hw, delta, h, n, moments, split_axes, tau_ext, has_ext,
                 for r in range(3):
                     H[r] += half * tau_ext[r]
             if phase == 0 and env is not None:
-                gx, gy, gz = orbit_kernel.gravity_gradient_torque_full(q, t0 + step * h, env,
-                                                                       inertia_full)
+                gx, gy, gz = _environment_full(q, t0 + step * h, env, inertia_full)
                 H[0] += half * gx
                 H[1] += half * gy
                 H[2] += half * gz
@@ -355,7 +371,7 @@ def _flow(q, H, hA, axis, t, moments):
 
 # numba's disk cache checks only this file; gyrostat_run embeds dynamics_kernel's _finite and
 # _rotate_half
-depends_on(gyrostat_run, dynamics_kernel, orbit_kernel)
+depends_on(gyrostat_run, dynamics_kernel, orbit_kernel, facets_kernel)
 
 
 def warm():

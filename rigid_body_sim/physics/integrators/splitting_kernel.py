@@ -7,7 +7,8 @@ import math
 import numpy as np
 
 from .. import dynamics_kernel
-from ..dynamics_kernel import _axis_flow, _dissipate, _finite
+from ..dynamics_kernel import _axis_flow, _dissipate, _finite, environment_torque
+from ..environment import facets_kernel
 from ..jit import COMPILED, depends_on, jit
 from ..orbit import kernel as orbit_kernel
 
@@ -82,7 +83,7 @@ def splitting_run(q, m, h, n, weights, axes, moments, tau, has_tau, model, coeff
                 for i in range(3):
                     m[i] = m[i] + (0.5 * hw) * tau[i]
             if env is not None:
-                gx, gy, gz = orbit_kernel.gravity_gradient_torque(q, t, env, moments)
+                gx, gy, gz = environment_torque(q, t, env, moments)
                 m[0] = m[0] + (0.5 * hw) * gx
                 m[1] = m[1] + (0.5 * hw) * gy
                 m[2] = m[2] + (0.5 * hw) * gz
@@ -96,7 +97,7 @@ def splitting_run(q, m, h, n, weights, axes, moments, tau, has_tau, model, coeff
                 for i in range(3):
                     m[i] = m[i] + (0.5 * hw) * tau[i]
             if env is not None:
-                gx, gy, gz = orbit_kernel.gravity_gradient_torque(q, t, env, moments)
+                gx, gy, gz = environment_torque(q, t, env, moments)
                 m[0] = m[0] + (0.5 * hw) * gx
                 m[1] = m[1] + (0.5 * hw) * gy
                 m[2] = m[2] + (0.5 * hw) * gz
@@ -146,8 +147,9 @@ def splitting_bodies(q, m, lo, hi, h, n, weights, axes, moments, tau, has_tau, m
 
 
 # they call the shared flows of another file (see jit.depends_on)
-splitting_run = depends_on(splitting_run, dynamics_kernel, orbit_kernel)
-splitting_bodies = depends_on(splitting_bodies, dynamics_kernel, orbit_kernel)
+splitting_run = depends_on(splitting_run, dynamics_kernel, orbit_kernel, facets_kernel)
+splitting_bodies = depends_on(splitting_bodies, dynamics_kernel, orbit_kernel,
+                              facets_kernel)
 
 
 def warm():

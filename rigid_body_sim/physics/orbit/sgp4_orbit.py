@@ -13,7 +13,7 @@ from SGP4's by about ½·a_J2·Δt² (a_J2 ≈ 0.015 m/s² in low orbit): 1e-9 o
 far below the gravity-gradient torque's other errors.
 """
 import math
-from datetime import datetime, timezone
+from datetime import datetime, timedelta, timezone
 
 import numpy as np
 from sgp4.api import SGP4_ERRORS, Satrec, WGS72
@@ -78,6 +78,12 @@ class Sgp4Orbit(Orbit):
             self.state(0.0)
         except OrbitError as exc:
             raise ValueError(f'SGP4 fails at the epoch: {exc.reason}') from None
+
+    @property
+    def epoch(self) -> datetime:
+        """UTC instant of sim time 0 (the TLE's epoch unless one was given)."""
+        return datetime(2000, 1, 1, 12, tzinfo=timezone.utc) + timedelta(
+            days=(self.jd0 - 2451545.0) + self.fr0)
 
     @property
     def mean_motion(self) -> float:
