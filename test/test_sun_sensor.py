@@ -109,3 +109,23 @@ def test_noise_is_seeded_and_of_its_size():
 def test_a_sun_sensor_without_orbit_or_epoch_is_refused_by_name(overrides, match):
     with pytest.raises(ValueError, match=match):
         EngineConfig.from_parameters(params(**overrides))
+
+
+def test_with_sgp4_the_tles_epoch_is_the_suns_epoch():
+    """orbit.model sgp4 with no epoch: sim time 0 is the TLE's epoch (2019 day 343.69339541),
+    and the sun sensor reads the Sun of that instant."""
+    from datetime import datetime, timedelta, timezone
+    from test_orbit import ISS
+    p = params(**{'orbit.model': 'sgp4', 'orbit.tle': ISS, 'epoch': '', 'duration': 60.0})
+    config = EngineConfig.from_parameters(p)
+    expected = datetime(2019, 1, 1, tzinfo=timezone.utc) + timedelta(days=342.69339541)
+    assert abs((config.environment.epoch - expected).total_seconds()) < 1e-3
+    engine, block, t, u = run(p)
+    r, _ = config.environment.orbit.state(0.0)
+    lit = sl.shadow(r, sl.sun_vector(expected, 0.0), 'cylindrical')
+    assert (len(t) == 61) == (lit == 1.0) and (len(t) > 0) == (lit == 1.0)
+    if len(t):
+        to_sun = sl.sun_vector(expected, 0.0) - r
+        np.testing.assert_allclose(u[0], rotation.rotate(rotation.conjugate(block.q[0]),
+                                                         to_sun / np.linalg.norm(to_sun)),
+                                   atol=1e-9)

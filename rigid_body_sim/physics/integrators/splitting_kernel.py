@@ -7,7 +7,7 @@ import math
 import numpy as np
 
 from .. import dynamics_kernel
-from ..dynamics_kernel import _axis_flow, _dissipate, _finite, environment_torque
+from ..dynamics_kernel import _axis_flow, _dissipate, _finite
 from ..environment import facets_kernel
 from ..jit import COMPILED, depends_on, jit
 from ..orbit import kernel as orbit_kernel
@@ -83,10 +83,16 @@ def splitting_run(q, m, h, n, weights, axes, moments, tau, has_tau, model, coeff
                 for i in range(3):
                     m[i] = m[i] + (0.5 * hw) * tau[i]
             if env is not None:
-                gx, gy, gz = environment_torque(q, t, env, moments)
-                m[0] = m[0] + (0.5 * hw) * gx
-                m[1] = m[1] + (0.5 * hw) * gy
-                m[2] = m[2] + (0.5 * hw) * gz
+                if env[orbit_kernel.ON] != 0.0:
+                    gx, gy, gz = orbit_kernel.gravity_gradient_torque(q, t, env, moments)
+                    m[0] = m[0] + (0.5 * hw) * gx
+                    m[1] = m[1] + (0.5 * hw) * gy
+                    m[2] = m[2] + (0.5 * hw) * gz
+                if env[orbit_kernel.SRP_ON] != 0.0 or env[orbit_kernel.DRAG_ON] != 0.0:
+                    fx, fy, fz = facets_kernel.facets_torque(q, t, env)
+                    m[0] = m[0] + (0.5 * hw) * fx
+                    m[1] = m[1] + (0.5 * hw) * fy
+                    m[2] = m[2] + (0.5 * hw) * fz
             _axis_flow(q, m, a, 0.5 * hw, moments)
             _axis_flow(q, m, b, 0.5 * hw, moments)
             _axis_flow(q, m, c, hw, moments)
@@ -97,10 +103,16 @@ def splitting_run(q, m, h, n, weights, axes, moments, tau, has_tau, model, coeff
                 for i in range(3):
                     m[i] = m[i] + (0.5 * hw) * tau[i]
             if env is not None:
-                gx, gy, gz = environment_torque(q, t, env, moments)
-                m[0] = m[0] + (0.5 * hw) * gx
-                m[1] = m[1] + (0.5 * hw) * gy
-                m[2] = m[2] + (0.5 * hw) * gz
+                if env[orbit_kernel.ON] != 0.0:
+                    gx, gy, gz = orbit_kernel.gravity_gradient_torque(q, t, env, moments)
+                    m[0] = m[0] + (0.5 * hw) * gx
+                    m[1] = m[1] + (0.5 * hw) * gy
+                    m[2] = m[2] + (0.5 * hw) * gz
+                if env[orbit_kernel.SRP_ON] != 0.0 or env[orbit_kernel.DRAG_ON] != 0.0:
+                    fx, fy, fz = facets_kernel.facets_torque(q, t, env)
+                    m[0] = m[0] + (0.5 * hw) * fx
+                    m[1] = m[1] + (0.5 * hw) * fy
+                    m[2] = m[2] + (0.5 * hw) * fz
             if inner:
                 evals += _dissipate(m, 0.5 * hw, moments, model, coefficient, True)
         if not inner:
