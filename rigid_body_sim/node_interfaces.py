@@ -188,6 +188,7 @@ RECORDED_BY_DEFAULT = [
     'attitude_target', '/diagnostics', '/tf', 'gyro', 'star_tracker',
     'wheel_states', 'gimbal_states', 'actuator_command',  # scenes with wheels / CMGs
     'orbit', 'environment_torque',  # scenes with an orbit (as offline bags carry them)
+    'sun_direction',  # the sun sensor
 ]
 
 # Their types, the nodes' own: the recorder subscribes to them before their publishers exist.

@@ -129,3 +129,4 @@ def test_with_sgp4_the_tles_epoch_is_the_suns_epoch():
         np.testing.assert_allclose(u[0], rotation.rotate(rotation.conjugate(block.q[0]),
                                                          to_sun / np.linalg.norm(to_sun)),
                                    atol=1e-9)
+
