@@ -25,10 +25,12 @@ FEEDBACK_TRUTH = 'feedback: truth'
 FEEDBACK_SENSORS = 'feedback: sensors'
 ORBIT = 'orbit.model'
 GRAVITY_GRADIENT = 'environment.gravity_gradient'
-ENVIRONMENT_TORQUE = 'environment.gravity_gradient or magnetorquer.max_dipole'
+ENVIRONMENT_TORQUE = ('environment.gravity_gradient, magnetorquer.max_dipole, '
+                      'solar_radiation_pressure or drag')
 MAGNETORQUERS = 'magnetorquer.max_dipole'
 MAGNETOMETER = 'magnetometer.enabled'
 BDOT = 'mode: bdot'
+SUN_SENSOR = 'sun_sensor'
 
 
 class Topic(NamedTuple):
@@ -72,8 +74,9 @@ SIMULATOR = NodeInterfaces('attitude_simulator', 'simulator', (
           'frame_id; inertial velocity [m/s] and LVLH rate [rad/s] resolved in '
           'orbit.frame_id (child_frame_id)', ORBIT),
     Topic('pub', 'environment_torque', 'geometry_msgs/msg/WrenchStamped',
-          'the environment\'s torque, body frame [N*m]: gravity gradient + the '
-          'magnetorquers\' m x B', ENVIRONMENT_TORQUE),
+          'the environment\'s torque (the sum of the terms the scene names: gravity '
+          'gradient, the magnetorquers\' m x B, solar radiation pressure, drag), body frame '
+          '[N*m]', ENVIRONMENT_TORQUE),
     Topic('pub', 'odometry', 'nav_msgs/msg/Odometry',
           'pose in frame_id, angular velocity in child_frame_id'),
     Topic('pub', 'angular_velocity', 'geometry_msgs/msg/Vector3Stamped', 'body frame [rad/s]'),
@@ -94,6 +97,8 @@ SIMULATOR = NodeInterfaces('attitude_simulator', 'simulator', (
     Topic('pub', 'magnetic_field', 'sensor_msgs/msg/MagneticField', 'magnetometer: the '
           'field in the body frame [T] with its bias, noise and the rods\' coupling',
           MAGNETOMETER),
+    Topic('pub', 'sun_direction', 'geometry_msgs/msg/Vector3Stamped', 'unit vector to the '
+          'Sun, body frame (noisy); none in the Earth\'s shadow', SUN_SENSOR),
     Topic('pub', '/clock', 'rosgraph_msgs/msg/Clock', 'sim time', CLOCK),
     Topic('pub', '/diagnostics', 'diagnostic_msgs/msg/DiagnosticArray',
           '1 Hz: integrator and why, real-time factor, drifts, rejected commands, deadlines'),
@@ -202,6 +207,7 @@ RECORDED_BY_DEFAULT = [
     'wheel_states', 'gimbal_states', 'actuator_command',  # scenes with wheels / CMGs
     'orbit', 'environment_torque',  # scenes with an orbit (as offline bags carry them)
     'magnetic_field', 'dipole_command',  # scenes with a magnetometer, magnetorquers
+    'sun_direction',  # the sun sensor
 ]
 
 # Their types, the nodes' own: the recorder subscribes to them before their publishers exist.

@@ -87,11 +87,12 @@ def test_running_nodes_match_the_table(ros_process, rclpy_node, namespace, tmp_p
           '--params-file', 'config/gyro_pointing.yaml']),
         (ni.VIEWER, ns_truth, (),
          [venv_exe('viewer'), '--ros-args', '-r', f'__ns:={ns_truth}', '-p', 'port:=0']),
-        (ni.SIMULATOR, ns_truth + '_orbit',  # an orbit with the gravity gradient
-         (ni.ORBIT, ni.GRAVITY_GRADIENT, ni.ENVIRONMENT_TORQUE)
+        (ni.SIMULATOR, ns_truth + '_orbit',  # an orbit with the gravity gradient, a sun sensor
+         (ni.ORBIT, ni.GRAVITY_GRADIENT, ni.ENVIRONMENT_TORQUE, ni.SUN_SENSOR)
          + ((ni.SIM_INTERFACES,) if AVAILABLE else ()),
          [venv_exe('simulator'), '--ros-args', '-r', f'__ns:={ns_truth}_orbit',
-          '--params-file', 'config/gravity_gradient.yaml']),
+          '--params-file', 'config/gravity_gradient.yaml', '-p', 'sun_sensor.enabled:=true',
+          '-p', 'epoch:=2026-03-20T12:00:00Z']),
         (ni.SIMULATOR, ns_truth + '_mag',  # magnetorquers and a magnetometer, no gradient
          (ni.ORBIT, ni.MAGNETORQUERS, ni.MAGNETOMETER, ni.ENVIRONMENT_TORQUE)
          + ((ni.SIM_INTERFACES,) if AVAILABLE else ()),

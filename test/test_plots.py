@@ -1,13 +1,14 @@
 """Each scene's figures show what the scene is for: they exist, every axis has a unit, and
 the numbers they draw agree with the analytic laws to the physics tests' tolerances
 (test_scenes.py: flip interval 5e-3, wobble period 1e-3, nutation law 0.1°)."""
+import math
 import os
 
 import numpy as np
 import pytest
 
 from rigid_body_sim.offline import simulate
-from rigid_body_sim.physics import analytic
+from rigid_body_sim.physics import analytic, orbit
 from rigid_body_sim.plots import free_until, write_figures
 from rigid_body_sim.scene import load
 
@@ -23,6 +24,8 @@ EXPECTED = {
     # controlled from t = 0: no free phase, so no Poinsot figure (it drew round-off noise)
     'slew': {'omega.png', 'invariants.png', 'control.png'},
     'detumble': {'omega.png', 'invariants.png', 'control.png'},
+    # the environment's torque acts all along: no free phase (no Poinsot, no flips)
+    'gravity_gradient': {'omega.png', 'invariants.png', 'libration.png'},
 }
 
 
@@ -102,6 +105,23 @@ def test_explorer1_figure_follows_the_nutation_law(tmp_path):
     assert v['nutation_rate'][1] == pytest.approx(c, rel=1e-12)
     T0, T1 = v['energy']
     assert T0 == pytest.approx(79.0, rel=0.01) and T1 == pytest.approx(15.8, rel=0.01)
+
+
+def test_gravity_gradient_figure_draws_the_libration_frequencies(tmp_path):
+    """Pitch at n·√(3(I_x − I_z)/I_y) within 2e-3 (as test_scenes: the 0.05 rad amplitude
+    shifts it), the fast roll–yaw root within 5e-3 and the slow one within 5 % (2.3 of its
+    periods in the run, and the pitch couples into it at this amplitude)."""
+    sc, _, figs = figures_of('gravity_gradient', tmp_path)
+    v = figs['libration.png'].values
+    n = math.sqrt(orbit.MU / sc.simulator['orbit.semi_major_axis'] ** 3)
+    ix, iy, iz = sc.simulator['inertia']
+    measured, predicted = v['pitch_frequency']
+    assert predicted == pytest.approx(n * math.sqrt(3 * (ix - iz) / iy), rel=1e-12)
+    assert predicted == pytest.approx(0.8660 * n, rel=1e-4)   # the notes' check value
+    assert measured == pytest.approx(predicted, rel=2e-3)
+    (low_m, high_m), (low, high) = v['roll_yaw_frequencies']
+    assert (low / n, high / n) == pytest.approx((0.6818, 1.6937), abs=1e-4)
+    assert high_m == pytest.approx(high, rel=5e-3) and low_m == pytest.approx(low, rel=5e-2)
 
 
 def test_default_free_phase_shows_one_full_flip_then_the_predicted_control(tmp_path):

@@ -115,3 +115,48 @@ def test_gyro_and_star_tracker_topics_and_the_loop_closed_on_them(ros_process, n
     assert types[f'{namespace}/gyro'] == 'sensor_msgs/msg/Imu'
     assert types[f'{namespace}/star_tracker'] == 'geometry_msgs/msg/QuaternionStamped'
     assert counts[f'{namespace}/gyro'] > 100 and counts[f'{namespace}/star_tracker'] > 10
+
+
+def test_sun_sensor_publishes_the_suns_direction_and_falls_silent_in_eclipse(
+        ros_process, namespace, rclpy_node):
+    """The gravity_gradient scene (a 7,000 km orbit at 500x real time) with a sun sensor at
+    the samples' instants: sun_direction messages are unit vectors in base_link, the Sun's
+    direction seen from the orbit turned into the body by the attitude published at the
+    same stamp, and none come during the Earth's shadow (a gap in their stamps)."""
+    from rigid_body_sim.engine.sunlight_specs import sun_in_body
+    from rigid_body_sim.physics.orbit import KeplerOrbit
+    epoch = '2026-03-20T12:00:00Z'
+    scene = os.path.join(os.path.dirname(SCENE), 'gravity_gradient.yaml')
+    sim = ros_process(venv_exe('simulator'), '--ros-args', '-r', f'__ns:={namespace}',
+                      '--params-file', scene, '-p', 'sun_sensor.enabled:=true',
+                      '-p', 'sun_sensor.rate:=0.1', '-p', f'epoch:={epoch}',
+                      '-p', 'publish_clock:=true',   # stamps in sim time
+                      '-p', 'real_time_factor:=500.0')
+    got = {'sun': [], 'att': []}
+    rclpy_node.create_subscription(Vector3Stamped, f'{namespace}/sun_direction',
+                                   got['sun'].append, 500)
+    rclpy_node.create_subscription(QuaternionStamped, f'{namespace}/attitude',
+                                   got['att'].append, 500)
+    # 6,500 s of sim time received hold a whole orbit (5,829 s), so one eclipse, however
+    # late the subscriptions matched (the run lasts 20,000 s, 40 s of wall time at 500x)
+    assert spin_until(rclpy_node, lambda: len(got['att']) > 1 and
+                      ns_of(got['att'][-1]) - ns_of(got['att'][0]) > 6.5e12, 90.0), \
+        sim.output()[-2000:]
+    assert sim.poll() is None
+    sun = got['sun']
+    assert len(sun) > 100 and all(m.header.frame_id == 'base_link' for m in sun)
+    stamps = np.array([ns_of(m) for m in sun])
+    assert np.max(np.diff(stamps)) > 1.0e12   # the eclipse: over 1,000 s without a reading
+    o = KeplerOrbit(7.0e6, 0.0, 0.9006, 0.0, 0.0, 0.0)
+    att = {ns_of(m): [m.quaternion.x, m.quaternion.y, m.quaternion.z, m.quaternion.w]
+           for m in got['att']}
+    checked = 0
+    for m in sun:
+        q = att.get(ns_of(m))
+        if q is None:
+            continue
+        expected, lit = sun_in_body(epoch, o, ns_of(m) / 1e9, q, 'conical')
+        assert lit > 0.0
+        np.testing.assert_allclose([m.vector.x, m.vector.y, m.vector.z], expected, atol=1e-9)
+        checked += 1
+    assert checked > 50

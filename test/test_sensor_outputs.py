@@ -1,6 +1,7 @@
 """What sensor scenes produce outside the engine: the offline bag's sensor topics (read by
 rosbags), the pointing plot, and the scene running with ROS made unimportable. Slower than
 test_sensors.py (subprocesses, plots), so not in the fast subset."""
+import math
 import os
 import subprocess
 import sys
@@ -85,3 +86,27 @@ def test_run_plots_the_pointing_error_of_a_sensor_scene(tmp_path):
                           '--out', str(tmp_path / 'slew'), '--no-bag'], capture_output=True,
                          text=True, timeout=300)
     assert out.returncode == 0 and 'pointing.png' not in out.stdout
+
+
+def test_an_offline_bag_carries_sun_direction_as_the_live_recorder_would(tmp_path):
+    """The offline bag, read with rosbags (not our reader): /sun_direction is
+    geometry_msgs/msg/Vector3Stamped in base_link, one per lit reading; the live recorder
+    records it by default too."""
+    pytest.importorskip('rclpy')
+    from rosbags.highlevel import AnyReader
+    from rigid_body_sim import node_interfaces
+    assert 'sun_direction' in node_interfaces.RECORDED_BY_DEFAULT
+    scene = S.load('gravity_gradient', ['sun_sensor.enabled=true', 'sun_sensor.rate=0.1',
+                                        'epoch=2026-03-20T12:00:00Z'])
+    bag = offline.BagSink(scene, str(tmp_path / 'bag'), {})
+    try:
+        offline.simulate(scene, duration=600.0, sinks=[bag], keep='none')
+    finally:
+        bag.close()
+    with AnyReader([tmp_path / 'bag']) as reader:
+        types = {c.topic: c.msgtype for c in reader.connections}
+        assert types['/sun_direction'] == 'geometry_msgs/msg/Vector3Stamped'
+        got = [reader.deserialize(raw, conn.msgtype) for conn, _, raw in reader.messages()
+               if conn.topic == '/sun_direction']
+    assert len(got) == 61 and all(m.header.frame_id == 'base_link' for m in got)
+    assert all(abs(math.hypot(m.vector.x, m.vector.y, m.vector.z) - 1.0) < 1e-12 for m in got)

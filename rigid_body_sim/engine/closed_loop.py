@@ -30,7 +30,7 @@ from ..physics import IntegrationError
 from ..physics import dynamics_kernel
 from ..physics.integrators import explicit_kernel, splitting_kernel
 from ..physics.jit import depends_on, jit
-from ..physics.environment import magnetic_kernel
+from ..physics.environment import facets_kernel, magnetic_kernel
 from ..physics.orbit import kernel as orbit_kernel
 from . import specs
 from .config import NS
@@ -216,7 +216,8 @@ def closed_loop_run(state, ticks, reals, spec, body, law, block, out):
 
 # it calls the step loops and the law from their own files (see jit.depends_on)
 closed_loop_run = depends_on(closed_loop_run, splitting_kernel, explicit_kernel,
-                             dynamics_kernel, control_kernel, orbit_kernel, magnetic_kernel)
+                             dynamics_kernel, control_kernel, orbit_kernel, magnetic_kernel,
+                             facets_kernel)
 
 
 def advance(engine, state: State, law, builder, until_ns: int, cap: int) -> Optional[Stretch]:

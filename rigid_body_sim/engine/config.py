@@ -178,7 +178,10 @@ class EngineConfig:
                     not get_integrator(p['integrator']).environment:
                 keys = ' and '.join(k for k, on in (
                     ('environment.gravity_gradient', environment.gravity_gradient),
-                    ('magnetorquer.max_dipole', environment.magnetorquers)) if on)
+                    ('magnetorquer.max_dipole', environment.magnetorquers),
+                    ('environment.solar_radiation_pressure',
+                     p['environment.solar_radiation_pressure']),
+                    ('environment.drag', p['environment.drag'] != 'none')) if on)
                 raise ValueError(f'integrator: {p["integrator"]} does not integrate '
                                  f'{keys}; use auto, a splitting, rk4, euler or dop853')
         if ctl is not None:

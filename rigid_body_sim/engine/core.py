@@ -77,7 +77,7 @@ class Engine:
             self.sources.extend(self.magnetics.sources)
         if config.sensors is not None:  # read before the law at a shared instant
             self._sensors = sensing.SensorSuite(config.sensors, sensing.estimator_bandwidth(
-                config.control))
+                config.control), config.environment)
             self.sources.append(self._sensors)
         if config.control is not None:
             observer = self._sensors.observe if sensing.estimator_bandwidth(config.control) \
@@ -129,14 +129,16 @@ class Engine:
         """The body's dynamics: dissipation, and the environment's torques along the orbit
         when the scene names them (``environment_specs``)."""
         return Dynamics(self.body.principal_moments, c.dissipation,
-                        None if c.environment is None else c.environment.elements(0.0))
+                        None if c.environment is None else
+                        c.environment.elements(0.0, self.body.to_principal))
 
     @property
     def orbit_anchored(self) -> bool:
-        """Whether the environment's orbit is re-anchored at each interval (SGP4's
-        osculating conic, ``Sgp4Orbit.elements``), so steps run interval by interval."""
+        """Whether the environment's array is re-anchored at each interval (SGP4's
+        osculating conic, ``Sgp4Orbit.elements``; NRLMSIS's density fit), so steps run
+        interval by interval."""
         env = self.config.environment
-        return env is not None and bool(env.terms) and env.orbit.anchored
+        return env is not None and env.anchored
 
     def _anchor_orbit(self, t_ns: int, t_end: int):
         """The osculating conic at the interval's midpoint (its error grows as the square of
@@ -145,7 +147,7 @@ class Engine:
         interval. IntegrationError with the time and SGP4's code if SGP4 fails."""
         try:
             self.dynamics.environment[:] = self.config.environment.elements(
-                (t_ns + t_end) / (2 * NS))
+                (t_ns + t_end) / (2 * NS), self.body.to_principal)
         except OrbitError as exc:
             self.fault = str(exc)
             raise IntegrationError(self.method, self.step_max, exc.t, exc.reason) from None

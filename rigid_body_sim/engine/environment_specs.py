@@ -15,6 +15,7 @@ from ..physics import orbit as orbit_models
 from ..physics import rotation
 from ..physics.orbit import frames, kernel as orbit_kernel
 from .magnetic_specs import MAGNETIC, MagneticSettings, magnetic_from_parameters
+from .sunlight_specs import SUNLIGHT, Sunlight, sunlight_from_parameters
 
 ENVIRONMENT = (
     ParamSpec('orbit.model', 'none', 'the orbit: none (no orbit, no environment), kepler '
@@ -49,16 +50,19 @@ ENVIRONMENT = (
               note='lvlh needs orbit.model'),
     ParamSpec('environment.gravity_gradient', False, 'the gravity-gradient torque 3 mu/r^3 '
               'c x (I c) along the orbit (needs orbit.model)', kind='bool', read_only=True),
-) + MAGNETIC  # magnetic: the field, the magnetorquers, the magnetometer (magnetic_specs)
+) + MAGNETIC + SUNLIGHT  # magnetic: the field, the magnetorquers, the magnetometer
+# (magnetic_specs); sunlight, drag, the facets and the sun sensor (sunlight_specs)
 
 
 @dataclass(frozen=True, eq=False)
 class EnvironmentSettings:
-    """The orbit (None: none) and which environment torques act."""
+    """The orbit (None: none) and which environment torques act (``sunlight``: SRP and
+    drag on the facets, None if neither)."""
     orbit: Optional[orbit_models.Orbit] = None
     gravity_gradient: bool = False
     epoch: Optional[datetime] = None
     magnetic: Optional[MagneticSettings] = None  # the field, rods, magnetometer (or None)
+    sunlight: Optional[Sunlight] = None
 
     @property
     def magnetorquers(self) -> bool:
@@ -68,18 +72,29 @@ class EnvironmentSettings:
     def terms(self):
         """Names of the environment's torques in the model (for ``auto``'s reason)."""
         return tuple(name for name, on in (('gravity gradient', self.gravity_gradient),
-                                           ('magnetorquers', self.magnetorquers)) if on)
+                                           ('magnetorquers', self.magnetorquers)) if on) + \
+            (() if self.sunlight is None else self.sunlight.terms)
 
-    def elements(self, t: float):
+    @property
+    def anchored(self) -> bool:
+        """Whether the kernels' array is re-made at each interval between events (SGP4's
+        osculating conic, NRLMSIS's local density fit)."""
+        return bool(self.terms) and (self.orbit.anchored or (
+            self.sunlight is not None and self.sunlight.anchored))
+
+    def elements(self, t: float, to_frame=None):
         """The kernels' element array (``physics.orbit.kernel``) near sim time t with the
         environment's torques switched on, None if none acts (the free body). The rods'
-        dipole is zero here: the engine writes the held one (``engine.magnetic``)."""
+        dipole is zero here: the engine writes the held one (``engine.magnetic``);
+        ``to_frame`` maps the facets' body-axes vectors to the loops' (principal) frame."""
         if not self.terms:
             return None
         elements = self.orbit.elements(t)
         elements[orbit_kernel.ON] = 1.0 if self.gravity_gradient else 0.0
         if self.magnetorquers:
             self.magnetic.field.fill(elements, t, t)
+        if self.sunlight is not None:  # may append the facets: after the fixed slots
+            elements = self.sunlight.fill(elements, self.orbit, t, to_frame)
         return elements
 
     def gravity_gradient_rate(self, moments) -> float:
@@ -132,6 +147,7 @@ def environment_from_parameters(p) -> Optional[EnvironmentSettings]:
             raise ValueError('environment.gravity_gradient: needs an orbit (orbit.model '
                              'kepler, j2 or sgp4)')
         magnetic_from_parameters(p, None, epoch)  # refuses a field without an orbit
+        sunlight_from_parameters(p, model, epoch)  # refuses a term without an orbit
         return None
     if model == 'sgp4':
         lines = [line for line in p['orbit.tle'] if line.strip()]
@@ -141,8 +157,9 @@ def environment_from_parameters(p) -> Optional[EnvironmentSettings]:
             orbit = orbit_models.from_tle(lines, epoch)
         except ValueError as exc:
             raise ValueError(f'orbit.tle: {exc}') from None
-        return EnvironmentSettings(orbit, gg, epoch,
-                                   magnetic_from_parameters(p, orbit, epoch or orbit.epoch))
+        epoch = epoch or orbit.epoch
+        return EnvironmentSettings(orbit, gg, epoch, magnetic_from_parameters(p, orbit, epoch),
+                                   sunlight_from_parameters(p, model, epoch))
     a, e = p['orbit.semi_major_axis'], p['orbit.eccentricity']
     if a * (1.0 - e) <= orbit_models.RADIUS:
         raise ValueError(f'orbit.semi_major_axis: the perigee a(1 - e) = '
@@ -151,4 +168,5 @@ def environment_from_parameters(p) -> Optional[EnvironmentSettings]:
     cls = orbit_models.J2Orbit if model == 'j2' else orbit_models.KeplerOrbit
     orbit = cls(a, e, p['orbit.inclination'], p['orbit.raan'],
                 p['orbit.argument_of_periapsis'], p['orbit.true_anomaly'])
-    return EnvironmentSettings(orbit, gg, epoch, magnetic_from_parameters(p, orbit, epoch))
+    return EnvironmentSettings(orbit, gg, epoch, magnetic_from_parameters(p, orbit, epoch),
+                               sunlight_from_parameters(p, model, epoch))

@@ -10,8 +10,9 @@ scenes with an ``orbit.model``; nothing is built without one).
 * ``/tf``: ``frame_id`` → orbit frame, the rotation only (the body's own transform has no
   translation either, so both frames share the origin in a 3D view).
 * ``environment_torque`` (geometry_msgs/WrenchStamped, the body frame ``child_frame_id``):
-  the environment's torque at the sample (N·m): the gravity gradient's and the
-  magnetorquers' m × B (the dipole held at the sample), each with its term on.
+  the environment's torque at the sample (N·m): the sum of the terms on (the gravity
+  gradient, the magnetorquers' m × B with the dipole held at the sample, the facets' solar
+  radiation pressure and drag).
 """
 import numpy as np
 from builtin_interfaces.msg import Time
@@ -22,6 +23,7 @@ from rclpy.serialization import serialize_message
 from ..engine.actuators import mass_inertia
 from ..engine.specs import frame_id_problem
 from ..physics import rotation
+from ..physics.environment import facets_kernel
 from .state_messages import type_name
 from ..physics.orbit import frames
 
@@ -43,7 +45,11 @@ class OrbitMessages:
         self.odometry = Odometry()
         self.transform = TransformStamped()
         env = config.environment
-        self.torque = WrenchStamped() if env.gravity_gradient or env.magnetorquers else None
+        self.torque = WrenchStamped() if env.terms else None
+        # the facets' terms read the loops' array (principal axes); re-made per sample only
+        # where it is anchored to an interval (SGP4, NRLMSIS)
+        self._facets = None if env.sunlight is None or not env.sunlight.terms else \
+            env.elements(0.0, config.body.to_principal)
         # the whole mass distribution (wheel rotors included), principal frame
         self._inertia = mass_inertia(config.actuators, config.body)
         for msg in (self.odometry, self.transform) + ((self.torque,) if self.torque else ()):
@@ -83,9 +89,14 @@ class OrbitMessages:
             env = self.config.environment
             tau = np.zeros(3)
             if env.gravity_gradient:
-                tau += self.config.body.to_body(gravity_gradient(
-                    env.orbit.mu, self._inertia, block.q[i], r))
-            if env.magnetorquers and block.dipole is not None:
+                tau += gravity_gradient(env.orbit.mu, self._inertia, block.q[i], r)
+            if self._facets is not None:
+                if env.anchored:
+                    self._facets = env.elements(t, self.config.body.to_principal)
+                tau += facets_kernel.facets_torque(np.asarray(block.q[i], float), t,
+                                                   self._facets)
+            tau = self.config.body.to_body(tau)
+            if env.magnetorquers and block.dipole is not None:  # body frame already
                 b = rotation.rotate(rotation.conjugate(block.attitude[i]),
                                     env.magnetic.field.at(t))
                 tau += np.cross(block.dipole[i], b)

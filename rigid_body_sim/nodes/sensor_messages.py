@@ -10,9 +10,11 @@
   simulator's ``attitude`` topic (body → frame_id, x, y, z, w). The type has no covariance
   field: the noise is the ``sensors.star_tracker.noise`` parameter, recorded in the bag's
   run configuration.
+* ``sun_direction``: geometry_msgs/Vector3Stamped in the body frame (``child_frame_id``),
+  the unit vector to the Sun; none while the spacecraft is in the Earth's shadow.
 """
 from builtin_interfaces.msg import Time
-from geometry_msgs.msg import QuaternionStamped
+from geometry_msgs.msg import QuaternionStamped, Vector3Stamped
 from rclpy.serialization import serialize_message
 from sensor_msgs.msg import Imu
 
@@ -25,7 +27,7 @@ class SensorMessages:
     """The messages of the enabled sensors (``settings``: ``sensors.specs.SensorSettings``)."""
 
     def __init__(self, settings, frame_id: str = 'world', child_frame_id: str = 'base_link'):
-        self.gyro = self.star = None
+        self.gyro = self.star = self.sun = None
         if settings.gyro is not None:
             g = settings.gyro
             self.gyro = Imu()
@@ -37,6 +39,8 @@ class SensorMessages:
             self.gyro.linear_acceleration_covariance[0] = -1.0
         if settings.star_tracker is not None:
             self.star = QuaternionStamped()
+        if getattr(settings, 'sun', None) is not None:
+            self.sun = Vector3Stamped()
         self.set_frames(frame_id, child_frame_id)
 
     def set_frames(self, frame_id: str, child_frame_id: str):
@@ -44,11 +48,14 @@ class SensorMessages:
             self.gyro.header.frame_id = child_frame_id
         if self.star is not None:
             self.star.header.frame_id = frame_id
+        if self.sun is not None:
+            self.sun.header.frame_id = child_frame_id
 
     def topics(self):
         """(relative topic name, message) of the enabled sensors."""
         return tuple((name, msg) for name, msg in (('gyro', self.gyro),
-                                                   ('star_tracker', self.star))
+                                                   ('star_tracker', self.star),
+                                                   ('sun_direction', self.sun))
                      if msg is not None)
 
     def topic_types(self):
@@ -62,7 +69,9 @@ class SensorMessages:
         events = [(int(t), 0, i) for i, t in enumerate(readings.gyro_t_ns)
                   if only is None or 'gyro' in only] + \
             [(int(t), 1, i) for i, t in enumerate(readings.star_t_ns)
-             if only is None or 'star_tracker' in only]
+             if only is None or 'star_tracker' in only] + \
+            [(int(t), 2, i) for i, t in enumerate(readings.sun_t_ns)
+             if only is None or 'sun_direction' in only]
         for t, kind, i in sorted(events):
             stamp = Time()
             stamp.sec, stamp.nanosec = divmod(int(stamp_ns(t)), NS)
@@ -72,12 +81,18 @@ class SensorMessages:
                 v.x, v.y, v.z = readings.gyro[i].tolist()
                 msg.header.stamp = stamp
                 yield t, 'gyro', msg
-            else:
+            elif kind == 1:
                 msg = self.star
                 q = msg.quaternion
                 q.x, q.y, q.z, q.w = readings.star[i].tolist()
                 msg.header.stamp = stamp
                 yield t, 'star_tracker', msg
+            else:
+                msg = self.sun
+                v = msg.vector
+                v.x, v.y, v.z = readings.sun[i].tolist()
+                msg.header.stamp = stamp
+                yield t, 'sun_direction', msg
 
     def serialized(self, readings):
         """[(sim t_ns, topic, CDR bytes)] stamped with sim time (offline bags)."""
@@ -94,4 +109,6 @@ def sensors_summary(settings) -> str:
     s = settings.star_tracker
     if s is not None:
         parts.append(f'star_tracker {NS / s.period_ns:g} Hz ({len(s.outages)} outages)')
+    if getattr(settings, 'sun', None) is not None:
+        parts.append(f'sun_sensor {NS / settings.sun.period_ns:g} Hz')
     return f'; sensors: {", ".join(parts)}, seed {settings.seed}'

@@ -97,3 +97,23 @@ def eigenaxis_slew(theta0, rate0, natural_frequency, damping_ratio, t):
     sol = solve_ivp(rhs, (0.0, float(t[-1]) if t.size else 0.0), (theta0, rate0),
                     t_eval=t, rtol=1e-10, atol=1e-12, method='DOP853')
     return sol.y[0], sol.y[1]
+
+
+def libration_frequencies(moments, mean_motion):
+    """Small librations about the orbit frame (circular orbit, gravity gradient), principal
+    moments (I_x, I_y, I_z) on LVLH's x (along track), y (orbit normal), z (nadir): the
+    pitch at n·√(3(I_x − I_z)/I_y) and the two roll–yaw roots of
+    ω⁴ − (1 + 3k_R + k_R k_Y)n²ω² + 4k_R k_Y n⁴ = 0, k_R = (I_y − I_z)/I_x,
+    k_Y = (I_y − I_x)/I_z (Wie §6.3; Hughes §9), rad/s: (pitch, (low, high)). NaN where
+    the motion is not oscillatory (outside the stable regions)."""
+    ix, iy, iz = (float(v) for v in moments)
+    n = float(mean_motion)
+    with np.errstate(invalid='ignore'):
+        pitch = n * np.sqrt(3.0 * (ix - iz) / iy)
+        k_r, k_y = (iy - iz) / ix, (iy - ix) / iz
+        b = 1.0 + 3.0 * k_r + k_r * k_y
+        c = 4.0 * k_r * k_y
+        disc = np.sqrt(b * b - 4.0 * c)
+        roots = np.sqrt(np.array([(b - disc) / 2.0, (b + disc) / 2.0])) * n
+    return float(pitch), (float(roots[0]), float(roots[1]))
+

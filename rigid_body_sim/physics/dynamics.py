@@ -13,8 +13,7 @@ from typing import Optional
 
 import numpy as np
 
-from . import rotation
-from . import dynamics_kernel
+from . import dynamics_kernel, rotation
 from .orbit import kernel as orbit_kernel
 
 DISSIPATION_MODELS = ('none', 'double_bracket', 'viscous')
@@ -57,9 +56,10 @@ class Dynamics:
     scale of the dissipation's stiffness and of its path from the minor to the major axis.
 
     ``environment``: the orbit's element array (``orbit.kernel`` layout) whose torques act
-    (the gravity gradient, environment[ON] = 1); None: the free body (the loops are then
-    compiled without the term). The methods that integrate it read it from here and see it
-    changed in place (an SGP4 orbit re-anchored at each interval)."""
+    (the gravity gradient with environment[ON] = 1, the facets' SRP and drag); None: the
+    free body (the loops are then compiled without the term). The methods that integrate
+    it read it from here and see it changed in place (an SGP4 orbit re-anchored at each
+    interval)."""
     moments: np.ndarray
     dissipation: Dissipation = Dissipation()
     environment: Optional[np.ndarray] = None
@@ -85,18 +85,32 @@ class Dynamics:
             bool(self.environment[orbit_kernel.MAG_MODEL] != 0)
 
     @property
+    def solar_radiation_pressure(self) -> bool:
+        """Whether the facets' solar radiation pressure acts (``environment.facets_kernel``)."""
+        return self.environment is not None and \
+            bool(self.environment[orbit_kernel.SRP_ON] != 0)
+
+    @property
+    def drag(self) -> bool:
+        """Whether the facets' aerodynamic drag acts (``environment.facets_kernel``)."""
+        return self.environment is not None and \
+            bool(self.environment[orbit_kernel.DRAG_ON] != 0)
+
+    @property
     def environment_active(self) -> bool:
         """Whether any environment torque is in the model (the methods that do not
         integrate them refuse, and the free body's closed form does not apply)."""
-        return self.gravity_gradient or self.magnetorquers
+        return self.gravity_gradient or self.magnetorquers or \
+            self.solar_radiation_pressure or self.drag
 
     @property
     def environment_terms(self) -> str:
         """The scene keys of the environment's torques in the model, for messages."""
-        return ' and '.join(k for k, on in (('environment.gravity_gradient',
-                                             self.gravity_gradient),
-                                            ('magnetorquer.max_dipole', self.magnetorquers))
-                            if on)
+        return ' and '.join(k for k, on in (
+            ('environment.gravity_gradient', self.gravity_gradient),
+            ('magnetorquer.max_dipole', self.magnetorquers),
+            ('environment.solar_radiation_pressure', self.solar_radiation_pressure),
+            ('environment.drag', self.drag)) if on)
 
     def environment_torque(self, q, t: float):
         """The environment's torque at attitude q (principal → inertial) and time t,

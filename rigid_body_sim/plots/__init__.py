@@ -6,12 +6,15 @@ Then the scene's own story
 * a free asymmetric tumble that flips: flips.png (2K/λ);
 * a free axisymmetric body: precession.png (body and space cones; the Earth's wobble);
 * an axisymmetric body with double-bracket dissipation: nutation.png (tan θ ∝ e^{ct});
-* a controlled run: control.png (critically damped slew, exponential detumble).
+* a controlled run: control.png (critically damped slew, exponential detumble);
+* the gravity gradient in a circular orbit, started relative to LVLH: libration.png
+  (plots.orbit: pitch and roll–yaw at their small-libration frequencies).
+A scene whose environment exerts a torque (orbit terms) has no free phase.
 """
 import numpy as np
 
 from ..physics import analytic
-from . import free, story
+from . import free, orbit, story
 from .actuators import write_actuator_plot
 from .common import Figure, time_unit
 
@@ -42,9 +45,13 @@ def write_figures(samples, body, out_dir, title, free_end=np.inf, scene=None):
     unit, scale = time_unit(s['t'])
     figures = [free.omega(s, out_dir, title, unit, scale),
                free.invariants(s, out_dir, title, unit, scale)]
+    sim = scene.simulator if scene is not None else {}
+    environment = _environment(sim)
+    torque_free_end = free_end
+    if environment is not None and environment.terms:
+        free_end = min(free_end, float(s['t'][0]))  # the environment's torque acts all along
     figure = free.poinsot(s, body, out_dir, title, unit, scale, free_end)
     figures += [figure] if figure is not None else []  # None: no free phase
-    sim = scene.simulator if scene is not None else {}
     dissipative = sim.get('dissipation.model', 'none') != 'none'
     symmetric = analytic.symmetry_axis(body.principal_moments) is not None
     n_free = int(np.count_nonzero(s['t'] < free_end))
@@ -55,14 +62,27 @@ def write_figures(samples, body, out_dir, title, free_end=np.inf, scene=None):
         elif np.isfinite(analytic.flip_interval(body.principal_moments, w0)):
             figures.append(story.flips(s, body, out_dir, title, unit, scale, free_end))
     if dissipative and symmetric and sim.get('dissipation.model') == 'double_bracket' \
-            and not np.isfinite(free_end):
+            and not np.isfinite(torque_free_end):
         figures.append(story.nutation(s, body, out_dir, title, unit, scale,
                                       sim['dissipation.coefficient']))
     if scene is not None and scene.controlled:
         ctl = dict(scene.controller)
         ctl.setdefault('max_torque', sim.get('max_torque', np.inf))
         figures.append(story.control(s, out_dir, title, unit, scale, ctl, free_end))
+    if environment is not None and environment.gravity_gradient \
+            and sim.get('orbit.eccentricity') == 0.0 and sim.get('orbit.model') == 'kepler' \
+            and sim.get('initial_attitude_frame') == 'lvlh' and len(s['t']) >= 20:
+        figures.append(orbit.libration(s, environment.orbit, np.diag(body.inertia), out_dir,
+                                       title, unit, scale))
     return figures
+
+
+def _environment(sim):
+    """The scene's orbit settings (engine.environment_specs), None without an orbit."""
+    if sim.get('orbit.model', 'none') == 'none':
+        return None
+    from ..engine.environment_specs import environment_from_parameters
+    return environment_from_parameters(sim)
 
 
 def write_plots(samples, body, out_dir, title, free_end=np.inf, scene=None):

@@ -32,6 +32,7 @@ FLICKER_FLOOR = math.sqrt(2.0 * math.log(2.0) / math.pi)
 
 # streams of one seed, by component (stable numbers: never renumber)
 STREAM_ARW, STREAM_GM, STREAM_RRW, STREAM_STAR = 0, 1, 2, 3
+STREAM_SUN = 8  # the sun sensor (the magnetometer's: 10, engine.magnetic)
 
 
 def gauss_markov_avar(tau, sigma, correlation_time):
@@ -133,11 +134,12 @@ class GyroNoise:
 
 
 class StarTrackerNoise:
-    """Small-angle attitude errors of a star tracker (body frame, rad, per axis 1σ)."""
+    """Small-angle attitude errors of a star tracker (body frame, rad, per axis 1σ); with
+    ``stream`` STREAM_SUN, the sun sensor's direction errors."""
 
-    def __init__(self, sigma, seed: int = 0):
+    def __init__(self, sigma, seed: int = 0, stream: int = STREAM_STAR):
         self.sigma = np.broadcast_to(np.asarray(sigma, float), (3,)).copy()
-        self._rng = streams(seed, STREAM_STAR)
+        self._rng = streams(seed, stream)
 
     def take(self, n: int) -> np.ndarray:
         return self.sigma * self._rng.standard_normal((n, 3))

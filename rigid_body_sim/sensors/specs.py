@@ -110,11 +110,21 @@ class StarTrackerSettings:
 
 
 @dataclass(frozen=True)
+class SunSensorSettings:
+    """The sun sensor (``sun_sensor.*``, specs in ``engine/sunlight_specs``): its period,
+    noise (rad, per body axis) and the shadow model that hides the Sun."""
+    period_ns: int
+    noise: Tuple[float, float, float]
+    shadow: str = 'conical'
+
+
+@dataclass(frozen=True)
 class SensorSettings:
     """The simulated sensors of a scene (None in the engine config when all are off)."""
     seed: int
     gyro: Optional[GyroSettings]
     star_tracker: Optional[StarTrackerSettings]
+    sun: Optional[SunSensorSettings] = None
 
     @classmethod
     def from_parameters(cls, p: Mapping) -> Optional['SensorSettings']:
@@ -134,9 +144,15 @@ class SensorSettings:
                                        parse_outages(p['sensors.star_tracker.outages']))
         else:
             parse_outages(p['sensors.star_tracker.outages'])  # malformed is an error anyway
-        if gyro is None and star is None:
+        sun = None
+        if p.get('sun_sensor.enabled'):
+            noise = list(p['sun_sensor.noise'])
+            sun = SunSensorSettings(seconds_to_ns(1.0 / p['sun_sensor.rate']),
+                                    tuple(noise * 3 if len(noise) == 1 else noise),
+                                    p['environment.shadow'])
+        if gyro is None and star is None and sun is None:
             return None
-        return cls(int(p['seed']), gyro, star)
+        return cls(int(p['seed']), gyro, star, sun)
 
 
 def check_feedback(sensors: Optional[SensorSettings], feedback: str, bandwidth: float):

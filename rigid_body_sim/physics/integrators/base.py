@@ -162,8 +162,8 @@ class Integrator:
         torques: only the one-body loops evaluate them."""
         if np.ndim(q) > 1 and self.dynamics.environment_active:
             raise IntegrationError(self.name, 0.0, t, 'the environment\'s torques (gravity '
-                                   'gradient) are integrated for one body at a time, not a '
-                                   'batch')
+                                   'gradient, rods, SRP, drag) are integrated for one body at '
+                                   'a time, not a batch')
 
     def step(self, q, m, h: float, torque: Optional[np.ndarray] = None, t: float = 0.0):
         """Advance (q, m) by h seconds; returns new arrays. Raises IntegrationError."""

@@ -51,7 +51,7 @@ from .dop853_kernel import (DIM, N_STAGES, NON_FINITE, OK, _initial_step, _rhs,
                             _rhs_environment, attempt)
 from ..dynamics_kernel import _finite
 from ..jit import COMPILED, depends_on, jit
-from ..environment import magnetic_kernel
+from ..environment import facets_kernel, magnetic_kernel
 from ..orbit import kernel as orbit_kernel
 
 N_EXTENDED = _coefficients.N_STAGES_EXTENDED  # 16: the 13 of a step + 3 extra stages
@@ -237,7 +237,8 @@ def advance(q, m, span, tau, memory, moments, model, coefficient, rtol, atol, t0
 # numba's disk cache checks only this file; these embed dop853_kernel's and dynamics_kernel's code
 # (and advance its tableau, imported from scipy through dop853_kernel)
 for _kernel in (views, _build, _interpolate, advance):
-    depends_on(_kernel, dynamics_kernel, dop853_kernel, orbit_kernel, magnetic_kernel)
+    depends_on(_kernel, dynamics_kernel, dop853_kernel, orbit_kernel, magnetic_kernel,
+               facets_kernel)
 
 
 def warm():

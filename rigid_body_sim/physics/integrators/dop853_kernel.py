@@ -24,7 +24,7 @@ from .. import dynamics_kernel
 from .dop853_tableau import coefficients as _coefficients
 from ..dynamics_kernel import _environment, _finite, _rates
 from ..jit import COMPILED, depends_on, jit
-from ..environment import magnetic_kernel
+from ..environment import facets_kernel, magnetic_kernel
 from ..orbit import kernel as orbit_kernel
 
 N_STAGES = _coefficients.N_STAGES  # 12; stage 0 is the FSAL derivative, so 11 new + f_new
@@ -243,7 +243,7 @@ def integrate(y, f, span, h_abs, fresh, moments, tau, model, coefficient, rtol, 
 
 # numba's disk cache checks only this file; each of these embeds dynamics_kernel._rates or _finite
 for _kernel in (_rhs, _rhs_environment, _initial_step, _rk_step, attempt, integrate):
-    depends_on(_kernel, dynamics_kernel, orbit_kernel, magnetic_kernel)
+    depends_on(_kernel, dynamics_kernel, orbit_kernel, magnetic_kernel, facets_kernel)
 
 
 def warm():

@@ -9,7 +9,7 @@ import numpy as np
 from .. import dynamics_kernel
 from ..dynamics_kernel import _environment, _finite, _normalise, _rates
 from ..jit import COMPILED, depends_on, jit
-from ..environment import magnetic_kernel
+from ..environment import facets_kernel, magnetic_kernel
 from ..orbit import kernel as orbit_kernel
 
 
@@ -89,7 +89,7 @@ def rk4_steps(q, m, h, n, moments, tau, model, coefficient, scratch, t0, env):
 
 # they call the shared rates of another file (see jit.depends_on)
 for _kernel in (euler_run, euler_steps, rk4_run, rk4_steps):
-    depends_on(_kernel, dynamics_kernel, orbit_kernel, magnetic_kernel)
+    depends_on(_kernel, dynamics_kernel, orbit_kernel, magnetic_kernel, facets_kernel)
 
 
 def warm():

@@ -30,7 +30,7 @@ import numpy as np
 from .. import dynamics_kernel
 from ..dynamics_kernel import _finite, _rotate_half, environment_torque_full
 from ..jit import depends_on, inline, jit
-from ..environment import magnetic_kernel
+from ..environment import facets_kernel, magnetic_kernel
 from ..orbit import kernel as orbit_kernel
 
 # status slots (counters of steps on which a limit acted, and the last values)
@@ -355,7 +355,7 @@ def _flow(q, H, hA, axis, t, moments):
 
 # numba's disk cache checks only this file; gyrostat_run embeds dynamics_kernel's _finite and
 # _rotate_half
-depends_on(gyrostat_run, dynamics_kernel, orbit_kernel, magnetic_kernel)
+depends_on(gyrostat_run, dynamics_kernel, orbit_kernel, magnetic_kernel, facets_kernel)
 
 
 def warm():

@@ -7,9 +7,9 @@ import math
 import numpy as np
 
 from .. import dynamics_kernel
-from ..dynamics_kernel import _axis_flow, _dissipate, _finite, environment_torque
+from ..dynamics_kernel import _axis_flow, _dissipate, _finite
+from ..environment import facets_kernel, magnetic_kernel
 from ..jit import COMPILED, depends_on, jit
-from ..environment import magnetic_kernel
 from ..orbit import kernel as orbit_kernel
 
 INNER_LIMIT = 0.5  # |w|·h·λ up to which damping goes inside the compositions (weak damping)
@@ -59,8 +59,9 @@ def splitting_run(q, m, h, n, weights, axes, moments, tau, has_tau, model, coeff
     Π_w [D K a b c b a K D](wh) — which keeps the composition's order (weak damping only:
     negative stages run it backwards).
 
-    The environment's torque (``env``, gravity gradient) joins the kicks K: it depends on
-    the attitude and the time, never on m, so its flow at fixed attitude is exactly a kick
+    The environment's torque (``env``: gravity gradient, rods, SRP, drag) joins the kicks
+    K: it depends on the attitude and the time, never on m, so its flow at fixed attitude
+    is exactly a kick
     m ← m + (wh/2)·τ(q, t), evaluated at the kick's instant (Touma & Wisdom 1994). Time
     advances with the free flow (a b c b a), so in a stage starting at t the first kick
     is at t and the second at t + wh: the composition stays symmetric in the extended
@@ -83,10 +84,21 @@ def splitting_run(q, m, h, n, weights, axes, moments, tau, has_tau, model, coeff
                 for i in range(3):
                     m[i] = m[i] + (0.5 * hw) * tau[i]
             if env is not None:
-                gx, gy, gz = environment_torque(q, t, env, moments)
-                m[0] = m[0] + (0.5 * hw) * gx
-                m[1] = m[1] + (0.5 * hw) * gy
-                m[2] = m[2] + (0.5 * hw) * gz
+                if env[orbit_kernel.ON] != 0.0:
+                    gx, gy, gz = orbit_kernel.gravity_gradient_torque(q, t, env, moments)
+                    m[0] = m[0] + (0.5 * hw) * gx
+                    m[1] = m[1] + (0.5 * hw) * gy
+                    m[2] = m[2] + (0.5 * hw) * gz
+                if env[orbit_kernel.MAG_MODEL] != 0.0:
+                    bx, by, bz = magnetic_kernel.magnetorquer_torque(q, t, env)
+                    m[0] = m[0] + (0.5 * hw) * bx
+                    m[1] = m[1] + (0.5 * hw) * by
+                    m[2] = m[2] + (0.5 * hw) * bz
+                if env[orbit_kernel.SRP_ON] != 0.0 or env[orbit_kernel.DRAG_ON] != 0.0:
+                    fx, fy, fz = facets_kernel.facets_torque(q, t, env)
+                    m[0] = m[0] + (0.5 * hw) * fx
+                    m[1] = m[1] + (0.5 * hw) * fy
+                    m[2] = m[2] + (0.5 * hw) * fz
             _axis_flow(q, m, a, 0.5 * hw, moments)
             _axis_flow(q, m, b, 0.5 * hw, moments)
             _axis_flow(q, m, c, hw, moments)
@@ -97,10 +109,21 @@ def splitting_run(q, m, h, n, weights, axes, moments, tau, has_tau, model, coeff
                 for i in range(3):
                     m[i] = m[i] + (0.5 * hw) * tau[i]
             if env is not None:
-                gx, gy, gz = environment_torque(q, t, env, moments)
-                m[0] = m[0] + (0.5 * hw) * gx
-                m[1] = m[1] + (0.5 * hw) * gy
-                m[2] = m[2] + (0.5 * hw) * gz
+                if env[orbit_kernel.ON] != 0.0:
+                    gx, gy, gz = orbit_kernel.gravity_gradient_torque(q, t, env, moments)
+                    m[0] = m[0] + (0.5 * hw) * gx
+                    m[1] = m[1] + (0.5 * hw) * gy
+                    m[2] = m[2] + (0.5 * hw) * gz
+                if env[orbit_kernel.MAG_MODEL] != 0.0:
+                    bx, by, bz = magnetic_kernel.magnetorquer_torque(q, t, env)
+                    m[0] = m[0] + (0.5 * hw) * bx
+                    m[1] = m[1] + (0.5 * hw) * by
+                    m[2] = m[2] + (0.5 * hw) * bz
+                if env[orbit_kernel.SRP_ON] != 0.0 or env[orbit_kernel.DRAG_ON] != 0.0:
+                    fx, fy, fz = facets_kernel.facets_torque(q, t, env)
+                    m[0] = m[0] + (0.5 * hw) * fx
+                    m[1] = m[1] + (0.5 * hw) * fy
+                    m[2] = m[2] + (0.5 * hw) * fz
             if inner:
                 evals += _dissipate(m, 0.5 * hw, moments, model, coefficient, True)
         if not inner:
@@ -147,10 +170,10 @@ def splitting_bodies(q, m, lo, hi, h, n, weights, axes, moments, tau, has_tau, m
 
 
 # they call the shared flows of another file (see jit.depends_on)
-splitting_run = depends_on(splitting_run, dynamics_kernel, orbit_kernel,
-                           magnetic_kernel)
+splitting_run = depends_on(splitting_run, dynamics_kernel, orbit_kernel, magnetic_kernel,
+                           facets_kernel)
 splitting_bodies = depends_on(splitting_bodies, dynamics_kernel, orbit_kernel,
-                              magnetic_kernel)
+                              magnetic_kernel, facets_kernel)
 
 
 def warm():

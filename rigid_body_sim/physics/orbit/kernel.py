@@ -8,8 +8,17 @@ anomaly (rad) — and their secular rates [RAAN_RATE], [ARGP_RATE], [M_RATE] (ra
 two-body n for Kepler, J2's drifts for ``j2``). ``orbit.py`` builds it; SGP4 re-anchors
 an osculating set at each interval. The free body passes None instead.
 
-Each further term has a block of slots after them (the magnetic one: the field's model
-and the magnetorquers' dipole, read by ``physics/environment/magnetic_kernel.py``).
+Each further term has a block of slots after them, in this order:
+
+Magnetic (``physics/environment/magnetic_kernel.py``): the field's model and the
+magnetorquers' dipole (the ``# magnetic`` block below).
+
+Sunlight and drag (``environment/facets_kernel``): [SRP_ON], [DRAG_ON] switch the terms;
+[SHADOW] 0 cylindrical, 1 conical; the Sun's mean longitude [SUN_L0], mean anomaly
+[SUN_G0] at t = 0 and the obliquity [SUN_EPS] (rad; the almanac's formula is evaluated in
+the loop at each instant); [DENSITY] 1 the exponential table, 2 a local fit
+ρ = [RHO_REF]·exp(−(h − [H_REF])/[SCALE_HEIGHT]) re-made at each interval (NRLMSIS);
+[N_FACETS] facets of FACET_SIZE values each from index SIZE on (``facets_kernel``).
 
 Plain numerical Python compiled by ``jit`` (NUMBA_DISABLE_JIT=1 runs it as Python).
 """
@@ -32,7 +41,9 @@ MAG_B_RATE = MAG_B0 + 3                         # 3 slots
 MAG_T0 = MAG_B_RATE + 3
 MAG_DIPOLE = MAG_T0 + 1                         # 3 slots
 MAG_END = MAG_DIPOLE + 3
-SIZE = MAG_END
+# sunlight, drag
+(SRP_ON, DRAG_ON, SHADOW, SUN_L0, SUN_G0, SUN_EPS, DENSITY, RHO_REF, H_REF, SCALE_HEIGHT,
+ N_FACETS, SIZE) = range(MAG_END, MAG_END + 12)
 KEPLER_TOL = 1e-15   # |ΔE| (rad) that ends Newton's iteration
 KEPLER_MAX_ITER = 50
 TWO_PI = 2.0 * math.pi
@@ -97,6 +108,19 @@ def state_at(env, t, out):
     out[3] = vxp * px + vyp * qx
     out[4] = vxp * py + vyp * qy
     out[5] = vxp * pz + vyp * qz
+
+
+@jit
+def position_velocity(env, t):
+    """(x, y, z m, vx, vy, vz m/s): ``state_at`` as floats (no array, for the loops)."""
+    xp, yp, cos_e, sin_e, px, py, pz, qx, qy, qz = _conic(env, t)
+    a = env[A]
+    e = env[E]
+    k = a * math.sqrt(env[MU] / (a * a * a)) / (1.0 - e * cos_e)
+    vxp = -k * sin_e
+    vyp = k * math.sqrt(1.0 - e * e) * cos_e
+    return (xp * px + yp * qx, xp * py + yp * qy, xp * pz + yp * qz,
+            vxp * px + vyp * qx, vxp * py + vyp * qy, vxp * pz + vyp * qz)
 
 
 @jit

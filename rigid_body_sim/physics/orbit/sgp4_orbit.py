@@ -81,7 +81,7 @@ class Sgp4Orbit(Orbit):
 
     @property
     def epoch(self) -> datetime:
-        """The UTC instant of sim time 0 (the field and the Sun need it)."""
+        """The UTC instant of sim time 0 (the TLE's epoch; the field and the Sun need it)."""
         return _J2000 + timedelta(days=(self.jd0 - JD_J2000) + self.fr0)
 
     @property

@@ -1,0 +1,84 @@
+"""The figure of a body in orbit, with the analytic expectation drawn beside the run.
+
+* libration.png — gravity-gradient libration about the orbit frame (circular orbit): roll,
+  pitch and yaw from LVLH against the small-amplitude laws (pitch at n·√(3(I_x − I_z)/I_y),
+  roll–yaw at the roots of the quartic: ``physics.analytic.libration_frequencies``). The
+  dashed curves are sinusoids at the predicted frequencies (amplitudes and phases fitted);
+  the measured frequencies are fitted freely, starting from the predicted ones.
+"""
+import math
+
+import numpy as np
+from scipy.optimize import least_squares
+from scipy.spatial.transform import Rotation
+
+from ..physics import analytic
+from ..physics.orbit import frames
+from .common import pyplot, save
+
+
+def lvlh_angles(t, attitude, orbit):
+    """(N, 3) rotation vectors of the body from LVLH (roll, pitch, yaw about LVLH x, y, z)."""
+    out = np.empty((len(t), 3))
+    for k, (tk, q) in enumerate(zip(t, attitude)):
+        r, v = orbit.state(float(tk))
+        rel = frames.lvlh_axes(r, v).T @ Rotation.from_quat(q).as_matrix()
+        out[k] = Rotation.from_matrix(rel).as_rotvec()
+    return out
+
+
+def _basis(t, frequencies):
+    return np.column_stack([f(w * t) for w in frequencies for f in (np.cos, np.sin)])
+
+
+def sinusoids(t, signals, frequencies):
+    """Least-squares sum of sinusoids at fixed ``frequencies`` (rad/s) through ``signals``
+    (N, k) and the fitted curves (N, k)."""
+    basis = _basis(t, frequencies)
+    coef, *_ = np.linalg.lstsq(basis, signals, rcond=None)
+    return basis @ coef
+
+
+def fitted_frequencies(t, signals, guesses):
+    """The frequencies (rad/s) of a sum of sinusoids shared by the columns of ``signals``,
+    by least squares from ``guesses``."""
+    def residual(w):
+        return (sinusoids(t, signals, w) - signals).ravel()
+    scale = max(guesses)
+    fit = least_squares(residual, guesses, x_scale=scale, xtol=1e-14, ftol=1e-14, gtol=1e-14)
+    return [float(w) for w in fit.x]
+
+
+def libration(s, orbit, moments, out_dir, title, unit, scale):
+    """Roll, pitch and yaw from LVLH against the small-libration laws."""
+    plt = pyplot()
+    t = np.asarray(s['t'], float)
+    angles = lvlh_angles(t, s['attitude'], orbit)
+    pitch_w, (low, high) = analytic.libration_frequencies(moments, orbit.mean_motion)
+    (pitch_m,) = fitted_frequencies(t, angles[:, 1:2], [pitch_w])
+    low_m, high_m = fitted_frequencies(t, angles[:, [0, 2]], [low, high])
+    fig, axes = plt.subplots(2, 1, figsize=(8, 6.5), sharex=True)
+    n = orbit.mean_motion
+    axes[0].plot(t / scale, np.degrees(angles[:, 1]), lw=2.5, alpha=0.5, label='pitch')
+    axes[0].plot(t / scale, np.degrees(sinusoids(t, angles[:, 1:2], [pitch_w])[:, 0]), 'k--',
+                 lw=0.9, label=f'n·√(3(I_x − I_z)/I_y) = {pitch_w / n:.4f} n '
+                               f'(measured {pitch_m / n:.4f} n)')
+    axes[0].set_ylabel('pitch [°] (about the orbit normal)')
+    predicted = sinusoids(t, angles[:, [0, 2]], [low, high])
+    for i, name in ((0, 'roll'), (2, 'yaw')):
+        axes[1].plot(t / scale, np.degrees(angles[:, i]), lw=2.5, alpha=0.5, label=name)
+    axes[1].plot(t / scale, np.degrees(predicted), 'k--', lw=0.9)
+    axes[1].plot([], [], 'k--', lw=0.9,
+                 label=f'quartic roots {low / n:.4f} n, {high / n:.4f} n '
+                       f'(measured {low_m / n:.4f} n, {high_m / n:.4f} n)')
+    axes[1].set_ylabel('roll, yaw [°] (about along-track, nadir)')
+    axes[1].set_xlabel(f't [{unit}] (sim time)')
+    for ax in axes:
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=8)
+    axes[0].set_title(f'{title}: gravity-gradient libration about LVLH, n = '
+                      f'{n:.4g} rad/s (period {2 * math.pi / n / 60:.1f} min)', fontsize=10)
+    return save(fig, out_dir, 'libration.png', 'roll, pitch and yaw from the orbit frame '
+                'against the small-libration frequencies', plt,
+                {'pitch_frequency': (pitch_m, pitch_w),
+                 'roll_yaw_frequencies': ((low_m, high_m), (low, high))})
