@@ -357,3 +357,27 @@ def test_mission_free_phase_then_detumble_then_slew():
     assert mission.update(ctl, 15.0, [0.0, 0.04, 0.0]) == (False, 'slew')
     assert ctl.mode == 'slew'
     assert mission.update(ctl, 16.0, [0.0, 0.01, 0.0]) == (False, None)  # switches once
+
+
+def test_a_held_command_is_clipped_as_numpy_clips_it():
+    """CommandHold.set clips in Python floats (a live exchange's cost): the held torque,
+    bit for bit, and the saturation count are numpy's clip of the command, signed zeros,
+    limits and subnormals included; an all-zero command ends the hold."""
+    import random
+    import struct
+    from rigid_body_sim.engine.sources import NEVER, CommandHold
+    rng = random.Random(7)
+    for _ in range(5000):
+        m = rng.choice([0.01, 1.0, 5e-3])
+        torque = [rng.choice([0.0, -0.0, m, -m, rng.uniform(-2 * m, 2 * m),
+                              rng.uniform(-1e-300, 1e-300), 5e-324]) for _ in range(3)]
+        hold = CommandHold(m, NS)
+        hold.set(torque, 5)
+        tau = np.array(torque, dtype=float)
+        assert hold.saturated == int(bool(np.any(np.abs(tau) > m)))
+        np.clip(tau, -m, m, out=tau)
+        if not tau.any():
+            assert hold.torque is None and hold.expiry == NEVER, torque
+        else:
+            assert struct.pack('<3d', *hold.torque) == struct.pack('<3d', *tau), torque
+            assert hold.torque.dtype == np.float64 and hold.expiry == 5 + NS

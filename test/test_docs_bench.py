@@ -151,3 +151,36 @@ def test_the_fleet_and_lockstep_tools_files_are_rendered(tmp_path):
     assert 'N = 100: 35.5 % of a core, RTF 0.991, 31 missed deadlines' in text
     assert '1000 Hz control: round trip 5.9 ms wall' in text
     assert '788 µs per exchange' in text and '318.2 exchanges/s at real time' in text
+
+
+def test_repeated_lockstep_runs_render_their_median_and_spread(tmp_path):
+    """tools.lockstep --runs N: each figure is the runs' median, with their min-max, and
+    the simulator's own thread's share of its CPU beside the process's."""
+    from rigid_body_sim.bench.common import report as write_json
+    runs = [{'round_trip_wall_us': w, 'sim_cpu_per_period_us': c,
+             'sim_thread_cpu_per_period_us': t}
+            for w, c, t in ((700, 410, 250), (650, 380, 240), (900, 520, 300))]
+    fast = {**runs[1], 'round_trip_wall_us': 700, 'sim_cpu_per_period_us': 410,
+            'sim_thread_cpu_per_period_us': 250, 'runs': runs}
+    write_json({'command': 'python -m rigid_body_sim.tools.lockstep --runs 3',
+                'rows': [{'control_rate_hz': 100.0, 'as_fast_as_possible': fast,
+                          'real_time': {'achieved_rate_hz': 99.9}}]},
+               str(tmp_path), 'lockstep.json')
+    text = report.render(str(tmp_path))
+    assert '410 (380-520) µs per exchange (250 (240-300) µs of it in its own thread)' in text
+    assert 'median of 3 runs' in text
+
+
+def test_the_lockstep_floor_file_is_rendered(tmp_path):
+    """tools.lockstep_floor writes lockstep_floor.json: the page gives each configuration's
+    median CPU, its thread's part and the wall time, and nothing without the file."""
+    from rigid_body_sim.bench.common import report as write_json
+    assert 'Lockstep floor' not in report.render(str(tmp_path))
+    row = {'publication_mode': 'SYNCHRONOUS', 'command_taken_as': 'bytes', 'exchanges': 20,
+           'cpu_per_exchange_us': 171.5, 'cpu_per_exchange_us_runs': [160.0, 171.5, 190.0],
+           'thread_cpu_per_exchange_us': 95.25, 'wall_per_exchange_us': 812.0}
+    write_json({'command': 'python -m rigid_body_sim.tools.lockstep_floor', 'rows': [row]},
+               str(tmp_path), 'lockstep_floor.json')
+    text = report.render(str(tmp_path))
+    assert ('synchronous publication, command as bytes: 172 µs CPU (95.2 µs in its own '
+            'thread), 0.812 ms wall (medians of 3 runs)') in text, text

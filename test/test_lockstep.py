@@ -213,9 +213,23 @@ def test_lockstep_refuses_what_it_cannot_hold(change, reason):
 
 def test_the_lockstep_benchmark_reports_the_simulators_figures():
     """tools/lockstep.py runs a simulator and a controller in lockstep (real processes) and
-    reads the simulator's own figures: every period exchanged, round trip and CPU > 0."""
+    reads the simulator's own figures: every period exchanged, round trip and CPU > 0, and
+    the part of that CPU in the simulator's own thread."""
     from rigid_body_sim.tools.lockstep import exchange
     got = exchange(50.0, 0.0, 0.4)
     assert got['exchanges'] == 20, got  # t = 0 ... 0.38 s
     assert got['round_trip_wall_us'] > 0 and got['sim_cpu_per_period_us'] > 0, got
+    # its own thread's share, within the process's (the rest: the middleware's threads)
+    assert 0 < got['sim_thread_cpu_per_period_us'] <= got['sim_cpu_per_period_us'], got
     assert got['achieved_rate_hz'] > 0, got
+
+
+def test_the_floor_tool_measures_a_bare_rclpy_exchange():
+    """tools/lockstep_floor.py: a bare rclpy node in its own process exchanges states and
+    commands with the controller (real processes); its CPU per exchange, its own thread's
+    within it, and the wall time are reported."""
+    from rigid_body_sim.tools.lockstep_floor import floor
+    got = floor('ASYNCHRONOUS', True, 20, 1)
+    assert got['exchanges'] == 20 and got['command_taken_as'] == 'bytes', got
+    assert 0 < got['thread_cpu_per_exchange_us'] <= got['cpu_per_exchange_us'], got
+    assert got['wall_per_exchange_us'] > 0 and len(got['cpu_per_exchange_us_runs']) == 1, got

@@ -3,9 +3,9 @@
 ``python -m rigid_body_sim.bench.report DIR`` writes DIR/summary.md from the files in DIR:
 what ``rigid-body-sim bench`` wrote (targets.csv, generated.csv, sampling.csv, batch.csv,
 perstep.csv, compile.csv, exact_horizon.csv, live.json) and what the standalone tools wrote
-there (soak.json, flood.json, recovery.json, fleet.json, lockstep.json). The bench calls it
-at the end of a run; docs/benchmarks.md includes the result, so every figure on the page
-comes from a file.
+there (soak.json, flood.json, recovery.json, fleet.json, lockstep.json,
+lockstep_floor.json). The bench calls it at the end of a run; docs/benchmarks.md includes
+the result, so every figure on the page comes from a file.
 A file that is missing is said to be missing, not filled in.
 """
 import csv
@@ -285,13 +285,39 @@ def live_section(out):
                      + '.')
     step = _json(out, 'lockstep.json')
     if step:
+        fast = [r['as_fast_as_possible'] for r in step['rows']]
         lines.append(f'- **Lockstep** (`{step["command"]}`): ' + '; '.join(
             f'{_f(r["control_rate_hz"], "g")} Hz control: round trip '
-            f'{_f(r["as_fast_as_possible"]["round_trip_wall_us"] / 1000)} ms wall, simulator CPU '
-            f'{_f(r["as_fast_as_possible"]["sim_cpu_per_period_us"])} µs per exchange as '
-            f'fast as possible; {_f(r["real_time"]["achieved_rate_hz"], ".4g")} exchanges/s '
-            'at real time' for r in step['rows']) + '.')
+            f'{_f(f["round_trip_wall_us"] / 1000)} ms wall, simulator CPU '
+            f'{_runs_figure(f, "sim_cpu_per_period_us")} µs per exchange '
+            f'({_runs_figure(f, "sim_thread_cpu_per_period_us")} µs of it in its own '
+            'thread) as fast as possible; '
+            f'{_f(r["real_time"]["achieved_rate_hz"], ".4g")} exchanges/s at real time'
+            for r, f in zip(step['rows'], fast)) + '.' + (
+            f' Each figure is the median of {len(fast[0]["runs"])} runs (min-max in '
+            'brackets).' if 'runs' in fast[0] else ''))
+    floor = _json(out, 'lockstep_floor.json')
+    if floor:
+        lines.append(f'- **Lockstep floor** (`{floor["command"]}`): a bare rclpy node that '
+                     'publishes the two states the controller answers and takes its command, '
+                     'nothing else, per exchange: ' + '; '.join(
+                         f'{r["publication_mode"].lower()} publication, command as '
+                         f'{r["command_taken_as"]}: {_f(r["cpu_per_exchange_us"])} µs CPU '
+                         f'({_f(r["thread_cpu_per_exchange_us"])} µs in its own thread), '
+                         f'{_f(r["wall_per_exchange_us"] / 1000)} ms wall'
+                         for r in floor['rows']) + ' (medians of '
+                     f'{len(floor["rows"][0]["cpu_per_exchange_us_runs"])} runs).')
     return lines or _missing('live.json, soak.json, flood.json, recovery.json')
+
+
+def _runs_figure(row, key) -> str:
+    """A lockstep figure: its value, with the runs' min-max when it was repeated."""
+    values = [r.get(key) for r in row.get('runs', [row])]
+    if None in values:
+        return 'not recorded'
+    if len(values) == 1:
+        return _f(values[0])
+    return f'{_f(row[key])} ({_f(min(values))}-{_f(max(values))})'
 
 
 SECTIONS = (('Speed against accuracy', targets_section),

@@ -50,16 +50,19 @@ class CommandHold(TorqueSource):
         self.accepted = self.saturated = self.timed_out = 0
 
     def set(self, torque, t_ns: int) -> None:
-        """Hold ``torque`` (body frame, finite) from ``t_ns``; a zero torque ends the hold."""
-        tau = np.array(torque, dtype=float).reshape(3)
-        if np.any(np.abs(tau) > self.max_torque):
-            np.clip(tau, -self.max_torque, self.max_torque, out=tau)
+        """Hold ``torque`` (body frame, finite) from ``t_ns``; a zero torque ends the hold.
+        Clipped in Python floats, as np.clip would (a live lockstep exchange applies one
+        command: five small numpy calls cost more than the rest of it)."""
+        x, y, z = (float(v) for v in torque)
+        m = self.max_torque
+        if abs(x) > m or abs(y) > m or abs(z) > m:
+            x, y, z = (min(max(v, -m), m) for v in (x, y, z))
             self.saturated += 1
         self.accepted += 1
-        if not tau.any():
+        if x == 0.0 and y == 0.0 and z == 0.0:
             self.torque, self.expiry = None, NEVER
             return
-        self.torque, self.expiry = tau, t_ns + self.timeout_ns
+        self.torque, self.expiry = np.array((x, y, z)), t_ns + self.timeout_ns
 
     def set_limits(self, max_torque: float, timeout_ns: int, t_ns: int) -> None:
         self.max_torque, self.timeout_ns = float(max_torque), int(timeout_ns)

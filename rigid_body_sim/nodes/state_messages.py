@@ -269,6 +269,16 @@ def _layout(data: bytes):
     return (bytearray(data), [(o, struct.Struct(f'<{n}d'), k) for o, n, k in fields], stamps)
 
 
+_CLOCK = struct.Struct('<4siI')
+_CDR_LE = b'\x00\x01\x00\x00'  # encapsulation: plain CDR, little-endian
+
+
+def clock_cdr(t_ns: int) -> bytes:
+    """A rosgraph_msgs/Clock at ``t_ns`` as the CDR bytes rclpy's serialize_message writes
+    (a publish of bytes skips converting a Python message to its C struct)."""
+    return _CLOCK.pack(_CDR_LE, *divmod(int(t_ns), 1_000_000_000))
+
+
 def joint_state_cdr(msg) -> bytes:
     """A sensor_msgs/JointState as CDR bytes of its exact size. rclpy's serialize_message
     pads the payload to a multiple of 8 without saying so in the encapsulation header;

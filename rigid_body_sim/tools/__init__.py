@@ -1,10 +1,11 @@
 """Standalone measurement tools, each a ``python -m rigid_body_sim.tools.<name>`` program.
 
 Load, soak, faults and hosts against the live nodes (flood, flood_report, soak, recovery,
-two_hosts, recorder_load, live_simulator, lockstep, viewer, pointing) and cost probes (actuators,
-campaign, candidate_costs, exact_eval). Each has a one-line docstring and ``--help``. The
-benchmark suite (``rigid-body-sim bench``, :mod:`rigid_body_sim.bench`) runs live_simulator,
-recorder_load and viewer as subprocesses for its live section; the rest run only by hand.
+two_hosts, recorder_load, live_simulator, lockstep, lockstep_floor, viewer, pointing) and
+cost probes (actuators, campaign, candidate_costs, exact_eval). Each has a one-line
+docstring and ``--help``. The benchmark suite (``rigid-body-sim bench``,
+:mod:`rigid_body_sim.bench`) runs live_simulator, recorder_load and viewer as subprocesses
+for its live section; the rest run only by hand.
 """
 import argparse
 import subprocess

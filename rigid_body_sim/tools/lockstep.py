@@ -1,19 +1,24 @@
 """Lockstep round trip: simulator and controller processes exchanging state and command.
 
-``python -m rigid_body_sim.tools.lockstep [--periods 2000] [--seconds 5] [--rates 100 1000]``
+``python -m rigid_body_sim.tools.lockstep [--periods 2000] [--seconds 5] [--rates 100 1000]
+[--runs 3]``
 
 For each control rate (publishing at the same rate, the slew scene, ``splitting4``):
 * as fast as possible (``real_time_factor: 0``), ``--periods`` control periods: the
   simulator's own figures (``engine.lockstep.RoundTrips``, logged at the end of its run):
   wall time from publishing a control instant's state to applying its command, and the
-  simulator's CPU per control period (stepping, publishing and receiving; target ≤ 100 µs);
+  simulator's CPU per control period (stepping, publishing and receiving; target ≤ 100 µs),
+  the process's and its own thread's (the rest is the middleware's threads);
 * at real time (``real_time_factor: 1``), ``--seconds`` of sim time: the achieved control
   rate, exchanges per wall second between t = 0 and the end (the simulator's log stamps).
 Real processes and real DDS, in a ROS domain of their own; nothing else is started.
+With ``--runs N`` each run is repeated N times: every figure is the median of the runs,
+and ``runs`` keeps each run's, for their min and max.
 """
 import os
 import random
 import re
+import statistics
 import subprocess
 import sys
 import tempfile
@@ -24,7 +29,8 @@ from . import argument_parser, command_line, stop
 SCENE = os.path.join(os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(
     __file__)))), 'config', 'slew.yaml')
 SUMMARY = re.compile(r'lockstep: (\d+) exchanges, round trip (\d+) µs wall on average \(max '
-                     r'(\d+) µs\), simulator CPU (\d+) µs per control period')
+                     r'(\d+) µs\), simulator CPU (\d+) µs per control period'
+                     r'(?: \((\d+) µs in its own thread\))?')
 STAMP = re.compile(r'\[(\d+\.\d+)\]')
 
 
@@ -76,7 +82,32 @@ def exchange(rate: float, rtf: float, duration: float, timeout: float = 600.0) -
     return {'control_rate_hz': rate, 'real_time_factor': rtf, 'exchanges': n,
             'round_trip_wall_us': int(m.group(2)), 'round_trip_wall_max_us': int(m.group(3)),
             'sim_cpu_per_period_us': int(m.group(4)),
+            'sim_thread_cpu_per_period_us': int(m.group(5)) if m.group(5) else None,
             'achieved_rate_hz': n / (t1 - t0) if t1 > t0 else None}
+
+
+def repeated(runs: int, *args) -> dict:
+    """``exchange(*args)`` ``runs`` times: each figure the runs' median, ``runs`` each run's."""
+    got = [exchange(*args) for _ in range(runs)]
+    if runs == 1:
+        return got[0]
+    out = {}
+    for key, value in got[0].items():
+        values = [g[key] for g in got]
+        out[key] = statistics.median(values) if isinstance(value, (int, float)) and \
+            None not in values else value
+    out['runs'] = got
+    return out
+
+
+def spread(row: dict, key: str) -> str:
+    """'median (min-max)' of ``key`` over a repeated row's runs, or its one value."""
+    values = [r[key] for r in row.get('runs', [row])]
+    if None in values:
+        return 'not reported'
+    if len(values) == 1:
+        return f'{values[0]:.0f}'
+    return f'{row[key]:.0f} ({min(values):.0f}-{max(values):.0f})'
 
 
 def main(argv=None):
@@ -87,20 +118,24 @@ def main(argv=None):
                         help='sim seconds at real time, per rate')
     parser.add_argument('--rates', type=float, nargs='+', default=[100.0, 1000.0],
                         help='control rates [Hz]')
+    parser.add_argument('--runs', type=int, default=1,
+                        help='runs per rate and mode (figures: their median)')
     parser.add_argument('--out', help='directory for lockstep.json (e.g. docs/bench), which '
                         'the benchmarks page renders')
     args = parser.parse_args(argv)
     rows = []
     for rate in args.rates:
-        fast = exchange(rate, 0.0, args.periods / rate)
-        real = exchange(rate, 1.0, args.seconds)
+        fast = repeated(args.runs, rate, 0.0, args.periods / rate)
+        real = repeated(args.runs, rate, 1.0, args.seconds)
         rows.append({'control_rate_hz': rate, 'as_fast_as_possible': fast, 'real_time': real})
         print(f'control {rate:g} Hz: as fast as possible {fast["exchanges"]} exchanges, round '
-              f'trip {fast["round_trip_wall_us"]} µs wall (max {fast["round_trip_wall_max_us"]}'
-              f' µs), simulator CPU {fast["sim_cpu_per_period_us"]} µs per period, '
+              f'trip {spread(fast, "round_trip_wall_us")} µs wall (max '
+              f'{fast["round_trip_wall_max_us"]:.0f} µs), simulator CPU '
+              f'{spread(fast, "sim_cpu_per_period_us")} µs per period ('
+              f'{spread(fast, "sim_thread_cpu_per_period_us")} µs in its own thread), '
               f'{fast["achieved_rate_hz"]:.0f} exchanges/s; at real time '
               f'{real["achieved_rate_hz"]:.1f} exchanges/s (target {rate:g}), simulator CPU '
-              f'{real["sim_cpu_per_period_us"]} µs per period', flush=True)
+              f'{real["sim_cpu_per_period_us"]:.0f} µs per period', flush=True)
     if args.out:
         report({'command': command_line(__spec__, argv), 'rows': rows}, args.out,
                'lockstep.json')

@@ -1,0 +1,119 @@
+"""What the simulator does per exchange, beyond what its subscribers receive: no /clock
+without a subscriber, one executor turn per lockstep exchange, commands read from their
+CDR bytes as rclpy would decode them.
+
+The simulator node is built in this process (a real node on the test's ROS domain) and its
+loop is driven by hand (``run_once``), so that what it does per turn can be observed; the
+subscribers are this test's own node, exchanging real messages with it.
+"""
+import pytest
+from rclpy.parameter import Parameter
+from rclpy.serialization import serialize_message
+
+from ros_helpers import spin_until
+
+NS = 1_000_000_000
+
+
+@pytest.fixture
+def simulator(rclpy_node, namespace):
+    """Build a Simulator in this process with the given parameters; destroyed at teardown."""
+    from rigid_body_sim.nodes.simulator import Simulator
+    built = []
+
+    def build(**values):
+        sim = Simulator(namespace=namespace, parameter_overrides=[
+            Parameter(k, value=v) for k, v in values.items()])
+        built.append(sim)
+        return sim
+    yield build
+    for sim in built:
+        sim.destroy_node()
+
+
+def test_clock_goes_only_to_subscribers(rclpy_node, simulator):
+    """Without a /clock subscriber the simulator publishes no /clock (before, it published
+    one per sample for nobody: ~25 µs of a lockstep exchange); once a use_sim_time node
+    subscribes it gets /clock, on the sample grid and increasing (the bytes decode to the
+    sim time)."""
+    from rosgraph_msgs.msg import Clock
+    sim = simulator(publish_clock=True, real_time_factor=0.0, publish_rate=100.0)
+    assert spin_until(rclpy_node, lambda: sim._clock_pub.get_subscription_count() == 0, 30)
+    sent = []
+    publish = sim._clock_pub.publish
+    sim._clock_pub.publish = lambda msg: (sent.append(msg), publish(msg))
+    for _ in range(5):
+        sim.run_once()
+    assert sim.t_ns > 0  # the run advanced
+    assert sent == []
+    clocks = []
+    rclpy_node.create_subscription(Clock, '/clock', clocks.append, 1000)
+
+    def turn():
+        sim.run_once()
+        return len(clocks) >= 5
+    assert spin_until(rclpy_node, turn, 60), (len(sent), sim.t_ns)
+    ticks = [m.clock.sec * NS + m.clock.nanosec for m in clocks]
+    assert all(t % 10_000_000 == 0 for t in ticks), ticks[:5]
+    assert ticks == sorted(set(ticks)) and ticks[-1] <= sim.t_ns
+
+
+def test_a_held_instant_waits_for_its_command_in_the_same_turn(rclpy_node, simulator):
+    """Lockstep as fast as possible: the turn that publishes a control instant's state and
+    holds it returns a wait (the executor then blocks until the command arrives), not 0,
+    which cost a second, idle turn of the executor per exchange. The command resumes it."""
+    from geometry_msgs.msg import Vector3Stamped
+    sim = simulator(lockstep=True, publish_clock=True, real_time_factor=0.0,
+                    publish_rate=50.0, control_rate=50.0, lockstep_timeout=30.0)
+    wait = sim.run_once()
+    assert sim.lockstep_held is not None and sim.t_ns == 0
+    assert wait > 0
+    pub = rclpy_node.create_publisher(Vector3Stamped, sim.get_namespace() + '/torque_command',
+                                      10)
+    assert spin_until(rclpy_node, lambda: pub.get_subscription_count() > 0, 30)
+    pub.publish(Vector3Stamped())  # stamp 0: the held instant's
+    from rclpy.executors import SingleThreadedExecutor
+    executor = SingleThreadedExecutor(context=sim.context)
+    executor.add_node(sim)
+    try:
+        assert spin_until(rclpy_node, lambda: (executor.spin_once(timeout_sec=0.05),
+                                               sim.run_once(), sim.t_ns)[-1] == 20_000_000,
+                          30), sim.t_ns
+    finally:
+        executor.remove_node(sim)
+        executor.shutdown()
+    assert sim.lockstep_held is not None  # the next instant, held in turn
+
+
+@pytest.mark.parametrize('frame, stamp, vector', [
+    ('', (0, 0), (0.0, 0.0, 0.0)),
+    ('base_link', (12, 340_000_000), (1e-3, -2.5e-7, 3.0)),
+    ('b', (2**31 - 1, 999_999_999), (float('inf'), float('nan'), -0.0)),
+    ('sc1/base_link_long_name', (1, 1), (5e-324, -1.7976931348623157e308, 1.0))])
+def test_commands_decode_from_their_bytes_as_rclpy_does(frame, stamp, vector):
+    """The torque command's CDR bytes (little- and big-endian) give the fields rclpy's
+    deserialiser gives, bit for bit (NaN included); bytes of another layout are left to it."""
+    import math
+    import struct
+    from geometry_msgs.msg import Vector3Stamped
+    from rclpy.serialization import deserialize_message
+    from rigid_body_sim.nodes.commands import vector3_stamped
+    msg = Vector3Stamped()
+    msg.header.frame_id = frame
+    msg.header.stamp.sec, msg.header.stamp.nanosec = stamp
+    msg.vector.x, msg.vector.y, msg.vector.z = vector
+    data = serialize_message(msg)
+    big = (b'\x00\x00\x00\x00' + struct.pack('>iII', *stamp, len(frame) + 1) + frame.encode()
+           + b'\x00')
+    big += b'\x00' * (-(len(big) - 4) % 8) + struct.pack('>3d', *vector)
+    for raw in (data, big):
+        got = vector3_stamped(raw)
+        ref = deserialize_message(data, Vector3Stamped)
+        assert got.header.frame_id == ref.header.frame_id
+        assert (got.header.stamp.sec, got.header.stamp.nanosec) == stamp
+        for a, b in zip((got.vector.x, got.vector.y, got.vector.z),
+                        (ref.vector.x, ref.vector.y, ref.vector.z)):
+            assert struct.pack('<d', a) == struct.pack('<d', b) or (math.isnan(a) and
+                                                                    math.isnan(b))
+    with pytest.raises(Exception):
+        vector3_stamped(data[:-8])  # truncated: rclpy's own error
