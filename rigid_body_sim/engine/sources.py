@@ -54,9 +54,10 @@ class CommandHold(TorqueSource):
         Clipped in Python floats, as np.clip would (a live lockstep exchange applies one
         command: five small numpy calls cost more than the rest of it)."""
         x, y, z = (float(v) for v in torque)
-        m = self.max_torque
-        if abs(x) > m or abs(y) > m or abs(z) > m:
-            x, y, z = (min(max(v, -m), m) for v in (x, y, z))
+        m = self.max_torque  # one limit, or one per axis (the magnetorquers' rods)
+        mx, my, mz = (m, m, m) if isinstance(m, float) else (float(v) for v in m)
+        if abs(x) > mx or abs(y) > my or abs(z) > mz:
+            x, y, z = min(max(x, -mx), mx), min(max(y, -my), my), min(max(z, -mz), mz)
             self.saturated += 1
         self.accepted += 1
         if x == 0.0 and y == 0.0 and z == 0.0:
