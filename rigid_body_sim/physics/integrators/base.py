@@ -215,6 +215,18 @@ class Integrator:
         drive it themselves (the engine's compiled closed loop), or None if it has none."""
         return None
 
+    def loop_model(self) -> int:
+        """The dissipation code its compiled loop runs (``dynamics_kernel.MODEL_CODES``; 0:
+        none): the dynamics' own unless the method takes the damping another way."""
+        from .. import dynamics_kernel
+        d = self.dynamics.dissipation
+        return dynamics_kernel.MODEL_CODES[d.model] if d.active else 0
+
+    def loop_memory(self):
+        """(memory, rtol, atol) of a method whose compiled loop carries its step in progress
+        from call to call (``dop853_dense.advance``), None for the others."""
+        return None
+
     @classmethod
     def describe(cls) -> dict:
         return {'name': cls.name, 'order': cls.order, 'implicit': cls.implicit,
