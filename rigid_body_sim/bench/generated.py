@@ -187,11 +187,15 @@ def _try(f, ref, budget, **kw):
 # ---------------------------------------------------------------------------- the suite
 FIELDS = ('scene', 'kind', 'budget', 'rotation', 'duration', 'publish_rate', 'status',
           'auto_method', 'auto_step', 'auto_cpu_s', 'auto_error', 'error_ratio',
+          'auto_predicted_error',
           'oracle_method', 'oracle_param', 'oracle_cpu_s', 'oracle_error', 'cpu_ratio',
           'reference', 'reference_error', 'reason', 'note')
 SEED = 20261125
 COUNTS = {True: 20, False: 200}
 JUDGED = ('ok', 'auto missed')
+# a budget no fixed choice of the registry was found to meet, which auto said it cannot
+# meet: counted apart, not as a miss of auto's (its error is reported beside)
+INFEASIBLE = 'infeasible'
 
 
 def judge(scene: Scene, log=None, cap: float = oracle_mod.SWEEP_CAP[True]) -> dict:
@@ -212,8 +216,10 @@ def judge(scene: Scene, log=None, cap: float = oracle_mod.SWEEP_CAP[True]) -> di
     if isinstance(auto, str):
         row.update(status='auto failed', reason=auto)
         return row
+    predicted = auto.selection.predicted_error if auto.selection is not None else math.nan
     row.update(auto_method=auto.integrator, auto_step=auto.step, auto_cpu_s=auto_cpu,
-               auto_error=auto_err, error_ratio=auto_err / scene.budget, reason=auto.reason)
+               auto_error=auto_err, error_ratio=auto_err / scene.budget, reason=auto.reason,
+               auto_predicted_error=predicted)
     if math.isfinite(ref.error):
         best, _, note = oracle(scene, ref, cap=min(max(cap, 20 * auto_cpu), 4 * cap), log=log)
     else:  # nothing can be proven against it: no sweep
@@ -224,11 +230,22 @@ def judge(scene: Scene, log=None, cap: float = oracle_mod.SWEEP_CAP[True]) -> di
                   f'bound) around the budget')
     if best is None:
         note = '; '.join(x for x in ('no fixed choice proven to meet the budget', note) if x)
+        row['status'] = classify(row['status'], predicted, scene.budget)
     else:
         row.update(oracle_method=best[0], oracle_param=best[1], oracle_cpu_s=best[2],
                    oracle_error=best[3], cpu_ratio=auto_cpu / best[2])
     row['note'] = note
     return row
+
+
+def classify(status: str, predicted: float, budget: float) -> str:
+    """A miss becomes INFEASIBLE where no fixed choice of the registry was proven to meet
+    the budget (the caller's sweep found none) and auto said beforehand that it cannot
+    (its predicted error, ``Selection.predicted_error``, over the budget). A miss where
+    a fixed choice met it, or that auto did not foresee, stays a miss."""
+    if status == 'auto missed' and predicted > budget:
+        return INFEASIBLE
+    return status
 
 
 def summary(rows) -> dict:
@@ -244,6 +261,7 @@ def summary(rows) -> dict:
             np.isfinite(ratios))), 'undecided': sum(r.get('status', '').startswith(
                 'undecided') for r in rows),
             'missed': sum(r.get('status') == 'auto missed' for r in rows),
+            'infeasible': sum(r.get('status') == INFEASIBLE for r in rows),
             'failed': sum(r.get('status') in ('auto failed', 'no reference') for r in rows),
             'worst_error_ratio': float(np.max(errors)),
             'error_ratio_p50': float(np.median(errors)),
@@ -281,7 +299,9 @@ def run(quick, log=print, seed=SEED, count=None):
     t_rows = [
         targets.simple('generated: auto worst attitude error / budget', s['worst_error_ratio'],
                        1.0, s['worst_error_ratio'] <= 1.0 if ok else None,
-                       f'{where}; {s["missed"]} missed; median {s["error_ratio_p50"]:.2g}'),
+                       f'{where}; {s["missed"]} missed; median {s["error_ratio_p50"]:.2g}; '
+                       f'{s["infeasible"]} infeasible (no fixed choice met the budget and '
+                       'auto said it cannot), not judged'),
         targets.simple('generated: auto CPU / oracle, median', s['cpu_ratio_median'], 1.5,
                        s['cpu_ratio_median'] <= 1.5 if ok else None, spread),
         targets.simple('generated: auto CPU / oracle, worst scene', s['cpu_ratio_worst'], 3.0,
