@@ -151,3 +151,39 @@ def test_the_fleet_and_lockstep_tools_files_are_rendered(tmp_path):
     assert 'N = 100: 35.5 % of a core, RTF 0.991, 31 missed deadlines' in text
     assert '1000 Hz control: round trip 5.9 ms wall' in text
     assert '788 µs per exchange' in text and '318.2 exchanges/s at real time' in text
+
+
+def test_the_sampling_section_re_run_alone_replaces_its_own_rows(tmp_path, monkeypatch):
+    """``bench.sampling --update DIR``: the section's rows of targets.csv and targets.md are
+    replaced where they stood, each note saying it was re-run alone; every other row and
+    line stays the full run's, and the summary is rendered from the files again."""
+    import shutil
+    from rigid_body_sim.bench import sampling, targets
+    folder = tmp_path / 'bench'
+    shutil.copytree(RUN, folder)
+    rows = [{'what': 'sampling overhead', 'scene': 'slew', 'duration': 15.0, 'rate_a': 1.0,
+             'cpu_a_s': 0.001, 'rate_b': 100.0, 'cpu_b_s': 0.00123, 'ratio': 1.23, 'note': ''}]
+    new = [targets.simple('sampling overhead: 100 samples/s / 1 sample/s (CPU)', 1.23, 1.5,
+                          True, '15 s, samples kept in-process', scene='slew'),
+           targets.simple('CLI overhead: rigid-body-sim run cpu_seconds / in-process', 0.97,
+                          1.2, True, '15 s', scene='slew')]
+    monkeypatch.setattr(sampling, 'run', lambda quick, log=print: (rows, [dict(r) for r in new]))
+    sampling.update(str(folder), log=lambda *a: None)
+
+    def lines(name):
+        with open(os.path.join(name), encoding='utf-8') as f:
+            return f.read().splitlines()
+    mine = ('| sampling overhead', '| CLI overhead', 'sampling overhead', 'CLI overhead')
+    before, after = lines(os.path.join(RUN, 'targets.md')), lines(folder / 'targets.md')
+    assert [x for x in before if not x.startswith(mine)] == \
+        [x for x in after if not x.startswith(mine)]
+    ours = [x for x in after if x.startswith(mine)]
+    assert len(ours) == 2 and all('re-run alone' in x for x in ours)
+    assert ours[0].startswith('| sampling overhead') and '| 1.23 |' in ours[0]
+    before, after = lines(os.path.join(RUN, 'targets.csv')), lines(folder / 'targets.csv')
+    assert [x for x in before if not x.startswith(mine)] == \
+        [x for x in after if not x.startswith(mine)]
+    assert after.index(next(x for x in after if x.startswith(mine))) == \
+        before.index(next(x for x in before if x.startswith(mine)))
+    assert lines(folder / 'summary.md') == report.render(str(folder)).splitlines()
+    assert 'slew 1.23×' in '\n'.join(lines(folder / 'summary.md'))

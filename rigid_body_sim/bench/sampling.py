@@ -7,12 +7,13 @@ run SCENE --json`` in a fresh process (bag written; its ``cpu_seconds`` is the r
 bag's cost is ``output_cpu_seconds``) against the same run in-process with the kernels
 warm. Both are minima of a few runs: the machine may be shared.
 
-    python -m rigid_body_sim.bench.sampling [--quick]
+    python -m rigid_body_sim.bench.sampling [--quick] [--update docs/bench]
 """
 import json
 import subprocess
 import sys
 import tempfile
+import time
 
 import numpy as np
 
@@ -176,6 +177,41 @@ def generated_rows(quick, log=print, count=None):
     return rows, out
 
 
+def update(folder, log=print):
+    """Re-run this section (full) into a full run's ``folder``: sampling.csv, and this
+    section's rows of targets.csv and targets.md replaced in place, each note saying when
+    and on what it was measured; the other sections' rows stay the full run's, and the
+    summary is rendered again from the files (``report``)."""
+    import csv
+    import os
+    from . import _markdown_targets, machine, report, targets as targets_mod
+    from .common import write_csv
+    stamp = f'this section re-run alone {time.strftime("%Y-%m-%d")} on {machine()}'
+    rows, t_rows = run(False, log)
+    for r in t_rows:
+        r['note'] = f'{r["note"]}; {stamp}'
+    write_csv(os.path.join(folder, 'sampling.csv'), FIELDS, rows)
+
+    def mine(target):
+        return target.startswith(('sampling overhead', 'CLI overhead'))
+    path = os.path.join(folder, 'targets.csv')
+    with open(path, newline='', encoding='utf-8') as f:
+        old = list(csv.DictReader(f))
+    at = next(i for i, r in enumerate(old) if mine(r['target']))
+    kept = [r for r in old if not mine(r['target'])]
+    write_csv(path, targets_mod.FIELDS, kept[:at] + t_rows + kept[at:])
+    path = os.path.join(folder, 'targets.md')
+    with open(path, encoding='utf-8') as f:
+        lines = f.read().splitlines()
+    ours = [i for i, line in enumerate(lines) if mine(line[2:])]
+    if ours != list(range(ours[0], ours[-1] + 1)):
+        raise ValueError(f'{path}: this section\'s rows are not one block')
+    table = _markdown_targets(t_rows, '', '').splitlines()[6:]  # its rows, not the header
+    with open(path, 'w', encoding='utf-8') as f:
+        f.write('\n'.join(lines[:ours[0]] + table + lines[ours[-1] + 1:]) + '\n')
+    return report.write(folder)
+
+
 def _scene_rate(name):
     from ..scene import load
     return float(load(name).simulator['publish_rate'])
@@ -185,6 +221,12 @@ if __name__ == '__main__':
     import argparse
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument('--quick', action='store_true')
+    parser.add_argument('--update', metavar='DIR', default='',
+                        help='re-run the section into a full run\'s DIR (e.g. docs/bench): '
+                             'its CSV, its rows of targets.csv/targets.md, the summary')
     args = parser.parse_args()
+    if args.update:
+        print(update(args.update))
+        sys.exit(0)
     for r in run(args.quick)[1]:
         print(json.dumps(r))
