@@ -187,3 +187,17 @@ def test_the_sampling_section_re_run_alone_replaces_its_own_rows(tmp_path, monke
         before.index(next(x for x in before if x.startswith(mine)))
     assert lines(folder / 'summary.md') == report.render(str(folder)).splitlines()
     assert 'slew 1.23×' in '\n'.join(lines(folder / 'summary.md'))
+
+
+def test_the_generated_suite_read_back_from_its_csv_gives_its_targets():
+    """``bench.generated --update DIR --from-csv FILE`` judges the rows a run wrote: read
+    back from the full run's generated.csv, they give that run's target rows."""
+    from rigid_body_sim.bench import generated
+    rows = generated.read_rows(os.path.join(RUN, 'generated.csv'))
+    t_rows, _ = generated.targets_for(rows)
+    with open(os.path.join(RUN, 'targets.csv'), newline='', encoding='utf-8') as f:
+        written = [r for r in csv.DictReader(f) if r['target'].startswith('generated:')]
+    assert [r['target'] for r in t_rows] == [r['target'] for r in written]
+    for ours, theirs in zip(t_rows, written):
+        assert float(theirs['measured']) == pytest.approx(ours['measured'], rel=1e-5)
+        assert theirs['verdict'] == ours['verdict']

@@ -273,7 +273,6 @@ def summary(rows) -> dict:
 
 def run(quick, log=print, seed=SEED, count=None):
     """(rows, target rows, summary) of the generalisation suite."""
-    from . import targets
     from .. import compiled
     compiled.warm()  # kernels loaded before any clock starts (else the first run pays)
     count = COUNTS[quick] if count is None else count
@@ -288,6 +287,13 @@ def run(quick, log=print, seed=SEED, count=None):
             f'{row.get("oracle_param", math.nan):.3g} {row.get("oracle_cpu_s", math.nan):.3g} s;'
             f' ratio {row.get("cpu_ratio", math.nan):.2f}'
             + (f'; {row["note"]}' if row.get('note') else ''))
+    t_rows, s = targets_for(rows, seed)
+    return rows, t_rows, s
+
+
+def targets_for(rows, seed=SEED):
+    """(target rows, summary) of the suite's rows (``run``'s, or read back from its CSV)."""
+    from . import targets
     s = summary(rows)
     where = (f'seed {seed}, {s["judged"]} of {s["scenes"]} scenes judged'
              + (f', {s["undecided"]} undecided' if s['undecided'] else ''))
@@ -306,7 +312,35 @@ def run(quick, log=print, seed=SEED, count=None):
                        s['cpu_ratio_median'] <= 1.5 if ok else None, spread),
         targets.simple('generated: auto CPU / oracle, worst scene', s['cpu_ratio_worst'], 3.0,
                        s['cpu_ratio_worst'] <= 3.0 if ok else None, spread)]
-    return rows, t_rows, s
+    return t_rows, s
+
+
+def read_rows(path):
+    """The rows of a CSV this suite wrote, numbers as floats (empty cells left out)."""
+    import csv
+    out = []
+    with open(path, newline='', encoding='utf-8') as f:
+        for row in csv.DictReader(f):
+            r = {}
+            for k, v in row.items():
+                if v == '':
+                    continue
+                try:
+                    r[k] = v if k in ('scene', 'kind', 'status', 'auto_method',
+                                      'oracle_method', 'reference', 'reason', 'note') \
+                        else float(v)
+                except ValueError:
+                    r[k] = v
+            out.append(r)
+    return out
+
+
+def update(folder, rows, seed=SEED):
+    """Put a run of the suite (its ``rows``) into a full run's ``folder``: generated.csv
+    and the suite's target rows (:func:`.common.replace_section`)."""
+    from .common import replace_section
+    t_rows, _ = targets_for(rows, seed)
+    return replace_section(folder, 'generated.csv', FIELDS, rows, t_rows, ('generated:',))
 
 
 def main(argv=None):
@@ -320,6 +354,10 @@ def main(argv=None):
     parser.add_argument('--count', type=int, default=None, help='scenes (default 20 / 200)')
     parser.add_argument('--only', type=int, default=None, help='just scene INDEX of the seed')
     parser.add_argument('--csv', default='', help='write the rows here')
+    parser.add_argument('--update', metavar='DIR', default='',
+                        help='put the rows (or those of --from-csv) into a full run\'s DIR '
+                             '(e.g. docs/bench): generated.csv, its targets, the summary')
+    parser.add_argument('--from-csv', default='', help='with --update: rows a run wrote')
     args = parser.parse_args(argv)
     if args.only is not None:
         from .. import compiled
@@ -328,6 +366,9 @@ def main(argv=None):
         print(scene.describe())
         row = judge(scene, log=print)
         print(json.dumps(row, indent=1, default=str))
+        return 0
+    if args.update and args.from_csv:
+        print(update(args.update, read_rows(args.from_csv), args.seed))
         return 0
     rows, t_rows, s = run(args.quick, seed=args.seed, count=args.count)
     for r in t_rows:
@@ -339,6 +380,8 @@ def main(argv=None):
             w.writeheader()
             w.writerows(rows)
     print(json.dumps(s))
+    if args.update:
+        print(update(args.update, rows, args.seed))
     return 0
 
 

@@ -13,7 +13,6 @@ import json
 import subprocess
 import sys
 import tempfile
-import time
 
 import numpy as np
 
@@ -178,38 +177,12 @@ def generated_rows(quick, log=print, count=None):
 
 
 def update(folder, log=print):
-    """Re-run this section (full) into a full run's ``folder``: sampling.csv, and this
-    section's rows of targets.csv and targets.md replaced in place, each note saying when
-    and on what it was measured; the other sections' rows stay the full run's, and the
-    summary is rendered again from the files (``report``)."""
-    import csv
-    import os
-    from . import _markdown_targets, machine, report, targets as targets_mod
-    from .common import write_csv
-    stamp = f'this section re-run alone {time.strftime("%Y-%m-%d")} on {machine()}'
+    """Re-run this section (full) into a full run's ``folder``
+    (:func:`.common.replace_section`): sampling.csv and this section's target rows."""
+    from .common import replace_section
     rows, t_rows = run(False, log)
-    for r in t_rows:
-        r['note'] = f'{r["note"]}; {stamp}'
-    write_csv(os.path.join(folder, 'sampling.csv'), FIELDS, rows)
-
-    def mine(target):
-        return target.startswith(('sampling overhead', 'CLI overhead'))
-    path = os.path.join(folder, 'targets.csv')
-    with open(path, newline='', encoding='utf-8') as f:
-        old = list(csv.DictReader(f))
-    at = next(i for i, r in enumerate(old) if mine(r['target']))
-    kept = [r for r in old if not mine(r['target'])]
-    write_csv(path, targets_mod.FIELDS, kept[:at] + t_rows + kept[at:])
-    path = os.path.join(folder, 'targets.md')
-    with open(path, encoding='utf-8') as f:
-        lines = f.read().splitlines()
-    ours = [i for i, line in enumerate(lines) if mine(line[2:])]
-    if ours != list(range(ours[0], ours[-1] + 1)):
-        raise ValueError(f'{path}: this section\'s rows are not one block')
-    table = _markdown_targets(t_rows, '', '').splitlines()[6:]  # its rows, not the header
-    with open(path, 'w', encoding='utf-8') as f:
-        f.write('\n'.join(lines[:ours[0]] + table + lines[ours[-1] + 1:]) + '\n')
-    return report.write(folder)
+    return replace_section(folder, 'sampling.csv', FIELDS, rows, t_rows,
+                           ('sampling overhead', 'CLI overhead'))
 
 
 def _scene_rate(name):
