@@ -43,8 +43,8 @@ class Candidate:
         damping, in torque-free runs at any stiffness (the same splitting as splitting2, its
         damping exact at a lower cost than splitting2's substeps; Explorer 1 over 30 s at
         h = 0.0119 s: the same error, 0.92 against 1.17 ms) and with torque only where it
-        is stiff (the engine's compiled closed loop damps by substeps, so it runs event by
-        event there).
+        is stiff (it was chosen when it ran event by event in the engine's closed loop;
+        the compiled loop now runs it with its own damping code, ``loop_model``).
     supersedes: a candidate not asked where this one is usable without torque (the same
         scheme at no lower cost: asking both would only double the pilot).
     coupled_only: considered only with torque or dissipation (``exact`` splits them off).
