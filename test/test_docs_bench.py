@@ -184,3 +184,53 @@ def test_the_lockstep_floor_file_is_rendered(tmp_path):
     text = report.render(str(tmp_path))
     assert ('synchronous publication, command as bytes: 172 µs CPU (95.2 µs in its own '
             'thread), 0.812 ms wall (medians of 3 runs)') in text, text
+
+
+def test_the_sampling_section_re_run_alone_replaces_its_own_rows(tmp_path, monkeypatch):
+    """``bench.sampling --update DIR``: the section's rows of targets.csv and targets.md are
+    replaced where they stood, each note saying it was re-run alone; every other row and
+    line stays the full run's, and the summary is rendered from the files again."""
+    import shutil
+    from rigid_body_sim.bench import sampling, targets
+    folder = tmp_path / 'bench'
+    shutil.copytree(RUN, folder)
+    rows = [{'what': 'sampling overhead', 'scene': 'slew', 'duration': 15.0, 'rate_a': 1.0,
+             'cpu_a_s': 0.001, 'rate_b': 100.0, 'cpu_b_s': 0.00123, 'ratio': 1.23, 'note': ''}]
+    new = [targets.simple('sampling overhead: 100 samples/s / 1 sample/s (CPU)', 1.23, 1.5,
+                          True, '15 s, samples kept in-process', scene='slew'),
+           targets.simple('CLI overhead: rigid-body-sim run cpu_seconds / in-process', 0.97,
+                          1.2, True, '15 s', scene='slew')]
+    monkeypatch.setattr(sampling, 'run', lambda quick, log=print: (rows, [dict(r) for r in new]))
+    sampling.update(str(folder), log=lambda *a: None)
+
+    def lines(name):
+        with open(os.path.join(name), encoding='utf-8') as f:
+            return f.read().splitlines()
+    mine = ('| sampling overhead', '| CLI overhead', 'sampling overhead', 'CLI overhead')
+    before, after = lines(os.path.join(RUN, 'targets.md')), lines(folder / 'targets.md')
+    assert [x for x in before if not x.startswith(mine)] == \
+        [x for x in after if not x.startswith(mine)]
+    ours = [x for x in after if x.startswith(mine)]
+    assert len(ours) == 2 and all('re-run alone' in x for x in ours)
+    assert ours[0].startswith('| sampling overhead') and '| 1.23 |' in ours[0]
+    before, after = lines(os.path.join(RUN, 'targets.csv')), lines(folder / 'targets.csv')
+    assert [x for x in before if not x.startswith(mine)] == \
+        [x for x in after if not x.startswith(mine)]
+    assert after.index(next(x for x in after if x.startswith(mine))) == \
+        before.index(next(x for x in before if x.startswith(mine)))
+    assert lines(folder / 'summary.md') == report.render(str(folder)).splitlines()
+    assert 'slew 1.23×' in '\n'.join(lines(folder / 'summary.md'))
+
+
+def test_the_generated_suite_read_back_from_its_csv_gives_its_targets():
+    """``bench.generated --update DIR --from-csv FILE`` judges the rows a run wrote: read
+    back from the full run's generated.csv, they give that run's target rows."""
+    from rigid_body_sim.bench import generated
+    rows = generated.read_rows(os.path.join(RUN, 'generated.csv'))
+    t_rows, _ = generated.targets_for(rows)
+    with open(os.path.join(RUN, 'targets.csv'), newline='', encoding='utf-8') as f:
+        written = [r for r in csv.DictReader(f) if r['target'].startswith('generated:')]
+    assert [r['target'] for r in t_rows] == [r['target'] for r in written]
+    for ours, theirs in zip(t_rows, written):
+        assert float(theirs['measured']) == pytest.approx(ours['measured'], rel=1e-5)
+        assert theirs['verdict'] == ours['verdict']

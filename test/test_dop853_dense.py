@@ -226,3 +226,28 @@ def test_a_non_finite_state_inside_a_run_names_method_step_and_time():
     before = integ.nfev
     integ.run(q, m, 0.01, 1, None, 0.01)
     assert (integ.nfev - before - 2 - 3) % 12 == 0  # f, the initial step, steps, extras
+
+
+def test_an_output_inside_a_built_step_is_the_full_paths_bit_for_bit():
+    """An output inside the step in progress whose interpolant is built is answered on the
+    flat memory alone (``_interpolated``: no views, no scratch); its state and memory are
+    those of the full path, which rebuilds F (3 evaluations) when told F is not built."""
+    args = (MOMENTS, 2, 0.2, 1e-10, 1e-12, 0.0, OFF)
+    memory = np.zeros(dop853_dense.MEMORY)
+    q, m = Q0.copy(), M0.copy()
+    dop853_dense.advance(q, m, 0.01, TAU, memory, *args)  # steps, builds F, interpolates
+    *_, clock, _ = dop853_dense.views(memory)
+    assert clock[2] == 1.0 and clock[0] + 0.01 < clock[1]
+    fast_memory, slow_memory = memory.copy(), memory.copy()
+    slow_memory[dop853_dense._CLOCK + 2] = 0.0  # F "not built": the full path
+    (qf, mf), (qs, ms) = (q.copy(), m.copy()), (q.copy(), m.copy())
+    fast = dop853_dense.advance(qf, mf, 0.01, TAU, fast_memory, *args)
+    slow = dop853_dense.advance(qs, ms, 0.01, TAU, slow_memory, *args)
+    assert fast[0] == slow[0] == dop853_kernel.OK and fast[3] == 0 and slow[3] == 3
+    assert fast[1:3] == slow[1:3]
+    np.testing.assert_array_equal(qf, qs)
+    np.testing.assert_array_equal(mf, ms)
+    np.testing.assert_array_equal(fast_memory, slow_memory)
+    # a changed torque, or another state, is not a continuation: the full path's
+    assert not dop853_dense._interpolated(qf, mf, 0.01, TAU * 2, fast_memory.copy())
+    assert not dop853_dense._interpolated(qf + 1e-9, mf, 0.01, TAU, fast_memory.copy())

@@ -5,6 +5,10 @@ The reference (test/data/free_body_reference.npz) was written by this file's ``m
 run on the code before the orbit existed (commit 8bf9116, extracted with ``git archive``
 and put first on PYTHONPATH):
 ``PYTHONPATH=<extracted> .venv/bin/python test/test_free_body_unchanged.py``.
+Except ``explorer1-exact``: rewritten when exact's split steps were compiled
+(integrators/exact_flow_kernel.py; its damping sub-flow is the splittings' compiled one,
+which rounds otherwise than the Python flow it took: 5e-16 apart), on that code, which
+has no environment term in exact's steps (it integrates none).
 """
 import os
 import sys

@@ -131,3 +131,30 @@ def test_dop853s_cost_fact_lets_auto_take_it_where_it_is_cheapest():
     scene = generated.draw(SEED, 19, True)
     result = simulate(scene.scene_file())
     assert result.integrator == 'dop853', result.reason
+
+
+@pytest.mark.parametrize('predicted,best,status', [
+    (5e-8, None, 'infeasible'),      # auto said it cannot, and no fixed choice met it
+    (5e-8, ('rk4', 0.01, 1.0, 5e-10), 'auto missed'),  # a fixed choice met it: auto's miss
+    (5e-10, None, 'auto missed')])   # auto promised the budget and missed it
+def test_an_infeasible_budget_is_counted_apart_from_auto_s_misses(monkeypatch, predicted,
+                                                                  best, status):
+    """A budget no fixed choice of the registry was found to meet, which auto said it
+    cannot meet (its predicted error over the budget), is 'infeasible': counted on its own,
+    not in auto's worst error / budget. A miss auto did not foresee, or where the oracle
+    found a choice that meets it, stays 'auto missed'."""
+    from types import SimpleNamespace
+    scene = generated.draw(SEED, 4, True)
+    ref = oracle.Reference(np.zeros((1, 4)), 0.0, 'stub')
+    auto = SimpleNamespace(integrator='dop853', step=0.01, reason='auto: stub',
+                           selection=SimpleNamespace(predicted_error=predicted))
+    monkeypatch.setattr(oracle, 'reference', lambda scene, cap=None: ref)
+    monkeypatch.setattr(oracle, 'try_run', lambda f, attitude, **kw: (
+        3 * scene.budget, 0.5, auto))
+    monkeypatch.setattr(generated, 'oracle', lambda *a, **kw: (best, [], ''))
+    row = generated.judge(scene)
+    assert row['status'] == status and row['auto_predicted_error'] == predicted
+    ok = dict(row, status='ok', error_ratio=0.5, cpu_ratio=1.1, scene='x')
+    s = generated.summary([row, ok])
+    assert s['infeasible'] == (status == 'infeasible')
+    assert s['worst_error_ratio'] == (0.5 if status == 'infeasible' else 3.0)

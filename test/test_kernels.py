@@ -19,7 +19,7 @@ from rigid_body_sim.physics import Dissipation, Dynamics, IntegrationError, crea
 pytestmark = pytest.mark.fast  # make check
 
 CASES = [(name, model) for name in ('splitting2', 'splitting4', 'splitting6', 'rk4', 'euler',
-                                    'implicit_midpoint', 'splitting2_lstable')
+                                    'implicit_midpoint', 'splitting2_lstable', 'exact')
          for model in ('none', 'double_bracket', 'viscous')]
 MOMENTS = (1.0, 2.0, 3.0)
 Q0, M0, TAU = (0.1, -0.2, 0.3, 0.9), (0.3, 0.6, 2.7), (0.01, -0.02, 0.005)

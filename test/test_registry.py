@@ -48,10 +48,14 @@ def test_the_stability_check_uses_each_methods_own_stability_function():
 
 
 def test_the_closed_loop_codes_are_the_methods_own():
-    """The compiled closed loop dispatches 0 splitting, 1 RK4, 2 Euler; methods without a
-    code (None) run event by event."""
+    """The compiled closed loop dispatches 0 splitting, 1 RK4, 2 Euler, 3 dop853, 4 exact's
+    split steps (its names for them); methods without a code (None) run event by event."""
+    from rigid_body_sim.engine import closed_loop
     codes = {n: c.loop_code for n, c in INTEGRATORS.items() if c.loop_code is not None}
-    assert codes == {'splitting2': 0, 'splitting4': 0, 'splitting6': 0, 'rk4': 1, 'euler': 2}
+    assert codes == {'splitting2': 0, 'splitting4': 0, 'splitting6': 0,
+                     'splitting2_lstable': 0, 'rk4': 1, 'euler': 2, 'dop853': 3, 'exact': 4}
+    assert (closed_loop.SPLITTING, closed_loop.RK4, closed_loop.EULER, closed_loop.DOP853,
+            closed_loop.EXACT) == (0, 1, 2, 3, 4)
 
 
 def test_every_compiled_loop_module_is_warmed_through_a_registered_method():

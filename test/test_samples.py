@@ -23,7 +23,18 @@ CASES = [('slew', {'duration': 6.0}, ['publish_rate=100.0']),
           ['publish_rate=100.0']),
          ('explorer1', {'duration': 3.37, 'integrator': 'splitting4', 'step': 1e-3},
           ['publish_rate=7.0']),
-         ('slew', {'duration': 4.37}, ['publish_rate=30.0'])]
+         ('slew', {'duration': 4.37}, ['publish_rate=30.0']),
+         # the methods whose loops the kernel calls besides the fixed-step ones: dop853
+         # (its dense output carried between calls; restarted by the law's torques on
+         # slew), splitting2_lstable (its own damping code) and exact's split steps
+         ('explorer1', {'duration': 3.37, 'integrator': 'dop853'}, ['publish_rate=100.0']),
+         ('slew', {'duration': 4.37, 'integrator': 'dop853'}, ['publish_rate=100.0']),
+         ('explorer1', {'duration': 3.0, 'integrator': 'splitting2_lstable', 'step': 1e-3},
+          ['publish_rate=100.0']),
+         ('explorer1', {'duration': 3.0, 'integrator': 'exact', 'step': 1e-3},
+          ['publish_rate=100.0']),
+         ('slew', {'duration': 4.37, 'integrator': 'exact', 'step': 0.01},
+          ['publish_rate=30.0'])]
 
 
 def _samples(name, overrides, sets, compiled_loop):
@@ -63,7 +74,11 @@ def test_samples_do_not_go_back_to_python_per_sample(monkeypatch):
     monkeypatch.setattr(Engine, '_integrate', counted_integrate)
     monkeypatch.setattr(ControlLaw, 'on_event', counted_law)
     for name, overrides in (('explorer1', {'integrator': 'rk4', 'step': 1e-3}),
-                            ('slew', {})):
+                            ('slew', {}), ('explorer1', {'integrator': 'dop853'}),
+                            ('explorer1', {'integrator': 'splitting2_lstable', 'step': 1e-3}),
+                            ('explorer1', {'integrator': 'exact', 'step': 1e-3}),
+                            ('slew', {'integrator': 'dop853'}),
+                            ('slew', {'integrator': 'exact', 'step': 0.01})):
         engine = engine_for(load(name, ['publish_rate=100.0']), duration=5.0, **overrides)
         calls.update(integrate=0, law=0)
         assert sum(len(b) for b in engine.run()) == 501
@@ -137,3 +152,44 @@ def test_cli_loads_every_kernel_before_its_clock(scene, tmp_path):
     summary = _cli_json(scene, '--duration', '2', '--no-plots', '--no-bag', '--out',
                         str(tmp_path / 'b'))
     assert summary['output_cpu_seconds'] == 0.0 and summary['bag'] is None
+
+
+def test_a_failing_dop853_reports_as_on_the_event_path():
+    """dop853 failing inside the compiled loop raises the IntegrationError the event path
+    raises (method, step, time, reason), and its memory starts afresh."""
+    from rigid_body_sim.engine import EngineConfig
+    from rigid_body_sim.physics import IntegrationError
+    raised = []
+    for compiled_loop in (False, True):
+        engine = Engine(EngineConfig.from_parameters(
+            {'integrator': 'dop853', 'duration': 1.0, 'publish_rate': 10.0,
+             'inertia': [1.0, 2.0, 3.0], 'initial_angular_velocity': [1e160, 2e160, 1e160],
+             'dissipation.model': 'viscous', 'dissipation.coefficient': 0.1}),
+            compiled_loop=compiled_loop)
+        with pytest.raises(IntegrationError) as exc, np.errstate(over='ignore'):
+            list(engine.run())
+        raised.append((exc.value.integrator, exc.value.h, exc.value.t, exc.value.reason))
+        assert engine.fault and not engine.integrator._memory.any()
+    assert raised[0] == raised[1] and raised[0][0] == 'dop853'
+
+
+def test_an_offline_run_converts_two_rows_whatever_its_blocks(monkeypatch):
+    """``offline.simulate`` converts the first and the last sample to the user's frames
+    once each (each conversion of a long block's row costs ~70 µs: converting every
+    block's last row was a third of a 100 samples/s run's overhead), and the last is the
+    run's final sample."""
+    from rigid_body_sim.offline import simulate
+    calls = []
+    row = SampleBlock.row
+
+    def counted(self, i):
+        if len(self) > 1:  # not the one-row block a long block's row converts through
+            calls.append(i)
+        return row(self, i)
+    monkeypatch.setattr(SampleBlock, 'row', counted)
+    scene = load('explorer1', ['publish_rate=100.0'])
+    engine = engine_for(scene, duration=30.0, integrator='rk4', step=1e-3)
+    engine._builder = type(engine._builder)(engine.body, 512)  # many blocks
+    result = simulate(scene, engine=engine, keep='all')
+    assert result.sample_count == 3001 and len(calls) == 2
+    np.testing.assert_array_equal(result.final['attitude'], result.samples.attitude[-1])

@@ -144,3 +144,34 @@ def write_csv(path, fields, rows):
         w.writeheader()
         for r in rows:
             w.writerow({k: (f'{v:.6g}' if isinstance(v, float) else v) for k, v in r.items()})
+
+
+def replace_section(folder, name, fields, rows, t_rows, prefixes):
+    """Put one section's re-run into a full run's ``folder``: its CSV ``name``, and its
+    target rows (those whose target starts with one of ``prefixes``) of targets.csv and
+    targets.md replaced where they stood, each note saying when and on what it was
+    measured; the other sections' rows stay the full run's, and summary.md is rendered
+    from the files again (``report``). Returns the summary's path."""
+    from . import _markdown_targets, machine, report, targets as targets_mod
+    stamp = f'this section re-run alone {time.strftime("%Y-%m-%d")} on {machine()}'
+    t_rows = [dict(r, note=f'{r["note"]}; {stamp}' if r['note'] else stamp) for r in t_rows]
+    write_csv(os.path.join(folder, name), fields, rows)
+
+    def mine(target):
+        return target.startswith(tuple(prefixes))
+    path = os.path.join(folder, 'targets.csv')
+    with open(path, newline='', encoding='utf-8') as f:
+        old = list(csv.DictReader(f))
+    at = next(i for i, r in enumerate(old) if mine(r['target']))
+    kept = [r for r in old if not mine(r['target'])]
+    write_csv(path, targets_mod.FIELDS, kept[:at] + t_rows + kept[at:])
+    path = os.path.join(folder, 'targets.md')
+    with open(path, encoding='utf-8') as f:
+        lines = f.read().splitlines()
+    ours = [i for i, line in enumerate(lines) if mine(line[2:])]
+    if ours != list(range(ours[0], ours[-1] + 1)):
+        raise ValueError(f'{path}: the section\'s rows are not one block')
+    table = _markdown_targets(t_rows, '', '').splitlines()[6:]  # its rows, not the header
+    with open(path, 'w', encoding='utf-8') as f:
+        f.write('\n'.join(lines[:ours[0]] + table + lines[ours[-1] + 1:]) + '\n')
+    return report.write(folder)

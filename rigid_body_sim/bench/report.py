@@ -165,6 +165,7 @@ def generated_section(out):
 def _generated_lines(title, rows):
     judged = [r for r in rows if r['status'] in ('ok', 'auto missed')]
     ok = [r for r in judged if r['status'] == 'ok' and r['cpu_ratio']]
+    infeasible = [r for r in rows if r['status'] == 'infeasible']
     seeds = sorted({r['scene'][3:].rsplit('-', 1)[0] for r in rows})
     kinds = {k: sum(r['kind'] == k for r in rows) for k in dict.fromkeys(r['kind'] for r in rows)}
     return [f'- **{title}** (seed {", ".join(seeds)}; {len(rows)} scenes: '
@@ -173,6 +174,11 @@ def _generated_lines(title, rows):
             f'{sum(r["status"].startswith("undecided") for r in rows)}, failed '
             f'{sum(r["status"] in ("auto failed", "no reference") for r in rows)}; auto missed '
             f'its budget on {sum(r["status"] == "auto missed" for r in rows)};',
+            *([f'  - infeasible (no fixed choice of the registry met the budget, and auto '
+               f'said it cannot): {len(infeasible)}'
+               + (f', auto error / budget there '
+                  f'{_spread([r["error_ratio"] for r in infeasible])}' if infeasible else '')
+               + ';'] if 'auto_predicted_error' in rows[0] else []),  # runs that classify
             f'  - auto error / budget: {_spread([r["error_ratio"] for r in judged])};',
             f'  - auto CPU / oracle CPU where auto met its budget: '
             f'{_spread([r["cpu_ratio"] for r in ok])};',

@@ -7,7 +7,7 @@ run SCENE --json`` in a fresh process (bag written; its ``cpu_seconds`` is the r
 bag's cost is ``output_cpu_seconds``) against the same run in-process with the kernels
 warm. Both are minima of a few runs: the machine may be shared.
 
-    python -m rigid_body_sim.bench.sampling [--quick]
+    python -m rigid_body_sim.bench.sampling [--quick] [--update docs/bench]
 """
 import json
 import subprocess
@@ -176,6 +176,15 @@ def generated_rows(quick, log=print, count=None):
     return rows, out
 
 
+def update(folder, log=print):
+    """Re-run this section (full) into a full run's ``folder``
+    (:func:`.common.replace_section`): sampling.csv and this section's target rows."""
+    from .common import replace_section
+    rows, t_rows = run(False, log)
+    return replace_section(folder, 'sampling.csv', FIELDS, rows, t_rows,
+                           ('sampling overhead', 'CLI overhead'))
+
+
 def _scene_rate(name):
     from ..scene import load
     return float(load(name).simulator['publish_rate'])
@@ -185,6 +194,12 @@ if __name__ == '__main__':
     import argparse
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument('--quick', action='store_true')
+    parser.add_argument('--update', metavar='DIR', default='',
+                        help='re-run the section into a full run\'s DIR (e.g. docs/bench): '
+                             'its CSV, its rows of targets.csv/targets.md, the summary')
     args = parser.parse_args()
+    if args.update:
+        print(update(args.update))
+        sys.exit(0)
     for r in run(args.quick)[1]:
         print(json.dumps(r))

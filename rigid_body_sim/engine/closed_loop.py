@@ -28,7 +28,8 @@ from .. import control_kernel
 from ..control_kernel import MODE_CODES, control_torque
 from ..physics import IntegrationError
 from ..physics import dynamics_kernel
-from ..physics.integrators import explicit_kernel, splitting_kernel
+from ..physics.integrators import (dop853_dense, dop853_kernel, exact_flow_kernel,
+                                   explicit_kernel, splitting_kernel)
 from ..physics.jit import depends_on, jit
 from ..physics.environment import facets_kernel, magnetic_kernel
 from ..physics.orbit import kernel as orbit_kernel
@@ -39,8 +40,6 @@ from .state import State, Stretch
 
 NEVER_NS = NEVER  # numba reads module globals as compile-time constants
 
-MODEL_CODES = dynamics_kernel.MODEL_CODES
-
 
 # closed_loop_run's integer arguments (int64 array ``ticks``): instants and periods in ns,
 # codes and the block's first free row
@@ -48,7 +47,11 @@ T_NS, LIMIT_NS, CONTROL_NS, PERIOD_NS, SAMPLE_NS, SAMPLE_PERIOD_NS, METHOD, MODE
     GYROSCOPIC, FREE, ROW, N_TICKS = range(13)
 # and its real ones (float64 array ``reals``)
 H_MAX, COEFFICIENT, RATE_LIMIT, TORQUE_LIMIT, CLIP, MISSION_START, FREE_TIME, EXIT_RATE, \
-    N_REALS = range(9)
+    RTOL, ATOL, N_REALS = range(11)
+# the methods' loops (their classes' ``loop_code``)
+SPLITTING, RK4, EULER, DOP853, EXACT = range(5)
+ADAPTIVE_FAILED = -3  # out[5] when dop853 failed: out[9] its status, out[10] where (ns)
+N_OUT = 11
 
 
 @jit
@@ -61,20 +64,24 @@ def closed_loop_run(state, ticks, reals, spec, body, law, block, out):
     ``block`` = (t_out, q_out, m_out, tau_out (body-frame torque)) until they are full.
     Every event at ``T_NS`` has been processed by the caller; the state ends at the last
     event processed (a law instant and a sample at one instant: the law first, as the
-    engine's event loop does). ``spec`` = (weights, split_axes) of the method
-    (``ticks[METHOD]``: its ``loop_code``); ``body`` = (moments, axes, p2b, env): the
-    simulated body and its environment (``orbit.kernel``'s array; ON = 0: none);
+    engine's event loop does). ``spec`` = (weights, split_axes, memory) of the method
+    (``ticks[METHOD]``: its ``loop_code``; memory: dop853's step in progress, carried
+    between calls as ``DOP853.run`` carries it, with ``reals[RTOL]``, ``reals[ATOL]``;
+    ``ticks[MODEL]``: the method's damping code, ``Integrator.loop_model``); ``body`` =
+    (moments, axes, p2b, env): the simulated body and its environment (``orbit.kernel``'s
+    array; ON = 0: none);
     ``law`` = (target, axes, moments, kp, kd, kw, inertia) and ``reals``' law entries:
     the controller's model of it (its own ``inertia`` parameter), as
     :class:`control.AttitudeController` uses.
 
-    ``tau_body`` (in/out): the held body-frame torque (zeros = none). ``out`` (int64, 9):
-    [next control instant, mode, free (1/0), steps, evaluations, failed step or -1, rows
-    written, time reached (ns), next sample instant]; on a failure, ``out[0]`` is the start
-    (ns) of the failing segment and the return value its step h. Returns the last step h."""
+    ``tau_body`` (in/out): the held body-frame torque (zeros = none). ``out`` (int64,
+    N_OUT): [next control instant, mode, free (1/0), steps, evaluations, failed step or -1,
+    rows written, time reached (ns), next sample instant, dop853's status, where it failed
+    (ns)]; on a failure, ``out[0]`` is the start (ns) of the failing segment and the return
+    value its step h (dop853: ``out[5]`` = ADAPTIVE_FAILED). Returns the last step h."""
     q, m, tau_body, tau_p = state
     t_out, q_out, m_out, tau_out = block
-    weights, split_axes = spec
+    weights, split_axes, memory = spec
     moments, axes, p2b, env = body
     target, law_axes, law_moments, kp, kd, kw, inertia = law
     limit_ns = ticks[LIMIT_NS]
@@ -95,10 +102,14 @@ def closed_loop_run(state, ticks, reals, spec, body, law, block, out):
     mission_start = reals[MISSION_START]
     free_time = reals[FREE_TIME]
     exit_rate = reals[EXIT_RATE]
+    rtol = reals[RTOL]
+    atol = reals[ATOL]
     tau_unsat = np.empty(3)
     scratch = np.empty((10, 4))  # the Runge–Kutta loops' stages, allocated once
     qb = np.empty(4)
     wb = np.empty(3)
+    q_flow = np.empty(4)  # the exact flow's output
+    m_flow = np.empty(3)
     law = control_ns < NEVER_NS
     has_tau = False
     for i in range(3):
@@ -123,16 +134,35 @@ def closed_loop_run(state, ticks, reals, spec, body, law, block, out):
         n = max(1, int(math.ceil(span / (h_max * 1e9) - 1e-9)))
         h = span / (n * 1e9)
         t0 = t / 1e9  # as Engine._integrate: the environment's torques see the same instants
-        if method == 0:
+        if method == SPLITTING:
             failed, e = splitting_kernel.splitting_run(
                 q, m, h, n, weights, split_axes, moments, tau_p, has_tau, model, coefficient,
                 splitting_kernel.inner_dissipation(m, h, weights, moments, model,
                                                    coefficient), t0, env)
             evals += e
-        elif method == 1:
+        elif method == RK4:
             failed = explicit_kernel.rk4_steps(q, m, h, n, moments, tau_p, model, coefficient,
                                                scratch, t0, env)
             evals += 4 * (n if failed < 0 else failed + 1)
+        elif method == DOP853:
+            # one integration over n·h, as DOP853.run: natural steps, the end interpolated
+            status, reached, h_next, e = dop853_dense.advance(
+                q, m, h * n, tau_p, memory, moments, model, coefficient, rtol, atol, t0, env)
+            evals += e
+            if status != dop853_kernel.OK:
+                out[0] = t
+                out[3] = steps
+                out[4] = evals
+                out[5] = ADAPTIVE_FAILED
+                out[6] = rows
+                out[9] = status
+                out[10] = t + int(reached * 1e9)
+                return h_next if h_next > 0.0 else h * n
+            failed = -1
+        elif method == EXACT:
+            failed, e = exact_flow_kernel.exact_steps(q, m, h, n, moments, tau_p, has_tau,
+                                                      model, coefficient, q_flow, m_flow)
+            evals += e
         else:
             failed = explicit_kernel.euler_steps(q, m, h, n, moments, tau_p, model, coefficient,
                                                  scratch, t0, env)
@@ -216,8 +246,8 @@ def closed_loop_run(state, ticks, reals, spec, body, law, block, out):
 
 # it calls the step loops and the law from their own files (see jit.depends_on)
 closed_loop_run = depends_on(closed_loop_run, splitting_kernel, explicit_kernel,
-                             dynamics_kernel, control_kernel, orbit_kernel, magnetic_kernel,
-                             facets_kernel)
+                             dop853_kernel, dop853_dense, exact_flow_kernel, dynamics_kernel,
+                             control_kernel, orbit_kernel, magnetic_kernel, facets_kernel)
 
 
 def advance(engine, state: State, law, builder, until_ns: int, cap: int) -> Optional[Stretch]:
@@ -249,9 +279,11 @@ def advance(engine, state: State, law, builder, until_ns: int, cap: int) -> Opti
     spec = integ.loop_spec()
     if spec is None:
         return None
+    adaptive = integ.loop_memory()
+    memory, rtol, atol = (_NO_MEMORY, 0.0, 0.0) if adaptive is None else adaptive
     d = engine.dynamics.dissipation
     q, m = state.q.copy(), state.m.copy()
-    out = np.zeros(9, dtype=np.int64)
+    out = np.zeros(N_OUT, dtype=np.int64)
     ticks = np.zeros(N_TICKS, dtype=np.int64)
     reals = np.zeros(N_REALS)
     if law is not None:
@@ -285,19 +317,23 @@ def advance(engine, state: State, law, builder, until_ns: int, cap: int) -> Opti
     ticks[T_NS], ticks[LIMIT_NS], ticks[CONTROL_NS], ticks[PERIOD_NS] = \
         state.t_ns, limit, control_ns, period
     ticks[SAMPLE_NS], ticks[SAMPLE_PERIOD_NS] = state.next_sample, c.sample_period_ns
-    ticks[METHOD], ticks[MODEL], ticks[ROW] = \
-        code, MODEL_CODES[d.model] if d.active else 0, builder.n
+    ticks[METHOD], ticks[MODEL], ticks[ROW] = code, integ.loop_model(), builder.n
     reals[H_MAX], reals[COEFFICIENT] = engine.step_max, d.coefficient
+    reals[RTOL], reals[ATOL] = rtol, atol
     body = engine.body
     h = closed_loop_run(
-        (q, m, tau, tau_p), ticks, reals, (spec[0], spec[1]),
+        (q, m, tau, tau_p), ticks, reals, (spec[0], spec[1], memory),
         (engine.dynamics.moments, body.principal_axes, body.principal_to_body,
          engine.dynamics.environment), law_arrays,
         builder.columns(cap), out)
-    next_control, mode, free, steps, evals, failed, rows, t_end, next_sample = \
-        (int(v) for v in out)
+    next_control, mode, free, steps, evals, failed, rows, t_end, next_sample, status, \
+        failed_ns = (int(v) for v in out)
     error = None
-    if failed >= 0:
+    if failed == ADAPTIVE_FAILED:  # as DOP853._advance reports it, and starts afresh next
+        integ.reset()
+        error = IntegrationError(engine.method, h, failed_ns / NS,
+                                 dop853_kernel.REASONS[status])
+    elif failed >= 0:
         error = IntegrationError(engine.method, h, (next_control + (failed + 1) * h * NS) / NS,
                                  'state became non-finite (the method diverged)')
     elif failed == -2:
@@ -318,6 +354,8 @@ def _frozen(a):
     a.setflags(write=False)
     return a
 
+
+_NO_MEMORY = np.zeros(dop853_dense.MEMORY)  # what methods without one pass (never read)
 
 # the law's arrays when no law runs (never read: its instant is NEVER), typed as the
 # law's own (read-only model arrays), so that both share one compiled kernel

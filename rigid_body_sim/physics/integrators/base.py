@@ -43,8 +43,8 @@ class Candidate:
         damping, in torque-free runs at any stiffness (the same splitting as splitting2, its
         damping exact at a lower cost than splitting2's substeps; Explorer 1 over 30 s at
         h = 0.0119 s: the same error, 0.92 against 1.17 ms) and with torque only where it
-        is stiff (the engine's compiled closed loop damps by substeps, so it runs event by
-        event there).
+        is stiff (it was chosen when it ran event by event in the engine's closed loop;
+        the compiled loop now runs it with its own damping code, ``loop_model``).
     supersedes: a candidate not asked where this one is usable without torque (the same
         scheme at no lower cost: asking both would only double the pilot).
     coupled_only: considered only with torque or dissipation (``exact`` splits them off).
@@ -221,6 +221,18 @@ class Integrator:
     def loop_spec(self):
         """(weights, split_axes) of this method's compiled one-body loop for kernels that
         drive it themselves (the engine's compiled closed loop), or None if it has none."""
+        return None
+
+    def loop_model(self) -> int:
+        """The dissipation code its compiled loop runs (``dynamics_kernel.MODEL_CODES``; 0:
+        none): the dynamics' own unless the method takes the damping another way."""
+        from .. import dynamics_kernel
+        d = self.dynamics.dissipation
+        return dynamics_kernel.MODEL_CODES[d.model] if d.active else 0
+
+    def loop_memory(self):
+        """(memory, rtol, atol) of a method whose compiled loop carries its step in progress
+        from call to call (``dop853_dense.advance``), None for the others."""
         return None
 
     @classmethod

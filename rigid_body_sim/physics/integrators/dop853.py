@@ -6,6 +6,8 @@ from .. import dynamics_kernel
 from . import dop853_dense, dop853_kernel
 from .base import Candidate, IntegrationError, Integrator, same_order
 
+_UNUSED_WEIGHTS, _UNUSED_AXES = np.ones(1), np.array([0, 2, 1])
+
 
 class DOP853(Integrator):
     """Dormand–Prince 8(5,3), adaptive with rtol/atol; continues across output steps.
@@ -29,6 +31,7 @@ class DOP853(Integrator):
     # dear, which kept auto off dop853 where it was the cheapest. k: see auto.model.DOP853_*
     auto = Candidate((0.47, 0.48), 2.0, call=(3.0, 3.0), growth='drift', adaptive=True,
                      coupled_only=True, geometric=False)
+    loop_code = 3  # dop853_dense.advance from the closed loop, its memory carried along
     kernel_modules = (dop853_kernel, dop853_dense)
     environment = True  # a term of the right-hand side, at each stage's instant
     environment_evaluations = 12  # per own step (13 stages, the first reused)
@@ -52,6 +55,13 @@ class DOP853(Integrator):
 
     def reset(self):
         self._memory[:] = 0.0  # no step in progress, no step proposed: afresh
+
+    def loop_spec(self):
+        return _UNUSED_WEIGHTS, _UNUSED_AXES  # the closed loop's splitting arguments
+
+    def loop_memory(self):
+        """The kernel's memory (written in place by the closed loop, as by ``run``)."""
+        return self._memory, self.rtol, self.atol
 
     def run(self, q, m, h, n, torque=None, t0=0.0):
         """One body: one integration over n·h (h is an output interval, not a step)."""

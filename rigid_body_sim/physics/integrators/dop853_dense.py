@@ -50,7 +50,7 @@ from . import dop853_kernel
 from .dop853_kernel import (DIM, N_STAGES, NON_FINITE, OK, _initial_step, _rhs,
                             _rhs_environment, attempt)
 from ..dynamics_kernel import _finite
-from ..jit import COMPILED, depends_on, jit
+from ..jit import COMPILED, depends_on, inline, jit
 from ..environment import facets_kernel, magnetic_kernel
 from ..orbit import kernel as orbit_kernel
 
@@ -147,6 +147,8 @@ def advance(q, m, span, tau, memory, moments, model, coefficient, rtol, atol, t0
 
     Returns (status, t from the call's start reached, step proposed next — or the failing
     step —, evaluations)."""
+    if _interpolated(q, m, span, tau, memory):  # inside the step, its F built: nothing else
+        return OK, span, memory[_CLOCK + 3], 0
     y, f, y_old, K, F, clock, last = views(memory)
     nfev = 0
     h_abs = clock[3]
@@ -234,9 +236,57 @@ def advance(q, m, span, tau, memory, moments, model, coefficient, rtol, atol, t0
     return OK, span, h_abs, nfev
 
 
+@inline
+def _interpolated(q, m, span, tau, memory):
+    """:func:`advance` where the call continues from its last output with the same torque
+    and ends strictly inside the step in progress, whose interpolant is built: the same
+    operations on the flat memory (no views, no scratch arrays: ~0.35 µs a call, 100
+    outputs a step at 100 samples/s). False, with nothing written, otherwise. A result
+    that is not finite is the slow path's to report."""
+    if memory[_CLOCK + 3] <= 0.0 or memory[_CLOCK + 2] == 0.0:
+        return False
+    last = _LAST
+    for i in range(4):
+        if q[i] != memory[last + i]:
+            return False
+    for i in range(3):
+        if m[i] != memory[last + 4 + i] or tau[i] != memory[last + 7 + i]:
+            return False
+    target = memory[_CLOCK] + span
+    h_step = memory[_CLOCK + 1]
+    if not target < h_step:
+        return False
+    x = target / h_step
+    out = last + 10
+    for i in range(DIM):  # _interpolate
+        v = 0.0
+        for k in range(POWER):
+            v += memory[_FF + (POWER - 1 - k) * DIM + i]
+            if k % 2 == 0:
+                v *= x
+            else:
+                v *= 1.0 - x
+        memory[out + i] = v + memory[_Y_OLD + i]
+    norm = math.sqrt(memory[out] * memory[out] + memory[out + 1] * memory[out + 1]
+                     + memory[out + 2] * memory[out + 2] + memory[out + 3] * memory[out + 3])
+    finite = math.isfinite(norm) and norm > 0.0
+    for i in range(DIM):
+        finite = finite and math.isfinite(memory[out + i])
+    if not finite:
+        return False
+    memory[_CLOCK] = target
+    for i in range(4):
+        q[i] = memory[out + i] / norm
+        memory[last + i] = q[i]
+    for i in range(3):
+        m[i] = memory[out + 4 + i]
+        memory[last + 4 + i] = m[i]
+    return True
+
+
 # numba's disk cache checks only this file; these embed dop853_kernel's and dynamics_kernel's code
 # (and advance its tableau, imported from scipy through dop853_kernel)
-for _kernel in (views, _build, _interpolate, advance):
+for _kernel in (views, _build, _interpolate, _interpolated, advance):
     depends_on(_kernel, dynamics_kernel, dop853_kernel, orbit_kernel, magnetic_kernel,
                facets_kernel)
 

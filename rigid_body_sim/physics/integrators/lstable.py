@@ -48,7 +48,7 @@ class Splitting2LStable(Splitting2):
     """Strang splitting with the double-bracket damping in closed form: order 2, L-stable."""
     name = 'splitting2_lstable'
     order = 2
-    loop_code = None  # the closed loop damps by substeps: event by event here
+    loop_code = 0  # the splittings' loop, with its own damping code (loop_model)
     # L-stable: the double bracket's sub-flow in closed form, the same cost at any hλ
     auto = Candidate((0.092, 0.16), 0.30, exact_damping=True, supersedes='splitting2')
     preserves = Splitting2.preserves  # the free flow is splitting2's; D keeps |m| too
@@ -61,10 +61,9 @@ class Splitting2LStable(Splitting2):
         if self._model == dynamics_kernel.MODEL_CODES['double_bracket']:
             self._model = EXACT_DOUBLE_BRACKET
 
-    def loop_spec(self):
-        """None: the engine's compiled closed loop would damp by splitting2's substeps
-        (it passes the dynamics' model code); this method runs event by event there."""
-        return None
+    def loop_model(self) -> int:
+        """The double bracket by its exact flow (EXACT_DOUBLE_BRACKET), not by substeps."""
+        return self._model
 
     def _dissipate_components(self, mc, t, xp):
         if self._model != EXACT_DOUBLE_BRACKET:
