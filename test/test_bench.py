@@ -9,7 +9,7 @@ import os
 
 import pytest
 
-from rigid_body_sim import bench
+from rigid_body_sim.bench import suite as bench
 from rigid_body_sim.bench.scenes import SCENES
 from rigid_body_sim.physics.integrators import BODY_ONLY
 

@@ -152,7 +152,8 @@ def replace_section(folder, name, fields, rows, t_rows, prefixes):
     targets.md replaced where they stood, each note saying when and on what it was
     measured; the other sections' rows stay the full run's, and summary.md is rendered
     from the files again (``report``). Returns the summary's path."""
-    from . import _markdown_targets, machine, report, targets as targets_mod
+    from . import report, targets as targets_mod
+    from .suite import _markdown_targets, machine
     stamp = f'this section re-run alone {time.strftime("%Y-%m-%d")} on {machine()}'
     t_rows = [dict(r, note=f'{r["note"]}; {stamp}' if r['note'] else stamp) for r in t_rows]
     write_csv(os.path.join(folder, name), fields, rows)

@@ -118,7 +118,8 @@ def replace_targets(out, target, new_rows,
     every other row as it was: a section run alone (``python -m
     rigid_body_sim.bench.basilisk_gg``) updates a full run's tables, with a line saying
     which command (``command``, {out}: the directory) measured its rows, and where."""
-    from . import _markdown_targets, machine, targets
+    from . import targets
+    from .suite import _markdown_targets, machine
     from .common import write_csv
     names = (target,) if isinstance(target, str) else tuple(target)
     old = _rows(out, 'targets.csv') or []
