@@ -73,7 +73,8 @@ def test_free_tumble_scene_gets_no_torque_and_ends(ros_process, namespace, rclpy
             cmd += ['--params-file', str(faster)]
         procs[n.executable] = ros_process(*cmd)
     sim = procs['simulator']
-    assert spin_until(rclpy_node, lambda: len(states) > 50, 60.0), sim.output()[-2000:]
+    # the run is 2 s of wall time: this test's own subscriptions may match after it on a
+    # loaded machine (50 samples seen), so the bag, waited for, is what shows every sample
     assert spin_until(rclpy_node, lambda: sim.poll() is not None, 60.0), 'simulator never ended'
     assert sim.poll() == 0, sim.output()[-2000:]
     assert torques == []
