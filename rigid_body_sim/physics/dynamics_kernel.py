@@ -217,17 +217,11 @@ def _rates(q, m, moments, tau, model, coefficient, dq, dm):
         dm[2] -= coefficient * o2
 
 
-@jit
-def environment_torque(q, t, env, moments):
-    """The environment's torque at attitude q and time t (principal frame, N·m) as three
-    floats, one branch per term switched on in ``env`` (``orbit.kernel``): the gravity
-    gradient, the magnetorquers' m × B (``environment.magnetic_kernel``), then the facets'
-    solar radiation pressure and drag (``environment.facets_kernel``)."""
-    tx = 0.0
-    ty = 0.0
-    tz = 0.0
-    if env[orbit_kernel.ON] != 0.0:
-        tx, ty, tz = orbit_kernel.gravity_gradient_torque(q, t, env, moments)
+@inline
+def _plus_rods_and_facets(q, t, env, tx, ty, tz):
+    """(tx, ty, tz) + the magnetorquers' m × B (``environment.magnetic_kernel``), then the
+    facets' solar radiation pressure and drag (``environment.facets_kernel``), each where
+    ``env`` switches it on, added in that order."""
     if env[orbit_kernel.MAG_MODEL] != 0.0:
         mx, my, mz = magnetic_kernel.magnetorquer_torque(q, t, env)
         tx += mx
@@ -239,6 +233,19 @@ def environment_torque(q, t, env, moments):
         ty += fy
         tz += fz
     return tx, ty, tz
+
+
+@jit
+def environment_torque(q, t, env, moments):
+    """The environment's torque at attitude q and time t (principal frame, N·m) as three
+    floats, one branch per term switched on in ``env`` (``orbit.kernel``): the gravity
+    gradient, then the rods' and the facets' (``_plus_rods_and_facets``)."""
+    tx = 0.0
+    ty = 0.0
+    tz = 0.0
+    if env[orbit_kernel.ON] != 0.0:
+        tx, ty, tz = orbit_kernel.gravity_gradient_torque(q, t, env, moments)
+    return _plus_rods_and_facets(q, t, env, tx, ty, tz)
 
 
 @jit
@@ -249,43 +256,43 @@ def environment_torque_full(q, t, env, inertia):
     tz = 0.0
     if env[orbit_kernel.ON] != 0.0:
         tx, ty, tz = orbit_kernel.gravity_gradient_torque_full(q, t, env, inertia)
+    return _plus_rods_and_facets(q, t, env, tx, ty, tz)
+
+
+@inline
+def kick_environment(q, t, env, moments, m, s):
+    """m += s · the environment's torque at attitude q and time t (principal frame), in
+    place, term by term in ``environment_torque``'s order: ``_environment``'s rate (s = 1)
+    and the splittings' kicks at fixed attitude (s = half the stage's step).
+
+    Each term is spelled out here, not summed through a tuple-returning function: through
+    one the gravity gradient alone ran 5-13 % slower in rk4 and the splittings' kicks."""
+    if env[orbit_kernel.ON] != 0.0:
+        gx, gy, gz = orbit_kernel.gravity_gradient_torque(q, t, env, moments)
+        m[0] = m[0] + s * gx
+        m[1] = m[1] + s * gy
+        m[2] = m[2] + s * gz
     if env[orbit_kernel.MAG_MODEL] != 0.0:
-        mx, my, mz = magnetic_kernel.magnetorquer_torque(q, t, env)
-        tx += mx
-        ty += my
-        tz += mz
+        bx, by, bz = magnetic_kernel.magnetorquer_torque(q, t, env)
+        m[0] = m[0] + s * bx
+        m[1] = m[1] + s * by
+        m[2] = m[2] + s * bz
     if env[orbit_kernel.SRP_ON] != 0.0 or env[orbit_kernel.DRAG_ON] != 0.0:
         fx, fy, fz = facets_kernel.facets_torque(q, t, env)
-        tx += fx
-        ty += fy
-        tz += fz
-    return tx, ty, tz
+        m[0] = m[0] + s * fx
+        m[1] = m[1] + s * fy
+        m[2] = m[2] + s * fz
 
 
 @jit
 def _environment(q, t, env, moments, dm):
-    """dm += the environment's torque at time t (``environment_torque``'s terms, one branch
-    each, spelled out: through that tuple-returning wrapper the gravity gradient alone ran
-    5-13 % slower in rk4 and the splittings' kicks).
+    """dm += the environment's torque at time t (``kick_environment`` with s = 1: exact,
+    1.0·x is x).
     The loops call it after ``_rates`` under ``if env is not None``: for the free body
     (env None) numba prunes the branch, so their code is what it was before the orbit
     existed (a parameter of ``_rates`` instead kept LLVM from inlining it: rk4's step
     3-4× slower with the term off)."""
-    if env[orbit_kernel.ON] != 0.0:
-        gx, gy, gz = orbit_kernel.gravity_gradient_torque(q, t, env, moments)
-        dm[0] += gx
-        dm[1] += gy
-        dm[2] += gz
-    if env[orbit_kernel.MAG_MODEL] != 0.0:
-        mx, my, mz = magnetic_kernel.magnetorquer_torque(q, t, env)
-        dm[0] += mx
-        dm[1] += my
-        dm[2] += mz
-    if env[orbit_kernel.SRP_ON] != 0.0 or env[orbit_kernel.DRAG_ON] != 0.0:
-        fx, fy, fz = facets_kernel.facets_torque(q, t, env)
-        dm[0] += fx
-        dm[1] += fy
-        dm[2] += fz
+    kick_environment(q, t, env, moments, dm, 1.0)
 
 
 # they embed the terms' kernels
