@@ -108,7 +108,10 @@ def test_the_controllers_bdot_detumbles_the_simulator_live(ros_process, namespac
     assert len(dipoles) > 50  # the timer on sim time: 2 Hz of it, some ticks merged at 20x
     m = np.array([[d.vector.x, d.vector.y, d.vector.z] for d in dipoles])
     assert np.abs(m).max() <= 0.2 and np.abs(m).max() > 0.05
-    assert rates[0][1] > 0.16 and rates[-1][1] < 0.85 * rates[0][1], (rates[0], rates[-1])
+    # |w| falls from the scene's 10 deg/s (0.1745 rad/s); the first rate received may be
+    # a few seconds in on a loaded machine (19 s: 0.157 rad/s), so judge against the start
+    assert rates[0][1] <= 0.1746 and rates[-1][1] < 0.85 * 0.1745, (rates[0], rates[-1])
+    assert rates[-1][1] < rates[0][1], (rates[0], rates[-1])
 
 
 def test_the_offline_run_records_the_magnetometer(tmp_path):
