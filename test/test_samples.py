@@ -193,3 +193,53 @@ def test_an_offline_run_converts_two_rows_whatever_its_blocks(monkeypatch):
     result = simulate(scene, engine=engine, keep='all')
     assert result.sample_count == 3001 and len(calls) == 2
     np.testing.assert_array_equal(result.final['attitude'], result.samples.attitude[-1])
+
+
+# a held dipole in the closed-form field: the kernel runs between the hold's events (its
+# expiry at 25 s here, mid-run); the tabulated IGRF line and the magnetometer stay on the
+# event path
+MAGNETIC = ['epoch=2026-03-20T12:00:00Z', 'environment.magnetic_field=dipole',
+            'magnetorquer.max_dipole=[0.4, 0.4, 0.4]', 'command_timeout=25.0',
+            'publish_rate=2.0', 'duration=60.0',
+            'initial_angular_velocity=[0.003, -0.002, 0.004]']
+
+
+def _held_dipole(method, sets, compiled_loop=None):
+    engine = engine_for(load('gravity_gradient', sets), integrator=method,
+                        step=None if method == 'dop853' else 0.1)
+    if compiled_loop is not None:
+        engine._compiled_samples = compiled_loop
+    engine.apply_dipole_command(np.array([0.3, -0.2, 0.5]))  # clipped to 0.4 on z
+    return engine, SampleBlock.concatenate(list(engine.run()))
+
+
+@pytest.mark.parametrize('method', ['rk4', 'splitting4', 'dop853'])
+def test_a_held_dipole_runs_in_the_compiled_loop_bit_for_bit(method, monkeypatch):
+    (py, a), (kernel, b) = (_held_dipole(method, MAGNETIC, c) for c in (False, True))
+    assert kernel._compiled_samples and len(a) == len(b) == 121
+    for field in ('t_ns', 'q', 'm', 'torque', 'dipole'):
+        np.testing.assert_array_equal(getattr(b, field), getattr(a, field), err_msg=field)
+    assert py.steps == kernel.steps
+    held = b.t_ns < 25e9
+    assert np.array_equal(b.dipole[held], np.tile([0.3, -0.2, 0.4], (held.sum(), 1)))
+    assert not b.dipole[~held].any()  # expired at 25 s
+    # the dipole acts: the same run without it ends elsewhere
+    engine = engine_for(load('gravity_gradient', MAGNETIC), integrator=method,
+                        step=None if method == 'dop853' else 0.1)
+    free = SampleBlock.concatenate(list(engine.run()))
+    assert np.abs(free.m[-1] - b.m[-1]).max() > 1e-3 * np.abs(b.m[-1]).max()
+    calls = {'integrate': 0}
+    integrate = Engine._integrate
+
+    def counted(self, *args):
+        calls['integrate'] += 1
+        return integrate(self, *args)
+    monkeypatch.setattr(Engine, '_integrate', counted)
+    _held_dipole(method, MAGNETIC)
+    assert calls['integrate'] <= 6, calls  # not once per sample
+
+
+def test_igrf_and_the_magnetometer_keep_the_event_path():
+    for extra in (['environment.magnetic_field=igrf'], ['magnetometer.enabled=true']):
+        engine, block = _held_dipole('rk4', MAGNETIC + extra)
+        assert not engine._compiled_samples and len(block) == 121

@@ -265,6 +265,8 @@ def advance(engine, state: State, law, builder, until_ns: int, cap: int) -> Opti
     if engine.selection_pending or code is None or engine.orbit_anchored:
         return None  # (an SGP4 orbit is re-anchored at every interval: event by event)
     limit = min(engine.end_ns, engine.command.next_event(), until_ns + 1)
+    if engine.magnetics is not None:  # a held dipole's expiry or a new one ends the stretch
+        limit = min(limit, engine.magnetics.next_event())
     if law is not None:
         if (engine.command.torque is not None or engine.command.expiry != NEVER
                 or not (state.torque_seen or c.integrator != specs.AUTO)):

@@ -89,7 +89,7 @@ class Engine:
                 self.magnetics.law.active = lambda: self._law.controller.mode == 'bdot'
         self._builder = BlockBuilder(config.body, block_size)
         self._compiled_samples = compiled_loop and self._sensors is None and \
-            self.magnetics is None
+            (self.magnetics is None or self.magnetics.compiled)
         self.steps = 0
         self.evaluations = 0   # closed-form evaluations (exact, torque-free)
         self._integ, self._retired_nfev = None, 0  # evaluations of methods replaced since
@@ -445,9 +445,18 @@ class Engine:
         """``closed_loop.advance`` from the state; take back what it returns (state, counts,
         rows in the block) and the law's new torque. Rows added; 0 where it does not apply.
         IntegrationError (``fault`` set) if the method failed."""
+        mag, first = self.magnetics, self._builder.n
+        if mag is not None and mag.anchor(self.dynamics.environment, self.t_ns / NS,
+                                          self.t_ns / NS, self._aligned) \
+                and self._integ.adaptive:
+            self._integ.reset()  # its step in progress saw the previous dipole
         done = closed_loop.advance(self, self._state(), self._law, self._builder, until_ns, cap)
         if done is None:
             return 0
+        if mag is not None and done.rows:  # the stretch ends at the hold's next event
+            self._builder.n += done.rows
+            self._builder.fill_dipole(first, mag.dipole())
+            self._builder.n -= done.rows
         self.steps += done.steps
         self._integ.nfev += done.evaluations
         self._builder.n += done.rows

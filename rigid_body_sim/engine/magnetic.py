@@ -164,6 +164,17 @@ class Magnetics:
                                   control.period_ns, self.meter)
         self.sources = [s for s in (self.hold, self.meter, self.law) if s is not None]
 
+    @property
+    def compiled(self) -> bool:
+        """Whether a compiled sample loop can run between this part's events: the field in
+        closed form (a tabulated IGRF line is re-anchored at every interval) and only the
+        held dipole acting (the magnetometer and B-dot have events of their own, in Python)."""
+        return self.field.model == 'dipole' and self.meter is None and self.law is None
+
+    def next_event(self) -> int:
+        """The next instant (ns) one of the magnetic sources acts."""
+        return min(s.next_event() for s in self.sources)
+
     def dipole(self) -> np.ndarray:
         """The rods' dipole now (body frame, A·m²): the held command plus the law's."""
         m = np.zeros(3)

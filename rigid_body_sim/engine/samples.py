@@ -108,17 +108,20 @@ class SampleBlock:
     def take(self, index) -> 'SampleBlock':
         """The samples at ``index`` (an index array or a slice)."""
         return SampleBlock(self.t_ns[index], self.q[index], self.m[index], self.torque[index],
-                           self.body, None if self.actuators is None else self.actuators[index])
+                           self.body, None if self.actuators is None else self.actuators[index],
+                           dipole=None if self.dipole is None else self.dipole[index])
 
     @staticmethod
     def concatenate(blocks) -> 'SampleBlock':
         blocks = [b for b in blocks if len(b)]
         if not blocks:
             return empty_block()
-        extra = None if blocks[0].actuators is None else \
-            np.concatenate([b.actuators for b in blocks])
+        extra, dipole = (None if getattr(blocks[0], k) is None else
+                         np.concatenate([getattr(b, k) for b in blocks])
+                         for k in ('actuators', 'dipole'))
         return SampleBlock(*(np.concatenate([getattr(b, k) for b in blocks])
-                           for k in ('t_ns', 'q', 'm', 'torque')), blocks[0].body, extra)
+                           for k in ('t_ns', 'q', 'm', 'torque')), blocks[0].body, extra,
+                           dipole=dipole)
 
 
 ROW_PATH_MAX = 4  # blocks up to this length convert row by row on floats (SampleBlock.values)
@@ -194,6 +197,12 @@ class BlockBuilder:
         s = slice(self.n, self.n + k)
         self._t[s], self._q[s], self._m[s], self._tau[s] = t_ns, q, m, 0.0
         self.n += k
+
+    def fill_dipole(self, start: int, dipole) -> None:
+        """Rows [start, n) written by a compiled loop held ``dipole`` (body frame, A·m²)."""
+        if self._dipole is None:
+            self._dipole = np.zeros((self.capacity, 3))
+        self._dipole[start:self.n] = dipole
 
     def columns(self, cap: int):
         """(t ns, q, m, τ body) of rows [0, cap), views that a compiled loop fills from row

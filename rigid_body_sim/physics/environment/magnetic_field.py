@@ -12,6 +12,7 @@ inertial frame; the Earth turns under the orbit by :func:`earth.gmst` from the e
 The model is defined from 1900 to 2030: an epoch outside is refused, naming it.
 """
 from datetime import timedelta
+from functools import lru_cache
 
 import numpy as np
 
@@ -22,8 +23,10 @@ IGRF_RADIUS = 6371.2e3  # m: the model's reference radius (not the equatorial 63
 MODELS = ('dipole', 'igrf')
 
 
+@lru_cache(maxsize=1)
 def _coefficients():
-    """IGRF-14's Gauss coefficients (nT), as ppigrf reads them: (g, h) by date."""
+    """IGRF-14's Gauss coefficients (nT), as ppigrf reads them: (g, h) by date. Read once
+    per process (~0.03 CPU s a read, three reads per scene otherwise); callers only read."""
     from ppigrf import ppigrf
     return ppigrf.read_shc(ppigrf.shc_fn_igrf14)
 
