@@ -156,6 +156,21 @@ def test_basilisk_section_measures_both_and_judges_every_level(quick_run):
     assert any(r['verdict'] in ('PASS', 'MISS') and float(r['measured']) > 0 for r in judged)
 
 
+def test_basilisk_section_compares_the_magnetorquers(quick_run):
+    """The same section's magnetorquer comparison: Basilisk's RK4 and RKF78 and ours with
+    finite figures, a verdict at every level, and the summary's line for it."""
+    from rigid_body_sim.bench import basilisk_mtb_sweep, targets
+    ok = [r for r in _read(quick_run / 'basilisk_mtb.csv') if r['status'] == 'ok']
+    assert {'bsk_rk4', 'bsk_rkf78', 'auto', 'dop853'} <= {r['method'] for r in ok}
+    for r in ok:
+        assert float(r['cpu_s']) > 0 and math.isfinite(float(r['attitude_error'])), r
+    judged = [r for r in _read(quick_run / 'targets.csv')
+              if r['target'] == basilisk_mtb_sweep.TARGET]
+    assert [float(r['level']) for r in judged] == list(targets.LEVELS)
+    assert any(r['verdict'] in ('PASS', 'MISS') for r in judged)
+    assert '(magnetorquers; target' in (quick_run / 'summary.md').read_text()
+
+
 def test_targets_table_has_ratios_for_every_scene(quick_run):
     rows = _read(quick_run / 'targets.csv')
     scenes = {r['scene'] for r in rows if r['target'].startswith('cpu ratio')}

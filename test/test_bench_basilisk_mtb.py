@@ -1,5 +1,5 @@
-"""Basilisk's magnetorquer harness (bench/basilisk_mtb.py, not a section yet): its field and
-torque are the closed forms ours will be compared with, to 1e-12 relative."""
+"""Basilisk's magnetorquer harness (bench/basilisk_mtb.py; basilisk_mtb_sweep.py compares it
+with ours): its field and torque are the closed forms ours has, to 1e-12 relative."""
 import math
 
 import numpy as np

@@ -1,8 +1,7 @@
-"""Basilisk's magnetorquers in a centred-dipole field: a harness, NOT yet a bench section.
+"""Basilisk's magnetorquers in a centred-dipole field: its half of the comparison.
 
-Issue 30 compares Basilisk's ``MtbEffector`` with our magnetorquers at equal attitude error.
-Ours are being built (helper ``mag``); this module is Basilisk's half, ready to be pointed
-at a scene of ours once they land: no section runs it and no figure comes from it yet.
+Issue 30 compares Basilisk's ``MtbEffector`` with our magnetorquers at equal attitude error;
+``basilisk_mtb_compare`` sweeps both on one scene. This module is Basilisk's side.
 
 What Basilisk simulates here (test/test_bench_basilisk_mtb.py checks each against the
 closed forms to 1e-12):

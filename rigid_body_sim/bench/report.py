@@ -84,28 +84,35 @@ def targets_section(out):
 
 
 BASILISK = 'Basilisk CPU / ours at equal attitude error (gravity gradient)'
+BASILISK_MTB = 'Basilisk CPU / ours at equal attitude error (magnetorquers)'
 
 
 def basilisk_section(out):
-    """Basilisk's rows (bench/basilisk_gg.py): the ratio per scene and what it reached."""
+    """Basilisk's rows (bench/basilisk_gg.py, basilisk_mtb_sweep.py): the ratio per scene
+    and what it reached."""
     rows = _rows(out, 'targets.csv') or []
-    ratio = [r for r in rows if r['target'] == BASILISK]
-    runs = _rows(out, 'basilisk.csv')
-    if not ratio or runs is None:
-        return _missing('basilisk.csv' if runs is None else 'its rows in targets.csv')
-    lines = ['- **Basilisk CPU / our CPU at the same attitude error** (gravity gradient; '
-             'target ≥ 10× at every level Basilisk reaches):']
-    for scene in dict.fromkeys(r['scene'] for r in ratio):
-        rs = [r for r in ratio if r['scene'] == scene and r['verdict'] in ('PASS', 'MISS')]
-        peer = [r for r in runs if r['scene'] == scene and r['family'] == 'peer'
-                and r['status'] == 'ok']
-        best = min(peer, key=lambda r: float(r['attitude_error'])) if peer else None
-        reach = (f'; Basilisk reaches {_f(best["attitude_error"])} rad at best '
-                 f'({best["method"]}, its orbit {_f(best["orbit_error"])} rad off ours)'
-                 if best else '')
-        lines.append(f'  - {scene}: {_span([r["measured"] for r in rs], unit="×")} '
-                     f'({sum(r["verdict"] == "MISS" for r in rs)} MISS of {len(rs)} levels'
-                     f'{reach}).')
+    lines = []
+    for target, name, what in ((BASILISK, 'basilisk.csv', 'gravity gradient'),
+                               (BASILISK_MTB, 'basilisk_mtb.csv', 'magnetorquers')):
+        ratio = [r for r in rows if r['target'] == target]
+        runs = _rows(out, name)
+        if not ratio or runs is None:
+            if target == BASILISK:
+                return _missing(name if runs is None else 'its rows in targets.csv')
+            continue  # a run from before the magnetorquer comparison
+        lines.append(f'- **Basilisk CPU / our CPU at the same attitude error** ({what}; '
+                     'target ≥ 10× at every level Basilisk reaches):')
+        for scene in dict.fromkeys(r['scene'] for r in ratio):
+            rs = [r for r in ratio if r['scene'] == scene and r['verdict'] in ('PASS', 'MISS')]
+            peer = [r for r in runs if r['scene'] == scene and r['family'] == 'peer'
+                    and r['status'] == 'ok']
+            best = min(peer, key=lambda r: float(r['attitude_error'])) if peer else None
+            reach = (f'; Basilisk reaches {_f(best["attitude_error"])} rad at best '
+                     f'({best["method"]}, its orbit {_f(best["orbit_error"])} rad off ours)'
+                     if best else '')
+            lines.append(f'  - {scene}: {_span([r["measured"] for r in rs], unit="×")} '
+                         f'({sum(r["verdict"] == "MISS" for r in rs)} MISS of {len(rs)} '
+                         f'levels{reach}).')
     return lines
 
 

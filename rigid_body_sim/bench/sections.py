@@ -13,8 +13,8 @@ from typing import Callable
 
 from . import batch as batch_mod
 from . import compile as compile_cost
-from . import (basilisk_gg, exact_horizon, generated, live, longhorizon, perstep, sampling,
-               selection, stability, targets, term_off, workprecision)
+from . import (basilisk_gg, basilisk_mtb_sweep, exact_horizon, generated, live, longhorizon,
+               perstep, sampling, selection, stability, targets, term_off, workprecision)
 from .common import reference, write_csv
 
 BUDGETS = {True: {'ours': 0.2, 'peer': 0.2}, False: {'ours': 4.0, 'peer': 3.0}}
@@ -68,7 +68,10 @@ def _basilisk(run):
     rows, t_rows, _ = basilisk_gg.run(run.quick, run.log)
     if rows:
         run.csv('basilisk.csv', basilisk_gg.FIELDS, rows)
-    return t_rows
+    mtb_rows, mtb_targets, _ = basilisk_mtb_sweep.run(run.quick, run.log)
+    if mtb_rows:
+        run.csv('basilisk_mtb.csv', basilisk_gg.FIELDS, mtb_rows)
+    return t_rows + mtb_targets
 
 
 def _stability(run):
@@ -188,7 +191,7 @@ def _returned(name):
 SECTIONS = (
     Section('work_precision', '1. work-precision', _work_precision,
             lambda run: targets.work_precision(run.results['work_precision'], run.scenes)),
-    Section('basilisk', '1b. Basilisk 2.12 on the gravity-gradient scenes (bsk)', _basilisk,
+    Section('basilisk', '1b. Basilisk 2.12: gravity gradient, magnetorquers (bsk)', _basilisk,
             _returned('basilisk')),
     Section('stability', '2. stability where methods fail', _stability, _stability_targets),
     Section('long_horizon', '3. long horizon (generic tumble)', _long_horizon),
