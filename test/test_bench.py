@@ -171,6 +171,22 @@ def test_basilisk_section_compares_the_magnetorquers(quick_run):
     assert '(magnetorquers; target' in (quick_run / 'summary.md').read_text()
 
 
+def test_generated_peers_section_has_a_row_per_scene(quick_run):
+    """scipy against auto on the generated scenes: one row a scene, each measured, a lower
+    bound or not measured with its reason, and one target row with a verdict."""
+    from rigid_body_sim.bench import generated_peers
+    rows = _read(quick_run / 'generated_peers.csv')
+    assert len(rows) == GENERATED and all(r['status'] for r in rows)
+    for r in rows:
+        if r['status'] == 'ok':
+            assert float(r['peer_error']) <= float(r['budget']) < float('inf'), r
+            assert float(r['ratio']) == pytest.approx(
+                float(r['peer_cpu_s']) / float(r['auto_cpu_s']), rel=1e-4)  # CSV: 6 digits
+    target = [r for r in _read(quick_run / 'targets.csv')
+              if r['target'] == generated_peers.TARGET]
+    assert len(target) == 1 and target[0]['verdict'] in ('PASS', 'MISS', 'n/a')
+
+
 def test_targets_table_has_ratios_for_every_scene(quick_run):
     rows = _read(quick_run / 'targets.csv')
     scenes = {r['scene'] for r in rows if r['target'].startswith('cpu ratio')}

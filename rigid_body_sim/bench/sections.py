@@ -13,8 +13,9 @@ from typing import Callable
 
 from . import batch as batch_mod
 from . import compile as compile_cost
-from . import (basilisk_gg, basilisk_mtb_sweep, exact_horizon, generated, live, longhorizon,
-               perstep, sampling, selection, stability, targets, term_off, workprecision)
+from . import (basilisk_gg, basilisk_mtb_sweep, exact_horizon, generated, generated_peers,
+               live, longhorizon, perstep, sampling, selection, stability, targets, term_off,
+               workprecision)
 from .common import reference, write_csv
 
 BUDGETS = {True: {'ours': 0.2, 'peer': 0.2}, False: {'ours': 4.0, 'peer': 3.0}}
@@ -160,6 +161,12 @@ def _generated(run):
     return gen_targets
 
 
+def _generated_peers(run):
+    rows, t_rows = generated_peers.run(run.quick, run.log, count=run.generated_count)
+    run.csv('generated_peers.csv', generated_peers.FIELDS, rows)
+    return t_rows
+
+
 def _compile(run):
     rows = compile_cost.run(run.quick, run.log)
     if rows:
@@ -207,10 +214,13 @@ SECTIONS = (
             _returned('selection')),
     Section('generated', f'6b. generalisation: auto on generated scenes (seed '
             f'{generated.SEED})', _generated, _returned('generated')),
+    Section('generated_peers', '6c. generalisation: scipy against auto on the generated '
+            'scenes', _generated_peers, _returned('generated_peers')),
     Section('compile', '7. compile cost (numba kernels)', _compile, _compile_targets),
     Section('exact_horizon', '8. exact at long horizons (40-digit reference)', _exact_horizon,
             _returned('exact_horizon')),
 )
 SECTION_BY_NAME = {s.name: s for s in SECTIONS}
-TARGET_ORDER = ('work_precision', 'basilisk', 'selection', 'generated', 'exact_horizon',
-                'stability', 'batch', 'perstep', 'term_off', 'sampling', 'live', 'compile')
+TARGET_ORDER = ('work_precision', 'basilisk', 'selection', 'generated', 'generated_peers',
+                'exact_horizon', 'stability', 'batch', 'perstep', 'term_off', 'sampling', 'live',
+                'compile')
