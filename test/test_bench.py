@@ -196,12 +196,14 @@ def test_targets_table_has_ratios_for_every_scene(quick_run):
 
 def test_generalisation_section_has_a_row_per_generated_scene(quick_run):
     """One row a scene (judged, unjudged or failed with its reason), and three targets a
-    family: the body family's count as asked, the orbit family's its own."""
+    family: the body family's count as asked, the orbit and B-dot families' their own."""
     rows = _read(quick_run / 'generated.csv')
     orbit = bench.generated.FAMILIES['gravity_gradient'][1][True]
-    assert sum(r['kind'] != 'gravity_gradient' for r in rows) == GENERATED
+    bdot = bench.generated.FAMILIES['bdot'][1][True]
+    assert sum(r['kind'] not in ('gravity_gradient', 'bdot') for r in rows) == GENERATED
     assert sum(r['kind'] == 'gravity_gradient' for r in rows) == orbit
-    assert len({r['scene'] for r in rows}) == GENERATED + orbit
+    assert sum(r['kind'] == 'bdot' for r in rows) == bdot >= 1
+    assert len({r['scene'] for r in rows}) == GENERATED + orbit + bdot
     assert all(r['status'] for r in rows), rows
     # a scene where auto or the reference failed says why, instead of stopping the bench
     assert all(r['reason'] for r in rows if r['status'] in ('auto failed', 'no reference'))
@@ -211,6 +213,7 @@ def test_generalisation_section_has_a_row_per_generated_scene(quick_run):
     names = [r['target'] for r in _read(quick_run / 'targets.csv')]
     assert sum(n.startswith('generated: auto') for n in names) == 3, names
     assert sum(n.startswith('generated, gravity gradient: auto') for n in names) == 3, names
+    assert sum(n.startswith('generated, B-dot: auto') for n in names) == 3, names
 
 
 def test_the_suite_is_a_list_of_sections_each_writing_its_file():

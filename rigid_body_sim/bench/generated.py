@@ -54,10 +54,13 @@ class Scene:
     natural_frequency: float = 0.0
     orbit: tuple = ()   # ((key, value), …) of orbit.*: an orbit scene (gravity gradient on)
     frame: str = 'world'  # of attitude and omega (lvlh: relative to the orbit frame)
+    extra: tuple = ()       # ((key, value), …) more simulator parameters (a family's own)
+    controller: tuple = ()  # ((key, value), …) the controller's, where the family has one
 
     @property
     def name(self) -> str:
-        return f'gen{self.seed}-{"gg" if self.orbit else ""}{self.index}'
+        tag = 'bdot' if self.kind == 'bdot' else 'gg' if self.orbit else ''
+        return f'gen{self.seed}-{tag}{self.index}'
 
     @property
     def dissipative(self) -> bool:
@@ -66,6 +69,8 @@ class Scene:
     def describe(self) -> str:
         extra = (f', coefficient {self.coefficient:.3g}' if self.dissipative else
                  f', control {self.control_rate:.3g} Hz' if self.kind == 'detumble' else
+                 f', B-dot at {self.control_rate:.3g} Hz{_orbit_words(self)}'
+                 if self.kind == 'bdot' else
                  _orbit_words(self) if self.orbit else '')
         return (f'{self.name} {self.kind}: I = {", ".join(f"{i:.3g}" for i in self.moments)}, '
                 f'|ω| = {np.linalg.norm(self.omega):.3g} rad/s, {self.rotation:.3g} rad over '
@@ -82,6 +87,7 @@ class Scene:
         if self.orbit:
             sim.update(dict(self.orbit), **{'environment.gravity_gradient': True,
                                             'initial_attitude_frame': self.frame})
+        sim.update(dict(self.extra))
         if self.dissipative:
             sim.update({'dissipation.model': self.kind,
                         'dissipation.coefficient': self.coefficient})
@@ -94,6 +100,7 @@ class Scene:
                    'control_rate': self.control_rate,
                    'natural_frequency': self.natural_frequency, 'damping_ratio': 1.0,
                    'max_torque': torque}
+        ctl.update(dict(self.controller))
         return sim, ctl
 
     def scene_file(self) -> SceneFile:
@@ -274,6 +281,7 @@ COUNTS = {True: 20, False: 200}
 FAMILIES = {
     'body': (draw, COUNTS),
     'gravity_gradient': (draw_gravity_gradient, {True: 4, False: 30}),
+    'bdot': (lambda seed, index, quick: _bdot().draw(seed, index, quick), {True: 1, False: 20}),
 }
 JUDGED = ('ok', 'auto missed')
 # a budget no fixed choice of the registry was found to meet, which auto said it cannot
@@ -385,7 +393,8 @@ def run(quick, log=print, seed=SEED, count=None, families=tuple(FAMILIES)):
     return rows, t_rows, first
 
 
-TARGET_NAMES = {'body': 'generated', 'gravity_gradient': 'generated, gravity gradient'}
+TARGET_NAMES = {'body': 'generated', 'gravity_gradient': 'generated, gravity gradient',
+                'bdot': 'generated, B-dot'}
 
 
 def targets_for(rows, seed=SEED):
@@ -436,7 +445,13 @@ def merge(out, family, rows, t_rows, seed=SEED):
 
 
 def _family_of(row) -> str:
-    return 'gravity_gradient' if row.get('kind') == 'gravity_gradient' else 'body'
+    kind = row.get('kind')
+    return kind if kind in ('gravity_gradient', 'bdot') else 'body'
+
+
+def _bdot():
+    from . import generated_bdot  # the B-dot family's drawing (it imports this module)
+    return generated_bdot
 
 
 def read_rows(path):
