@@ -1,6 +1,7 @@
 """What holds the simulator's time: lockstep's control instants, and the wait for
 subscribers before t = 0. A mixin of the node (``simulator.py``), which owns the state
 (``_held``, ``_instant``, ...)."""
+import json
 import time
 
 from ..engine import NS
@@ -8,6 +9,14 @@ from ..engine import NS
 # wait_for_subscribers: the counts must hold this long, as the replies of the peers already
 # running to a new participant's announcement arrive within a few milliseconds of each other
 SUBSCRIBER_SETTLE_S = 0.2
+# a recorder's report of the publishers it has matched (nodes/recorder.py: MATCHED_TOPIC)
+MATCHED_SUFFIX = '/matched_publishers'
+
+
+def _fqn(namespace: str, name: str) -> str:
+    return f'/{namespace.strip("/")}/{name}'.replace('//', '/')
+
+
 
 
 class Holds:
@@ -96,6 +105,44 @@ class Holds:
                     return True
         return False
 
+    def _recorders_unmatched(self, reports) -> list:
+        """Lockstep: the command topics a recorder subscribes to whose controllers (the
+        publishers this node sees there) the recorder has not matched yet, by its report
+        ``<recorder>/matched_publishers`` (``reports``: {report topic: its subscription and
+        last report}, filled here). Without this wait a run as fast as possible could end,
+        and its controller be stopped with its history, before the recorder and the
+        controller discovered each other: the bag then held no command (1 run in ~10)."""
+        from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+        from std_msgs.msg import String
+        for topic, _ in self.get_topic_names_and_types():
+            if topic.endswith(MATCHED_SUFFIX) and topic not in reports:
+                entry = reports[topic] = {'report': None}
+                entry['sub'] = self.create_subscription(
+                    String, topic, lambda m, e=entry: e.update(report=json.loads(m.data)),
+                    QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
+                               durability=DurabilityPolicy.TRANSIENT_LOCAL))
+        from .recorder import hidden
+        out = []
+        for sub in self._lockstep_command_subs():
+            name = sub.topic_name
+            controllers = {_fqn(p.node_namespace, p.node_name)
+                           for p in self.get_publishers_info_by_topic(name)}
+            for topic, entry in reports.items():
+                report = entry['report']
+                if report is None:  # its report is on its way (transient local)
+                    out.append(topic)
+                    continue
+                matched = report['matched']
+                records = name in matched or (report['all'] and not hidden(name)
+                                              and name not in report['exclude'])
+                if records and not controllers <= set(matched.get(name, [])):
+                    out.append(f'{name} (by {topic[:-len(MATCHED_SUFFIX)]})')
+        return out
+
+    def _lockstep_command_subs(self):
+        """The command subscriptions whose commands lockstep waits for."""
+        return [s for s in self._command_subs if s.topic_name.endswith('/torque_command')]
+
     def _wait_for_subscribers(self, executor):
         """Hold t = 0 until every state publisher has ``wait_for_subscribers`` matched
         subscriptions (a recorder subscribed at its start: the bag then holds every sample
@@ -114,7 +161,9 @@ class Holds:
             return [p.topic_name for p in pubs if p.get_subscription_count() < max(
                 n, len(self.get_subscriptions_info_by_topic(p.topic_name)))] + (
                 [self._command_subs[0].topic_name]
-                if controller and not self._controller_ready(pubs) else [])
+                if controller and not self._controller_ready(pubs) else []) + (
+                self._recorders_unmatched(reports) if self._lockstep else [])
+        reports = {}
         timeout = self._p['wait_for_subscribers_timeout']
         self._log.info(f'waiting up to {timeout:g} s for {n} matched subscription(s) on each '
                        f'of {len(pubs)} state topics before t = 0 (wait_for_subscribers)'
@@ -132,6 +181,8 @@ class Holds:
             executor.spin_once(timeout_sec=0.02)
         self.paused = paused
         left = missing()
+        for entry in reports.values():  # read before t = 0 only
+            self.destroy_subscription(entry['sub'])
         if left:
             self._log.warning(f'starting at t = 0 without {n} subscription(s) on '
                               f'{", ".join(left)} after {timeout:g} s (wait_for_subscribers); '
