@@ -16,21 +16,12 @@ bag gets every one, once and in order, even from a publisher discovered late. A 
 added to the bag at its first message, with the QoS its publishers offer (stored like
 rosbag2).
 
-Matched publishers. ``~/matched_publishers`` (std_msgs/String, transient-local) says, as
-JSON ``{"matched": {topic: [publisher node, ...]}, "all": bool, "exclude": [topic, ...]}``,
-what it records (each wanted topic, and with ``all`` any other but the excluded and
-hidden ones) and the publishers each one's subscription has matched (every publisher
-discovered on it; none while some is not matched yet, or while a transient-local one
-waits for the subscription that gets its history, or before it is subscribed), again at
-each change. A simulator in lockstep waits for it before t = 0: the recorder and the
-controller discover each other in a pair the simulator cannot see, and a controller
-stopped before that discovery took its commands' history with it (a run as fast as
-possible lasts a fraction of a second).
+Matched publishers. ``~/matched_publishers`` says what it records and which publishers it
+has matched (``matches.py``): a simulator in lockstep waits for it before t = 0.
 """
 from __future__ import annotations
 
 import datetime
-import json
 import os
 import sys
 import time
@@ -43,7 +34,6 @@ from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import parameter_value_to_python
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
-from std_msgs.msg import String
 
 from rigid_body_sim.bag.errors import BagError
 from rigid_body_sim.bag.recover import recovered_copy, unfinished_files
@@ -53,6 +43,8 @@ from rigid_body_sim.bag.schema import (DEFAULT_QOS_YAML, TypeNotFound, message_c
 from rigid_body_sim.bag.writer import BagWriter
 from rigid_body_sim.node_interfaces import (DEFAULT_OUTPUT_DIR, RECORDED_BY_DEFAULT,
                                             RECORDED_TYPES, RECORDER_PARAMETERS)
+from rigid_body_sim.nodes import matches
+from rigid_body_sim.nodes.matches import hidden, latched as _latched
 from rigid_body_sim.nodes.process import signals_ignored, start_ros
 
 # The default topics, their types (subscribed at start, before their publishers exist) and
@@ -61,8 +53,6 @@ DEFAULT_TOPICS = RECORDED_BY_DEFAULT
 KNOWN_TYPES = RECORDED_TYPES
 # Messages taken per callback beyond the one the executor delivered (see _callback).
 DRAIN_LIMIT = 200
-MATCHED_TOPIC = '~/matched_publishers'  # its report (module docstring), read by lockstep
-MATCHED_PERIOD_S = 0.05  # how often the matches are looked at (graph queries, ~µs each)
 
 
 class Recorder(Node):
@@ -114,10 +104,7 @@ class Recorder(Node):
         # Wall-clock timers: under use_sim_time a stalled /clock must not stop flushing.
         steady = Clock(clock_type=ClockType.STEADY_TIME)
         # the report before the subscriptions: a simulator that sees them sees it too
-        self._matched_pub = self.create_publisher(String, MATCHED_TOPIC, QoSProfile(
-            depth=1, reliability=ReliabilityPolicy.RELIABLE,
-            durability=DurabilityPolicy.TRANSIENT_LOCAL))
-        self._matched: dict[str, list[str]] | None = None
+        self._report = matches.Report(self)
         flush_period = float(get('flush_period').value)
         self.create_timer(max(0.01, flush_period / 4), self.writer.flush_if_due, clock=steady)
         self._subscribe_known()
@@ -125,7 +112,7 @@ class Recorder(Node):
                                             self._discover, clock=steady)
         self._discover()
         self._report_matches()
-        self.create_timer(MATCHED_PERIOD_S, self._report_matches, clock=steady)
+        self.create_timer(matches.PERIOD_S, self._report_matches, clock=steady)
         self._start_config_fetch(get('simulator_node').value, float(get('config_timeout').value),
                                  steady)
 
@@ -148,7 +135,7 @@ class Recorder(Node):
     def _discover(self) -> None:
         for topic, types in self.get_topic_names_and_types():
             if topic in self._skipped or topic in self._exclude or \
-                    topic == self._matched_pub.topic_name:
+                    topic == self._report.pub.topic_name:
                 continue
             if topic in self._subs and topic not in self._early:
                 continue
@@ -176,18 +163,9 @@ class Recorder(Node):
             self._discovery.cancel()
 
     def _report_matches(self) -> None:
-        """Publish ``~/matched_publishers`` when it changed (module docstring)."""
-        matched = dict.fromkeys(self._wanted - self._exclude - self._skipped, [])
-        for topic, sub in self._subs.items():
-            publishers = self.get_publishers_info_by_topic(topic)
-            waits = topic in self._early and _latched(publishers)  # for its history
-            complete = sub.get_publisher_count() >= len(publishers)
-            matched[topic] = [] if waits or not complete else sorted(
-                {_fqn(p.node_namespace, p.node_name) for p in publishers})
-        report = {'matched': matched, 'all': self._all, 'exclude': sorted(self._exclude)}
-        if report != self._matched:
-            self._matched = report
-            self._matched_pub.publish(String(data=json.dumps(report, sort_keys=True)))
+        """Publish ``~/matched_publishers`` when it changed (matches.py)."""
+        self._report.update(self._subs, self._wanted - self._exclude - self._skipped,
+                            self._early, self._all, self._exclude)
 
     def _subscribe(self, topic: str, type_name: str, publishers: list[Any]) -> None:
         """Subscribe ``topic``; with ``publishers`` (discovered) the QoS is chosen to match
@@ -380,22 +358,6 @@ class Recorder(Node):
         # After SIGINT the context is gone: log without the /rosout publisher.
         rclpy.logging.get_logger('rigid_body_sim.recorder').info(
             f'wrote {sum(counts.values())} messages to {self.writer.directory}: {counts}')
-
-
-def _latched(publishers) -> bool:
-    """Every publisher (of a non-empty list) offers transient-local durability."""
-    return bool(publishers) and all(p.qos_profile.durability == DurabilityPolicy.TRANSIENT_LOCAL
-                                    for p in publishers)
-
-
-def _fqn(namespace: str, name: str) -> str:
-    """A node's fully qualified name (the graph may give its namespace without a '/')."""
-    return f'/{namespace.strip("/")}/{name}'.replace('//', '/')
-
-
-def hidden(topic: str) -> bool:
-    """A hidden topic (a part starts with '_'): ``all`` leaves it out."""
-    return any(part.startswith('_') for part in topic.split('/'))
 
 
 def main(argv: list[str] | None = None) -> int:
