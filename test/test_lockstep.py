@@ -36,24 +36,24 @@ def _state_messages(bag, topics=STATE_TOPICS):
     return out
 
 
-def _offline_bag(tmp_path, overrides=OVERRIDES, path=SCENE):
-    scene = load(path, overrides)
-    sink = offline.BagSink(scene, str(tmp_path / 'offline'), {}, scene.simulator)
+def _offline_bag(tmp_path, overrides=OVERRIDES, path=SCENE, scene=None, label='offline'):
+    scene = scene or load(path, overrides)
+    sink = offline.BagSink(scene, str(tmp_path / label), {}, scene.simulator)
     result = offline.simulate(scene, sinks=[sink], keep='none')
     sink.finish(result)
     sink.close()
-    return tmp_path / 'offline'
+    return tmp_path / label
 
 
 def _live_bag(ros_process, namespace, tmp_path, label, rtf, integrator='splitting4',
-              path=SCENE, recorder=()):
+              path=SCENE, recorder=(), duration=3.0, topics=('torque_command',)):
     """Recorder, controller and simulator in lockstep on the scene; the bag.
     ``recorder``: more arguments for the recorder (``-p name:=value``)."""
     rate = load(path).controller['control_rate']
     over = tmp_path / f'{label}.yaml'
     over.write_text('/**/attitude_simulator:\n  ros__parameters:\n'
                     f'    real_time_factor: {rtf}\n    publish_clock: true\n'
-                    f'    integrator: {integrator}\n    duration: 3.0\n'
+                    f'    integrator: {integrator}\n    duration: {duration}\n'
                     '    wait_for_subscribers: 1\n    wait_for_subscribers_timeout: 60.0\n'
                     f'    lockstep: true\n    control_rate: {rate}\n    lockstep_timeout: 30.0\n'
                     '/**/attitude_controller:\n  ros__parameters:\n    lockstep: true\n')
@@ -70,12 +70,12 @@ def _live_bag(ros_process, namespace, tmp_path, label, rtf, integrator='splittin
     assert sim.wait(240) == 0, sim.output()[-3000:]
     out = sim.output()
     assert 'every state topic has its subscribers; starting at t = 0' in out, out[-3000:]
-    # 3 s of control instants: t = 0 … 3 s less one period
-    assert f'lockstep: {round(3 * rate)} exchanges' in out, out[-3000:]
+    # the control instants: t = 0 … the duration less one period
+    assert f'lockstep: {round(duration * rate)} exchanges' in out, out[-3000:]
     assert 'paused' not in out, out[-3000:]
     assert ctl.stop() == 0, ctl.output()[-3000:]
     assert rec.stop() == 0, rec.output()[-3000:]
-    return bag, _state_messages(bag, STATE_TOPICS + ('torque_command',))
+    return bag, _state_messages(bag, STATE_TOPICS + tuple(topics))
 
 
 def test_lockstep_runs_equal_each_other_and_the_offline_run(ros_process, namespace, tmp_path):
@@ -131,6 +131,28 @@ def test_lockstep_with_auto_chooses_as_the_offline_run(ros_process, namespace, t
                         path=path)
     for topic, messages in expected.items():
         assert live[topic] == messages, topic
+
+
+def test_bdot_in_lockstep_gives_the_offline_run(ros_process, namespace, tmp_path):
+    """The B-dot detumble (magnetorquers, a noisy magnetometer, IGRF on a J2 orbit) for
+    20 s, as shipped but for the duration, in lockstep: the controller answers each
+    instant once its magnetometer reading is in too, with a dipole_command stamped like
+    the state, and the simulator holds the instant for both. The state and the readings
+    are the offline run's (its in-process B-dot), every field. Before, the dipole went
+    around the handshake, landing wherever the wall clock put it."""
+    path = os.path.join(REPO, 'config', 'bdot_detumble.yaml')
+    topics = STATE_TOPICS + ('magnetic_field',)
+    expected = _state_messages(_offline_bag(tmp_path, ['duration=20.0'], path), topics)
+    assert len(expected['attitude']) == 41 and len(expected['magnetic_field']) == 41
+    _, live = _live_bag(ros_process, namespace, tmp_path, 'bdot', 0.0, integrator='auto',
+                        path=path, duration=20.0, topics=('magnetic_field', 'dipole_command'))
+    for topic, messages in expected.items():
+        assert live[topic] == messages, topic
+    dipoles = live['dipole_command']
+    assert [m.header.stamp for m in dipoles] == [m.header.stamp for m in live['attitude']]
+    # the law acted from its second reading on: the rods' dipole changed the run
+    assert all(m.vector.x == m.vector.y == m.vector.z == 0.0 for m in dipoles[:1])
+    assert all(max(abs(m.vector.x), abs(m.vector.y), abs(m.vector.z)) > 0 for m in dipoles[1:])
 
 
 def test_a_recorder_discovered_after_t0_still_records_every_command(ros_process, namespace,
