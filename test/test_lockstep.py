@@ -250,6 +250,25 @@ def test_lockstep_refuses_what_it_cannot_hold(change, reason):
         lockstep.period_ns(p)
 
 
+def test_lockstep_awaits_the_commands_each_spacecraft_owes():
+    """Torque from a spacecraft in the loop, the dipole too with rods and a B-dot
+    controller, nothing from one left out; B-dot whose magnetometer misses a control
+    instant is refused with the reason (the law answers an instant from its reading)."""
+    from rigid_body_sim.engine import lockstep, specs
+    from rigid_body_sim.param_spec import coerce_all
+    p = coerce_all(specs.SIMULATOR, {'lockstep': True, 'publish_clock': True,
+                                     'control_rate': 2.0, 'publish_rate': 2.0,
+                                     'magnetometer.enabled': True, 'magnetometer.rate': 2.0})
+    bdot = {'mode': 'bdot'}
+    assert lockstep.awaited(p, True, bdot) == ('torque', 'dipole')
+    assert lockstep.awaited(p, False, bdot) == ('torque',)
+    assert lockstep.awaited(p, True, {'mode': 'slew'}) == ('torque',)
+    assert lockstep.awaited({**p, 'lockstep': False}, True, bdot) == ()
+    with pytest.raises(ValueError, match='magnetometer.rate 1 Hz .* must read at every '
+                       'control instant'):
+        lockstep.awaited({**p, 'magnetometer.rate': 1.0}, True, bdot)
+
+
 def test_the_lockstep_benchmark_reports_the_simulators_figures():
     """tools/lockstep.py runs a simulator and a controller in lockstep (real processes) and
     reads the simulator's own figures: every period exchanged, round trip and CPU > 0, and

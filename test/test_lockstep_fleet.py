@@ -5,6 +5,7 @@ Real processes (simulator, one controller per spacecraft, recorder) and real mes
 """
 import sys
 
+import pytest
 from rclpy.serialization import deserialize_message
 
 from ros_helpers import spin_until, venv_exe, wait_output
@@ -13,7 +14,7 @@ from stamp_checks import STATE_TOPICS
 from rigid_body_sim import offline
 from rigid_body_sim.bag.reader import iter_messages
 from rigid_body_sim.bag.schema import message_class
-from rigid_body_sim.scene import load, spacecraft_scene
+from rigid_body_sim.scene import SceneError, load, spacecraft_scene
 
 # leader and wingman slew and detumble under their own controllers; tumbler is left out of
 # the loop (lockstep: false) and runs free beside them
@@ -199,3 +200,17 @@ def test_a_formation_in_lockstep_counts_each_spacecrafts_rejections(
     assert stamps == [0, 20_000_000, 40_000_000]
     assert spin_until(rclpy_node, lambda: status.get('simulation', {}).get(
         'lockstep_exchanges') == '1', 30), status
+
+
+def test_one_spacecrafts_scene_takes_its_values_and_refuses_a_stranger(tmp_path):
+    """scene.spacecraft_scene: the spacecraft's own values over the node's, its body frame,
+    its controller's own values; a name that is not one of the scene's is refused."""
+    (tmp_path / 'formation.yaml').write_text(FORMATION)
+    scene = load(str(tmp_path / 'formation.yaml'))
+    leader = spacecraft_scene(scene, 'leader', CONTROLLERS['leader'])
+    assert leader.simulator['inertia'] == [10.0, 12.0, 14.0]
+    assert leader.simulator['child_frame_id'] == 'leader/base_link'
+    assert leader.controller['inertia'] == [10.0, 12.0, 14.0]
+    assert spacecraft_scene(scene, 'tumbler').simulator['inertia'] == [1.0, 2.0, 3.0]
+    with pytest.raises(SceneError, match="no spacecraft 'nobody' .*leader, wingman, tumbler"):
+        spacecraft_scene(scene, 'nobody')
