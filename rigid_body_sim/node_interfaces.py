@@ -193,6 +193,9 @@ RECORDER = NodeInterfaces('mcap_recorder', 'recorder', (
     'others once a publisher appears, with a QoS compatible with its publishers.'), (
     Topic('sub', '(each recorded topic)', '(its publishers\' type)',
           'the default list, or every topic with all: true'),
+    Topic('pub', '~/matched_publishers', 'std_msgs/msg/String', 'JSON: what it records and '
+          'the publishers each subscription has matched, at each change (transient local; '
+          'a simulator in lockstep waits for it)'),
 ))
 
 NODES = (SIMULATOR, CONTROLLER, VIEWER, RECORDER)

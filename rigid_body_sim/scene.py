@@ -226,3 +226,26 @@ def run(args) -> int:
     for name, description, path in list_scenes():
         print(f'{name:15s} {description}' + (f'  [{path}]' if args.paths else ''))
     return 0
+
+
+def spacecraft_scene(scene: SceneFile, name: str, controller=None) -> SceneFile:
+    """Spacecraft ``name`` of a formation scene as a scene of its own: what the simulator
+    runs for it (the node-level values, its own over them, its body frame
+    ``<name>/<child_frame_id>``) and the controller that answers it in its namespace (the
+    scene's values, with ``controller``: {key: value} its own params give it). Each
+    spacecraft's engine runs apart from the others', so an offline run of this scene gives
+    that spacecraft's messages of a lockstep run of the formation. SceneError for a name
+    that is not one of the scene's spacecraft or a bad controller value."""
+    from .engine import specs
+    from .param_spec import coerce_all
+    if name not in scene.spacecraft:
+        raise SceneError(f'{scene.path}: no spacecraft {name!r} (it has: '
+                         f'{", ".join(scene.spacecraft) or "none"})')
+    sim = {**scene.simulator, **scene.spacecraft[name], 'spacecraft': ['']}
+    sim['child_frame_id'] = f'{name}/{scene.simulator["child_frame_id"]}'
+    try:
+        ctl = coerce_all(specs.CONTROLLER, {**scene.controller, **(controller or {})}) \
+            if scene.controller or controller else {}
+    except ValueError as exc:
+        raise SceneError(f'{scene.path}: spacecraft {name}\'s controller: {exc}') from None
+    return SceneFile(f'{scene.name}/{name}', scene.description, scene.path, sim, ctl)

@@ -36,23 +36,24 @@ def _state_messages(bag, topics=STATE_TOPICS):
     return out
 
 
-def _offline_bag(tmp_path, overrides=OVERRIDES, path=SCENE):
-    scene = load(path, overrides)
-    sink = offline.BagSink(scene, str(tmp_path / 'offline'), {}, scene.simulator)
+def _offline_bag(tmp_path, overrides=OVERRIDES, path=SCENE, scene=None, label='offline'):
+    scene = scene or load(path, overrides)
+    sink = offline.BagSink(scene, str(tmp_path / label), {}, scene.simulator)
     result = offline.simulate(scene, sinks=[sink], keep='none')
     sink.finish(result)
     sink.close()
-    return tmp_path / 'offline'
+    return tmp_path / label
 
 
 def _live_bag(ros_process, namespace, tmp_path, label, rtf, integrator='splitting4',
-              path=SCENE):
-    """Recorder, controller and simulator in lockstep on the scene; the bag."""
+              path=SCENE, recorder=(), duration=3.0, topics=('torque_command',)):
+    """Recorder, controller and simulator in lockstep on the scene; the bag.
+    ``recorder``: more arguments for the recorder (``-p name:=value``)."""
     rate = load(path).controller['control_rate']
     over = tmp_path / f'{label}.yaml'
     over.write_text('/**/attitude_simulator:\n  ros__parameters:\n'
                     f'    real_time_factor: {rtf}\n    publish_clock: true\n'
-                    f'    integrator: {integrator}\n    duration: 3.0\n'
+                    f'    integrator: {integrator}\n    duration: {duration}\n'
                     '    wait_for_subscribers: 1\n    wait_for_subscribers_timeout: 60.0\n'
                     f'    lockstep: true\n    control_rate: {rate}\n    lockstep_timeout: 30.0\n'
                     '/**/attitude_controller:\n  ros__parameters:\n    lockstep: true\n')
@@ -60,7 +61,7 @@ def _live_bag(ros_process, namespace, tmp_path, label, rtf, integrator='splittin
     bag = tmp_path / label
     env = {'PYTHONUNBUFFERED': '1'}
     rec = ros_process(venv_exe('recorder'), '--ros-args', '-r', f'__ns:={ns}',
-                      '-p', f'output:={bag}', env=env)
+                      '-p', f'output:={bag}', *recorder, env=env)
     assert wait_output(rec, 'recording to'), rec.output()
     ctl = ros_process(venv_exe('controller'), '--ros-args', '-r', f'__ns:={ns}',
                       '--params-file', path, '--params-file', str(over), env=env)
@@ -69,12 +70,12 @@ def _live_bag(ros_process, namespace, tmp_path, label, rtf, integrator='splittin
     assert sim.wait(240) == 0, sim.output()[-3000:]
     out = sim.output()
     assert 'every state topic has its subscribers; starting at t = 0' in out, out[-3000:]
-    # 3 s of control instants: t = 0 … 3 s less one period
-    assert f'lockstep: {round(3 * rate)} exchanges' in out, out[-3000:]
+    # the control instants: t = 0 … the duration less one period
+    assert f'lockstep: {round(duration * rate)} exchanges' in out, out[-3000:]
     assert 'paused' not in out, out[-3000:]
     assert ctl.stop() == 0, ctl.output()[-3000:]
     assert rec.stop() == 0, rec.output()[-3000:]
-    return bag, _state_messages(bag, STATE_TOPICS + ('torque_command',))
+    return bag, _state_messages(bag, STATE_TOPICS + tuple(topics))
 
 
 def test_lockstep_runs_equal_each_other_and_the_offline_run(ros_process, namespace, tmp_path):
@@ -99,6 +100,22 @@ def test_lockstep_runs_equal_each_other_and_the_offline_run(ros_process, namespa
                       for m in expected['attitude']]
 
 
+def test_a_recorder_slow_to_match_the_controller_still_records_every_command(
+        ros_process, namespace, tmp_path):
+    """The flake of the test above (1 run in ~10 of make test): as fast as possible the
+    run lasts ~0.2 s, and the recorder had not yet matched the controller (discovery, a
+    pair the simulator cannot see) when the controller was stopped: the commands' history
+    went with it and the bag held none. Here the recorder looks for new publishers only
+    every 20 s, so it matches the controller (subscribing for its history) long after the
+    simulator could start. The simulator waits for the recorder's report that it has
+    matched the controller: the bag holds every command. Before, it held none."""
+    _, fast = _live_bag(ros_process, namespace, tmp_path, 'slow_recorder', 0.0,
+                        recorder=('-p', 'discovery_period:=20.0'))
+    stamps = [m.header.stamp.sec * 10**9 + m.header.stamp.nanosec
+              for m in fast.get('torque_command', [])]
+    assert stamps == [k * 20_000_000 for k in range(151)], (len(stamps), stamps[:3])
+
+
 @pytest.mark.parametrize('name', ['slew', 'detumble', 'wheel_slew'])
 def test_lockstep_with_auto_chooses_as_the_offline_run(ros_process, namespace, tmp_path, name):
     """The scenes as shipped (``integrator: auto``): the simulator reads its controller's
@@ -114,6 +131,28 @@ def test_lockstep_with_auto_chooses_as_the_offline_run(ros_process, namespace, t
                         path=path)
     for topic, messages in expected.items():
         assert live[topic] == messages, topic
+
+
+def test_bdot_in_lockstep_gives_the_offline_run(ros_process, namespace, tmp_path):
+    """The B-dot detumble (magnetorquers, a noisy magnetometer, IGRF on a J2 orbit) for
+    20 s, as shipped but for the duration, in lockstep: the controller answers each
+    instant once its magnetometer reading is in too, with a dipole_command stamped like
+    the state, and the simulator holds the instant for both. The state and the readings
+    are the offline run's (its in-process B-dot), every field. Before, the dipole went
+    around the handshake, landing wherever the wall clock put it."""
+    path = os.path.join(REPO, 'config', 'bdot_detumble.yaml')
+    topics = STATE_TOPICS + ('magnetic_field',)
+    expected = _state_messages(_offline_bag(tmp_path, ['duration=20.0'], path), topics)
+    assert len(expected['attitude']) == 41 and len(expected['magnetic_field']) == 41
+    _, live = _live_bag(ros_process, namespace, tmp_path, 'bdot', 0.0, integrator='auto',
+                        path=path, duration=20.0, topics=('magnetic_field', 'dipole_command'))
+    for topic, messages in expected.items():
+        assert live[topic] == messages, topic
+    dipoles = live['dipole_command']
+    assert [m.header.stamp for m in dipoles] == [m.header.stamp for m in live['attitude']]
+    # the law acted from its second reading on: the rods' dipole changed the run
+    assert all(m.vector.x == m.vector.y == m.vector.z == 0.0 for m in dipoles[:1])
+    assert all(max(abs(m.vector.x), abs(m.vector.y), abs(m.vector.z)) > 0 for m in dipoles[1:])
 
 
 def test_a_recorder_discovered_after_t0_still_records_every_command(ros_process, namespace,
@@ -209,6 +248,25 @@ def test_lockstep_refuses_what_it_cannot_hold(change, reason):
     p = coerce_all(specs.SIMULATOR, {'lockstep': True, 'publish_clock': True, **change})
     with pytest.raises(ValueError, match=reason):
         lockstep.period_ns(p)
+
+
+def test_lockstep_awaits_the_commands_each_spacecraft_owes():
+    """Torque from a spacecraft in the loop, the dipole too with rods and a B-dot
+    controller, nothing from one left out; B-dot whose magnetometer misses a control
+    instant is refused with the reason (the law answers an instant from its reading)."""
+    from rigid_body_sim.engine import lockstep, specs
+    from rigid_body_sim.param_spec import coerce_all
+    p = coerce_all(specs.SIMULATOR, {'lockstep': True, 'publish_clock': True,
+                                     'control_rate': 2.0, 'publish_rate': 2.0,
+                                     'magnetometer.enabled': True, 'magnetometer.rate': 2.0})
+    bdot = {'mode': 'bdot'}
+    assert lockstep.awaited(p, True, bdot) == ('torque', 'dipole')
+    assert lockstep.awaited(p, False, bdot) == ('torque',)
+    assert lockstep.awaited(p, True, {'mode': 'slew'}) == ('torque',)
+    assert lockstep.awaited({**p, 'lockstep': False}, True, bdot) == ()
+    with pytest.raises(ValueError, match='magnetometer.rate 1 Hz .* must read at every '
+                       'control instant'):
+        lockstep.awaited({**p, 'magnetometer.rate': 1.0}, True, bdot)
 
 
 def test_the_lockstep_benchmark_reports_the_simulators_figures():

@@ -10,7 +10,8 @@ under its name, which rcl reads as prefixed keys::
       initial_angular_velocity: [0.0, 0.0, 0.1]
 
 Only the body's own keys (``BODY_KEYS``: inertia, state, dissipation, torque limits,
-actuators, sensors) may be given per spacecraft; a key a spacecraft leaves out takes the
+actuators, sensors, and ``lockstep``: false leaves it out of the lockstep loop) may be
+given per spacecraft; a key a spacecraft leaves out takes the
 node-level value. The numerics, pacing, frames and QoS are the simulator's, shared.
 
 Without ``spacecraft`` the simulator runs one unnamed spacecraft exactly as before: its
@@ -25,7 +26,8 @@ from typing import Dict, Iterable, List, Mapping, Optional
 from . import specs
 
 BODY_KEYS = ('inertia', 'initial_attitude', 'initial_angular_velocity', 'dissipation.model',
-             'dissipation.coefficient', 'max_torque', 'command_timeout', 'seed') + tuple(
+             'dissipation.coefficient', 'max_torque', 'command_timeout', 'seed',
+             'lockstep') + tuple(
     s.name for s in specs.SIMULATOR if s.name.startswith(('actuators.', 'sensors.')))
 _BY_NAME = {s.name: s for s in specs.SIMULATOR}
 SPEC = _BY_NAME['spacecraft']

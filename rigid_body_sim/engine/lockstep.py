@@ -37,6 +37,27 @@ def period_ns(p) -> int:
     return period
 
 
+def awaited(p, rods: bool, controller) -> tuple:
+    """The commands lockstep waits for at each control instant from one spacecraft, with
+    its simulator values ``p`` (``lockstep``: false leaves it out of the loop), ``rods``
+    whether it has magnetorquers, ``controller`` its controller's values from the params
+    files: ``torque``, and with rods and a controller in ``bdot`` mode ``dipole`` too
+    (the B-dot law's dipole for that instant). ValueError if the magnetometer does not
+    read at every control instant: the law answers an instant from its reading there."""
+    if not p['lockstep']:
+        return ()
+    if not (rods and (controller or {}).get('mode') == 'bdot'):
+        return ('torque',)
+    period = period_ns(p)
+    if not p['magnetometer.enabled'] or \
+            period % seconds_to_ns(1.0 / p['magnetometer.rate'], 'magnetometer period'):
+        raise ValueError(f'lockstep with B-dot: magnetometer.rate {p["magnetometer.rate"]:g} '
+                         f'Hz (enabled: {p["magnetometer.enabled"]}) must read at every '
+                         f'control instant (control_rate {p["control_rate"]:g} Hz): the law '
+                         'answers each instant from its reading there')
+    return ('torque', 'dipole')
+
+
 def controller_values(params_files, namespace: str = '/') -> dict:
     """The values the scene's controller (``attitude_controller`` beside the simulator, in
     ``namespace``) takes from ``params_files``, later files winning, as rcl reads them."""

@@ -27,7 +27,10 @@ stamped with that stamp; the law's time is the stamp, so no state is ever stale.
 commands are then published transient-local with a history of ``LOCKSTEP_HISTORY``: a
 recorder this node discovers only after t = 0 (discovery between two processes can take
 seconds on a loaded machine, and the simulator cannot see whether it has happened) still
-gets every command from the first (recorder.py asks for the history).
+gets every command from the first (recorder.py asks for the history). In ``bdot`` mode
+the state is answered once the magnetometer's reading of that instant is in too, with the
+dipole_command as well (zero while the mission is in another mode): the simulator awaits
+both (bdot_commands.py).
 
 Target. ``target_attitude`` (parameter) sets the target at start and whenever it is set;
 an ``attitude_target`` message replaces it until the parameter is set again (latest wins).
@@ -142,8 +145,10 @@ class Controller(Node):
             self.create_subscription(Vector3Stamped, 'angular_velocity',
                                      self._on_angular_velocity, qos)
         self.create_subscription(QuaternionStamped, 'attitude_target', self._on_target, qos)
+        lockstep_ns = round(1e9 / self._p['control_rate']) if self._p['lockstep'] else 0
         self._bdot = None if self._p['mode'] != 'bdot' else BdotCommands(  # the rods' law
-            self, self._p, float(self._ctl.config.body.principal_moments.min()), qos)
+            self, self._p, float(self._ctl.config.body.principal_moments.min()),
+            qos, lockstep_ns, self._answer, command_qos)
         self._timer = None if self._p['lockstep'] else \
             self.create_timer(1.0 / self._p['control_rate'], self._tick)
         # Load the law's kernel now, before the simulator's t = 0 (it waits for us), not
@@ -217,6 +222,10 @@ class Controller(Node):
         period = round(1e9 / self._p['control_rate'])
         if t_ns is None or t_ns != self._w_ns or t_ns % period or t_ns == self._answered_ns:
             return
+        if self._bdot is not None:  # B-dot: its reading of the instant too, then its law
+            if not self._bdot.ready(t_ns):
+                return
+            self._bdot.step(t_ns, self._ctl.mode == 'bdot')
         self._answered_ns = t_ns
         self._age, self._stale_reason = 0.0, ''
         self._command(t_ns / 1e9, stamp)
@@ -306,8 +315,8 @@ class Controller(Node):
         msg.vector.x, msg.vector.y, msg.vector.z = torque
         self._pub.publish(msg)
         self._published += 1
-        if self._bdot is not None and self._ctl.mode == 'bdot':
-            self._bdot.publish(stamp)
+        if self._bdot is not None and (self._ctl.mode == 'bdot' or self._timer is None):
+            self._bdot.publish(stamp)  # lockstep: every instant, as the simulator awaits it
 
     # ------------------------------------------------------------------ parameters
     def _validate_parameters(self, params) -> SetParametersResult:

@@ -15,6 +15,9 @@ to get that history: its messages are not recorded from the early subscription, 
 bag gets every one, once and in order, even from a publisher discovered late. A topic is
 added to the bag at its first message, with the QoS its publishers offer (stored like
 rosbag2).
+
+Matched publishers. ``~/matched_publishers`` says what it records and which publishers it
+has matched (``matches.py``): a simulator in lockstep waits for it before t = 0.
 """
 from __future__ import annotations
 
@@ -40,6 +43,8 @@ from rigid_body_sim.bag.schema import (DEFAULT_QOS_YAML, TypeNotFound, message_c
 from rigid_body_sim.bag.writer import BagWriter
 from rigid_body_sim.node_interfaces import (DEFAULT_OUTPUT_DIR, RECORDED_BY_DEFAULT,
                                             RECORDED_TYPES, RECORDER_PARAMETERS)
+from rigid_body_sim.nodes import matches
+from rigid_body_sim.nodes.matches import hidden, latched as _latched
 from rigid_body_sim.nodes.process import signals_ignored, start_ros
 
 # The default topics, their types (subscribed at start, before their publishers exist) and
@@ -98,12 +103,16 @@ class Recorder(Node):
 
         # Wall-clock timers: under use_sim_time a stalled /clock must not stop flushing.
         steady = Clock(clock_type=ClockType.STEADY_TIME)
+        # the report before the subscriptions: a simulator that sees them sees it too
+        self._report = matches.Report(self)
         flush_period = float(get('flush_period').value)
         self.create_timer(max(0.01, flush_period / 4), self.writer.flush_if_due, clock=steady)
         self._subscribe_known()
         self._discovery = self.create_timer(float(get('discovery_period').value),
                                             self._discover, clock=steady)
         self._discover()
+        self._report_matches()
+        self.create_timer(matches.PERIOD_S, self._report_matches, clock=steady)
         self._start_config_fetch(get('simulator_node').value, float(get('config_timeout').value),
                                  steady)
 
@@ -125,11 +134,12 @@ class Recorder(Node):
 
     def _discover(self) -> None:
         for topic, types in self.get_topic_names_and_types():
-            if topic in self._skipped or topic in self._exclude:
+            if topic in self._skipped or topic in self._exclude or \
+                    topic == self._report.pub.topic_name:
                 continue
             if topic in self._subs and topic not in self._early:
                 continue
-            if not (topic in self._wanted or (self._all and not _hidden(topic))):
+            if not (topic in self._wanted or (self._all and not hidden(topic))):
                 continue
             publishers = self.get_publishers_info_by_topic(topic)
             if not publishers:  # QoS and type come from the publishers
@@ -151,6 +161,11 @@ class Recorder(Node):
             self._subscribe(topic, publishers[0].topic_type, publishers)
         if not self._all and self._wanted <= (set(self._subs) - self._early) | self._skipped:
             self._discovery.cancel()
+
+    def _report_matches(self) -> None:
+        """Publish ``~/matched_publishers`` when it changed (matches.py)."""
+        self._report.update(self._subs, self._wanted - self._exclude - self._skipped,
+                            self._early, self._all, self._exclude)
 
     def _subscribe(self, topic: str, type_name: str, publishers: list[Any]) -> None:
         """Subscribe ``topic``; with ``publishers`` (discovered) the QoS is chosen to match
@@ -343,16 +358,6 @@ class Recorder(Node):
         # After SIGINT the context is gone: log without the /rosout publisher.
         rclpy.logging.get_logger('rigid_body_sim.recorder').info(
             f'wrote {sum(counts.values())} messages to {self.writer.directory}: {counts}')
-
-
-def _latched(publishers) -> bool:
-    """Every publisher (of a non-empty list) offers transient-local durability."""
-    return bool(publishers) and all(p.qos_profile.durability == DurabilityPolicy.TRANSIENT_LOCAL
-                                    for p in publishers)
-
-
-def _hidden(topic: str) -> bool:
-    return any(part.startswith('_') for part in topic.split('/'))
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -2,10 +2,11 @@
 and commands on the node's own topics routed to them. A mixin of the node
 (``simulator.py``); ``engine/fleet.py`` says how a scene declares them, ``spacecraft.py``
 what one is."""
-from ..engine import NS, fleet
+from ..engine import NS, fleet, lockstep
 from ..engine.config import seconds_to_ns
 from ..scene import SceneError
 from .spacecraft import Spacecraft, check_parameters as check_craft
+from .usage import ros_arguments
 
 
 def check_parameters(p, names=None):
@@ -13,9 +14,6 @@ def check_parameters(p, names=None):
     spacecraft of ``names`` (default: the scene's); ValueError(reason, naming the
     spacecraft)."""
     names = [n for n in p.get('spacecraft', []) if n] if names is None else names
-    if names and p['lockstep']:
-        raise ValueError('lockstep: holds the control instants of one spacecraft; a scene '
-                         f'with spacecraft ({", ".join(names)}) runs without it')
     config = check_craft(fleet.node_values(p))
     for name in names:
         try:
@@ -61,11 +59,16 @@ class Fleet:
         if own is not None:
             self._spawned[name] = own
         try:
-            craft = Spacecraft(self, name, self._values(name), start_ns, tf=self._tf_pub,
+            values = self._values(name)
+            # lockstep: its controller's values from the params files, in its namespace
+            controller = None if not values['lockstep'] else self._controller_values \
+                if not name else lockstep.controller_values(
+                    ros_arguments()[0], f'{self.get_namespace().rstrip("/")}/{name}')
+            craft = Spacecraft(self, name, values, start_ns, tf=self._tf_pub,
                                qos=self._qos, state_qos=self._state_qos,
                                on_command=self._on_command, on_actuator=self._on_actuator,
-                               controller=None if name else self._controller_values,
-                               ready=self._actuators_ready)
+                               controller=controller, ready=self._actuators_ready)
+            craft.awaited = lockstep.awaited(values, craft.dipoles is not None, controller)
         except ValueError as exc:
             self._spawned.pop(name, None)
             raise ValueError(f'spacecraft {name}: {exc}' if name else str(exc)) from None
@@ -82,6 +85,7 @@ class Fleet:
         craft = self._crafts.pop(name)
         self._spawned.pop(name, None)
         craft.destroy(self)
+        self._forget_lockstep(name)
 
     @property
     def crafts(self):

@@ -4,6 +4,7 @@ subscribers before t = 0. A mixin of the node (``simulator.py``), which owns the
 import time
 
 from ..engine import NS
+from . import matches
 
 # wait_for_subscribers: the counts must hold this long, as the replies of the peers already
 # running to a new participant's announcement arrive within a few milliseconds of each other
@@ -13,11 +14,35 @@ SUBSCRIBER_SETTLE_S = 0.2
 class Holds:
     """Lockstep (module docstring of ``simulator.py``) and ``wait_for_subscribers``."""
 
-    def _hold(self):
-        """The state of control instant ``_instant`` is out: hold until its command."""
+    def _hold(self) -> bool:
+        """The state of control instant ``_instant`` is out: hold until every command
+        for it (``_awaiting``: (spacecraft name, 'torque' | 'dipole') of each spacecraft in
+        the loop); False, and on to the next instant, if no spacecraft is in the loop."""
+        self._awaiting = {(c.name, kind) for c in self._crafts.values()
+                          for kind in c.awaited}
+        if not self._awaiting:
+            self._instant += self._lockstep
+            return False
         self._held, self._held_since = self._instant, time.monotonic()
         self._paused_reported = False
         self._round_trips.sent()
+        return True
+
+    def _release(self):
+        """Every command of the held instant is applied: on to the next."""
+        self._round_trips.applied()
+        if self._paused_reported:
+            self._log.info(f'lockstep: commands for t = {self._held / NS:.9g} s arrived '
+                           f'after {time.monotonic() - self._held_since:.3g} s; resuming')
+            self._anchor()  # real time: pace on from here, not catching up on the pause
+        self._held, self._instant = None, self._instant + self._lockstep
+
+    def _forget_lockstep(self, name):
+        """Spacecraft ``name`` leaves: the held instant no longer waits for it."""
+        if self._held is not None:
+            self._awaiting = {k for k in self._awaiting if k[0] != name}
+            if not self._awaiting:
+                self._release()
 
     def _check_held(self, now) -> float:
         """Held: after ``lockstep_timeout`` report the pause once (log and diagnostics);
@@ -28,11 +53,17 @@ class Holds:
         if not self._paused_reported:
             self._paused_reported = True
             self._lockstep_pauses += 1
-            self._log.warning(f'lockstep: paused at t = {self._held / NS:.9g} s: no command '
-                              f'stamped {self._held_stamp()} for {self._p["lockstep_timeout"]:g}'
-                              ' s (lockstep_timeout); waiting for it, nothing is extrapolated')
+            self._log.warning(f'lockstep: paused at t = {self._held / NS:.9g} s: no '
+                              f'{self._held_missing()} stamped {self._held_stamp()} for '
+                              f'{self._p["lockstep_timeout"]:g} s (lockstep_timeout); waiting '
+                              'for it, nothing is extrapolated')
             self._publish_diagnostics()
         return 0.1
+
+    def _held_missing(self) -> str:
+        """The commands the held instant still waits for, in words."""
+        return ', '.join(sorted(f'{name + "/" if name else ""}{kind}_command'
+                                for name, kind in self._awaiting))
 
     @property
     def lockstep_held(self):
@@ -40,31 +71,37 @@ class Holds:
         if not self._lockstep or self._held is None:
             return None
         return (f'lockstep holds t = {self._held / NS:.9g} s until the command stamped '
-                f'{self._held_stamp()} arrives')
+                f'{self._held_stamp()} arrives ({self._held_missing()})')
 
     def _held_stamp(self) -> str:
         sec, nsec = divmod(self.stamp_ns(self._held), NS)
         return f'{sec}.{nsec:09d}'
 
-    def _on_lockstep_command(self, header, vector, source):
-        """Apply the command for the held instant; any other is counted and rejected
-        (stale: an instant already answered; unexpected: no instant held with that stamp)."""
+    def _on_lockstep_command(self, craft, header, vector, source, kind='torque'):
+        """Apply ``craft``'s command of ``kind`` for the held instant; any other is counted
+        and rejected by that spacecraft (stale: an instant already answered, or a second
+        command for the held one; unexpected: no instant held with that stamp)."""
         stamp = header.stamp.sec * NS + header.stamp.nanosec
-        if self._held is not None and stamp == self.stamp_ns(self._held):
-            self.engine.apply_command((vector.x, vector.y, vector.z))
-            self._round_trips.applied()
-            if self._paused_reported:
-                self._log.info(f'lockstep: command for t = {self._held / NS:.9g} s arrived '
-                               f'after {time.monotonic() - self._held_since:.3g} s; resuming')
-                self._anchor()  # real time: pace on from here, not catching up on the pause
-            self._held, self._instant = None, self._instant + self._lockstep
+        key = (craft.name, kind)
+        check = craft.dipoles if kind == 'dipole' else craft.commands
+        held = self._held is not None and stamp == self.stamp_ns(self._held)
+        if held and key in self._awaiting:
+            value = (vector.x, vector.y, vector.z)
+            if kind == 'dipole':
+                craft.engine.apply_dipole_command(value)
+            else:
+                craft.engine.apply_command(value)
+            self._awaiting.discard(key)
+            if not self._awaiting:
+                self._release()
             return
         last = self.stamp_ns(self._instant - self._lockstep)
-        reason = 'lockstep_stale' if stamp <= last else 'lockstep_unexpected'
-        held = f'the held instant\'s stamp is {self._held_stamp()}' if self._held is not None \
-            else 'no control instant is held'
-        self.crafts[0].commands.reject(reason, source, f'stamp {header.stamp.sec}.'
-                              f'{header.stamp.nanosec:09d}: {held}')
+        reason = 'lockstep_stale' if held or stamp <= last else 'lockstep_unexpected'
+        why = 'answered already' if held else (
+            f'the held instant\'s stamp is {self._held_stamp()}' if self._held is not None
+            else 'no control instant is held')
+        check.reject(reason, source, f'stamp {header.stamp.sec}.{header.stamp.nanosec:09d}: '
+                     f'{why}')
 
     def _lockstep_values(self) -> dict:
         held = self._held is not None
@@ -72,29 +109,52 @@ class Holds:
                 'lockstep_held_since_s': time.monotonic() - self._held_since if held else 0.0,
                 'lockstep_pauses': self._lockstep_pauses, **self._round_trips.values()}
 
-    def _controller_ready(self, pubs) -> bool:
-        """A command topic has a matched publisher whose node this process has seen
-        subscribe to a state topic: the controller is discovered, so the rule that every
-        discovered subscription be matched now covers its state subscriptions too (the
-        subscriber count alone is met by a recorder while the controller is still unknown,
-        and the controller then misses the first samples under load)."""
+    def _controllers_missing(self, pubs) -> list:
+        """The command topics still without a controller: one with a matched publisher
+        whose node this process has seen subscribe to a state topic, so that the rule that
+        every discovered subscription be matched now covers its state subscriptions too
+        (the subscriber count alone is met by a recorder while the controller is still
+        unknown, and the controller then misses the first samples under load). In
+        lockstep, each command each spacecraft in the loop owes (torque_command or
+        wrench_command; dipole_command); else (wait_for_controller) any one."""
+        state = {p.topic_name for p in pubs}
+        if not self._lockstep:
+            subs = self._command_subs + [s for c in self._crafts.values()
+                                         for s in c.command_subs]
+            return [] if any(self._has_controller(s, state) for s in subs) else \
+                [self._command_subs[0].topic_name]
+        missing = []
+        for craft in self._crafts.values():
+            subs = craft.command_subs + ([] if craft.name else self._command_subs)
+            for kind in craft.awaited:
+                topics = ('/dipole_command',) if kind == 'dipole' else \
+                    ('/torque_command', '/wrench_command')
+                own = [s for s in subs if s.topic_name.endswith(topics)]
+                if not any(self._has_controller(s, state) for s in own):
+                    missing.append(own[0].topic_name)
+        return missing
+
+    def _has_controller(self, sub, state) -> bool:
         from rclpy._rclpy_pybind11 import RCLError
         from rclpy.node import NodeNameNonExistentError
-        state = {p.topic_name for p in pubs}
-        subs = self._command_subs + [s for c in self._crafts.values() for s in c.command_subs]
-        for sub in subs:
-            if not sub.get_publisher_count():
+        if not sub.get_publisher_count():
+            return False
+        for info in self.get_publishers_info_by_topic(sub.topic_name):
+            ns = info.node_namespace  # may come without its leading '/'
+            try:
+                topics = self.get_subscriber_names_and_types_by_node(
+                    info.node_name, ns if ns.startswith('/') else '/' + ns)
+            except (NodeNameNonExistentError, RCLError):  # gone, or not a ROS node
                 continue
-            for info in self.get_publishers_info_by_topic(sub.topic_name):
-                ns = info.node_namespace  # may come without its leading '/'
-                try:
-                    topics = self.get_subscriber_names_and_types_by_node(
-                        info.node_name, ns if ns.startswith('/') else '/' + ns)
-                except (NodeNameNonExistentError, RCLError):  # gone, or not a ROS node
-                    continue
-                if any(name in state for name, _ in topics):
-                    return True
+            if any(name in state for name, _ in topics):
+                return True
         return False
+
+    def _lockstep_command_subs(self):
+        """The command subscriptions whose commands lockstep waits for."""
+        return [s for c in self._crafts.values()
+                for s in c.command_subs + ([] if c.name else self._command_subs)
+                if s.topic_name.endswith(('/torque_command', '/dipole_command'))]
 
     def _wait_for_subscribers(self, executor):
         """Hold t = 0 until every state publisher has ``wait_for_subscribers`` matched
@@ -110,11 +170,13 @@ class Holds:
         def missing():
             """Topics with fewer than n matched subscriptions, or with one discovered but
             not matched yet (discovery delivers a node's subscriptions one by one); with a
-            controller awaited, also a command topic without one (_controller_ready)."""
+            controller awaited, also a command topic without one (_controllers_missing)."""
             return [p.topic_name for p in pubs if p.get_subscription_count() < max(
                 n, len(self.get_subscriptions_info_by_topic(p.topic_name)))] + (
-                [self._command_subs[0].topic_name]
-                if controller and not self._controller_ready(pubs) else [])
+                self._controllers_missing(pubs) if controller else []) + (
+                reports.unmatched(self._lockstep_command_subs()) if self._lockstep else [])
+        # lockstep: recorders must have matched the controllers (matches.py: why)
+        reports = matches.Reports(self)
         timeout = self._p['wait_for_subscribers_timeout']
         self._log.info(f'waiting up to {timeout:g} s for {n} matched subscription(s) on each '
                        f'of {len(pubs)} state topics before t = 0 (wait_for_subscribers)'
@@ -132,6 +194,7 @@ class Holds:
             executor.spin_once(timeout_sec=0.02)
         self.paused = paused
         left = missing()
+        reports.close()  # read before t = 0 only
         if left:
             self._log.warning(f'starting at t = 0 without {n} subscription(s) on '
                               f'{", ".join(left)} after {timeout:g} s (wait_for_subscribers); '

@@ -85,7 +85,8 @@ def diagnostics(sim) -> DiagnosticArray:
         level, message = 'ERROR', f'stopped: {sim._fault}'
     elif sim._lockstep and sim._held is not None and sim._paused_reported:
         level, message = 'WARN', (f'lockstep: paused at t = {sim._held / NS:.9g} s, '
-                                  f'waiting for the command stamped {sim._held_stamp()}')
+                                  f'waiting for {sim._held_missing()} stamped '
+                                  f'{sim._held_stamp()}')
     elif not crafts:
         level, message = 'WARN', (f'running without spacecraft (all deleted), t = '
                                   f'{t_ns / NS:.3f} s; spawn one with spawn_entity')

@@ -32,7 +32,9 @@ Lockstep (``lockstep: true``, ``engine/lockstep.py``). The engine never advances
 control instant (a multiple of the ``control_rate`` period in sim time) until the command
 stamped with that instant's state stamp has been applied there; it reports a pause after
 ``lockstep_timeout`` and keeps waiting. Whatever the pacing and the load, the run is then
-the offline run's. It holds one spacecraft: a fleet runs without it.
+the offline run's. With several spacecraft it holds each instant until every spacecraft
+in the loop (``<name>.lockstep``) has answered, each on its own topics; with a B-dot
+controller the dipole_command too (``lockstep.awaited``).
 """
 import sys
 import time
@@ -154,6 +156,7 @@ class Simulator(Control, Fleet, Holds, Node):
         # advance), when its hold began (wall), whether its pause was reported
         self._lockstep = lockstep.period_ns(self._p) if self._p['lockstep'] else 0
         self._instant, self._held, self._held_since, self._paused_reported = 0, None, 0.0, False
+        self._awaiting = set()  # (spacecraft name, kind) the held instant still waits for
         self._lockstep_pauses = 0
         self._round_trips = lockstep.RoundTrips()
         self._base_stamp(self.get_clock().now().nanoseconds)
@@ -240,8 +243,8 @@ class Simulator(Control, Fleet, Holds, Node):
                     self._log.info(f'{craft.prefix}integrator {e}, step '
                                    f'{craft.engine.step_max:.6g} s ({craft.engine.reason})')
             engine = live[0].engine
-            if self._lockstep and engine.t_ns == self._instant and not engine.finished:
-                self._hold()
+            if self._lockstep and engine.t_ns == self._instant and not engine.finished \
+                    and self._hold():
                 break
             if (len(block) < LIVE_BLOCK if single else target >= until_ns) or \
                     time.monotonic() > deadline:
@@ -423,7 +426,8 @@ class Simulator(Control, Fleet, Holds, Node):
     # ------------------------------------------------------------------ inputs
     def _on_command(self, craft, header, vector, source, dipole=False):
         """A torque command, or with ``dipole`` the magnetorquers' (dipole_command): the
-        same checks, counted apart; a dipole is held outside lockstep's handshake."""
+        same checks, counted apart; in lockstep, what the held instant awaits
+        (``craft.awaited``) goes through its handshake."""
         engine = craft.engine
         if self._fault or engine.finished:
             return
@@ -431,8 +435,9 @@ class Simulator(Control, Fleet, Holds, Node):
         now = self.stamp_ns(engine.t_ns) if self._started else None  # None: before t = 0
         if not check.accept(header, vector, source, now):
             return
-        if self._lockstep and not dipole:
-            return self._on_lockstep_command(header, vector, source)
+        kind = 'dipole' if dipole else 'torque'
+        if self._lockstep and kind in craft.awaited:
+            return self._on_lockstep_command(craft, header, vector, source, kind)
         self._catch_up()  # what was due before the arrival runs with the previous command
         apply = engine.apply_dipole_command if dipole else engine.apply_command
         apply((vector.x, vector.y, vector.z))
