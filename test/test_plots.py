@@ -41,9 +41,22 @@ def figures_of(name, tmp_path):
         s, r.body, str(tmp_path), name, free_until(s.t, s.torque), sc)}
 
 
+@pytest.fixture(scope='module')
+def figures(tmp_path_factory):
+    """``figures_of(name)``, run and drawn once a scene for the module: each scene's figures
+    were checked by two tests (units, then its law), which only read them."""
+    made = {}
+
+    def get(name):
+        if name not in made:
+            made[name] = figures_of(name, tmp_path_factory.mktemp(name))
+        return made[name]
+    return get
+
+
 @pytest.mark.parametrize('name', sorted(EXPECTED))
-def test_figures_exist_with_units_on_every_axis(name, tmp_path):
-    _, _, figs = figures_of(name, tmp_path)
+def test_figures_exist_with_units_on_every_axis(name, figures):
+    _, _, figs = figures(name)
     assert set(figs) == EXPECTED[name]
     for fname, fig in figs.items():
         assert os.path.getsize(fig.path) > 10_000, fname
@@ -64,16 +77,16 @@ def test_figures_exist_with_units_on_every_axis(name, tmp_path):
         assert [y for _, y in inv.axes] == ['T [J]', '|L|/|L₀| − 1 [1]']
 
 
-def test_tennis_racket_figure_draws_the_elliptic_flip_interval(tmp_path):
-    _, _, figs = figures_of('tennis_racket', tmp_path)
+def test_tennis_racket_figure_draws_the_elliptic_flip_interval(figures):
+    _, _, figs = figures('tennis_racket')
     v = figs['flips.png'].values
     measured, predicted = v['flip_interval']
     assert v['flips'] >= 4
     assert measured == pytest.approx(predicted, rel=5e-3)
 
 
-def test_symmetric_top_figure_draws_both_cone_rates(tmp_path):
-    sc, _, figs = figures_of('symmetric_top', tmp_path)
+def test_symmetric_top_figure_draws_both_cone_rates(figures):
+    sc, _, figs = figures('symmetric_top')
     v = figs['precession.png'].values
     inertia = np.asarray(sc.simulator['inertia'])
     w = np.asarray(sc.simulator['initial_angular_velocity'])
@@ -85,8 +98,8 @@ def test_symmetric_top_figure_draws_both_cone_rates(tmp_path):
         assert v[key][0] == pytest.approx(v[key][1], rel=1e-3)
 
 
-def test_rigid_earth_figure_marks_the_304_day_wobble(tmp_path):
-    _, _, figs = figures_of('rigid_earth', tmp_path)
+def test_rigid_earth_figure_marks_the_304_day_wobble(figures):
+    _, _, figs = figures('rigid_earth')
     v = figs['precession.png'].values
     measured, predicted = (p / analytic.SIDEREAL_DAY for p in v['wobble_period'])
     assert predicted == pytest.approx(304.46, rel=1e-4)
@@ -95,8 +108,8 @@ def test_rigid_earth_figure_marks_the_304_day_wobble(tmp_path):
     assert any('arcsec' in x for x, _ in figs['precession.png'].axes)
 
 
-def test_explorer1_figure_follows_the_nutation_law(tmp_path):
-    sc, s, figs = figures_of('explorer1', tmp_path)
+def test_explorer1_figure_follows_the_nutation_law(figures):
+    sc, s, figs = figures('explorer1')
     v = figs['nutation.png'].values
     assert v['nutation_max_error_deg'][0] < 0.1
     i_s, i_t = sc.simulator['inertia'][:2]
@@ -107,11 +120,11 @@ def test_explorer1_figure_follows_the_nutation_law(tmp_path):
     assert T0 == pytest.approx(79.0, rel=0.01) and T1 == pytest.approx(15.8, rel=0.01)
 
 
-def test_gravity_gradient_figure_draws_the_libration_frequencies(tmp_path):
+def test_gravity_gradient_figure_draws_the_libration_frequencies(figures):
     """Pitch at n·√(3(I_x − I_z)/I_y) within 2e-3 (as test_scenes: the 0.05 rad amplitude
     shifts it), the fast roll–yaw root within 5e-3 and the slow one within 5 % (2.3 of its
     periods in the run, and the pitch couples into it at this amplitude)."""
-    sc, _, figs = figures_of('gravity_gradient', tmp_path)
+    sc, _, figs = figures('gravity_gradient')
     v = figs['libration.png'].values
     n = math.sqrt(orbit.MU / sc.simulator['orbit.semi_major_axis'] ** 3)
     ix, iy, iz = sc.simulator['inertia']
@@ -124,11 +137,11 @@ def test_gravity_gradient_figure_draws_the_libration_frequencies(tmp_path):
     assert high_m == pytest.approx(high, rel=5e-3) and low_m == pytest.approx(low, rel=5e-2)
 
 
-def test_default_free_phase_shows_one_full_flip_then_the_predicted_control(tmp_path):
+def test_default_free_phase_shows_one_full_flip_then_the_predicted_control(figures):
     """free_time (default.yaml) is derived from the flip: after the first sign change t₁
     of ω_mid plus half the flip interval (ω_mid at its opposite extreme) and before the
     next flip back (t₁ + 2K/λ)."""
-    sc, s, figs = figures_of('default', tmp_path)
+    sc, s, figs = figures('default')
     free_time = sc.controller['mission.free_time']
     moments = np.asarray(sc.simulator['inertia'])
     interval = analytic.flip_interval(moments, sc.simulator['initial_angular_velocity'])
@@ -144,8 +157,8 @@ def test_default_free_phase_shows_one_full_flip_then_the_predicted_control(tmp_p
 
 
 @pytest.mark.parametrize('name', ['slew', 'detumble'])
-def test_control_figures_follow_the_prediction(name, tmp_path):
-    _, _, figs = figures_of(name, tmp_path)
+def test_control_figures_follow_the_prediction(name, figures):
+    _, _, figs = figures(name)
     v = figs['control.png'].values
     if name == 'slew':
         assert v['slew_max_error_deg'][0] < 1.0

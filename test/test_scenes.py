@@ -17,14 +17,15 @@ from rigid_body_sim.scene import SceneError, list_scenes, load
 CLI = os.path.join(os.path.dirname(sys.executable), 'rigid-body-sim')
 # Scenes are discovered from config/: a new scene file is tested with no code change.
 BUILT_IN = tuple(name for name, _, _ in list_scenes())
+_SCENE = {n: load(n) for n in BUILT_IN}  # loaded once: every worker collects this module
 # a scene with several spacecraft runs live only (test_fleet); these run offline too
-ONE_BODY = tuple(n for n in BUILT_IN if not load(n).spacecraft)
-TORQUE_FREE = tuple(n for n in ONE_BODY if not load(n).controlled
-                    and load(n).simulator['dissipation.model'] == 'none'
-                    and not load(n).simulator['environment.gravity_gradient'])
+ONE_BODY = tuple(n for n in BUILT_IN if not _SCENE[n].spacecraft)
+TORQUE_FREE = tuple(n for n in ONE_BODY if not _SCENE[n].controlled
+                    and _SCENE[n].simulator['dissipation.model'] == 'none'
+                    and not _SCENE[n].simulator['environment.gravity_gradient'])
 # scenes with wheels/CMGs run the gyrostat method whatever the integrator (test_actuators)
-ACTUATED = {n for n in BUILT_IN if load(n).simulator['actuators.wheels.axes']
-            or load(n).simulator['actuators.cmgs.cluster'] != 'none'}
+ACTUATED = {n for n in BUILT_IN if _SCENE[n].simulator['actuators.wheels.axes']
+            or _SCENE[n].simulator['actuators.cmgs.cluster'] != 'none'}
 
 
 def test_scenes_command_lists_every_builtin_scene_on_one_line():
