@@ -13,8 +13,8 @@ DEMO_DURATION ?= 40
 DEMO_OUT    ?= out/demo
 PYTEST_ARGS ?=
 # Parallel test workers (pytest-xdist). Most ROS tests wait on real-time runs and node
-# start-ups, so four workers keep two cores busy (987 tests: 5:58 with 4, 6:39 with 3 on
-# this 2-core machine, quiet); each worker has its own ROS domain.
+# start-ups, so four workers keep two cores busy (~1.9 of 2 on this machine, quiet: the
+# suite is CPU-bound at four); each worker has its own ROS domain.
 TEST_WORKERS ?= 4
 SETUP_LOG   ?= out/setup.log
 NODES       := simulator controller recorder replay viewer
@@ -72,16 +72,16 @@ $(STAMP): requirements.txt requirements-peers.txt setup.py setup.cfg package.xml
           .ci/make_venv.sh .ci/step.sh .ci/build_interfaces.sh .ci/wheel_cmake_paths.cmake $(INTERFACES)
 	@echo "setting up $(VENV) (once; the details go to $(SETUP_LOG))"
 	@rm -f $(SETUP_LOG)
-	@sh .ci/step.sh $(SETUP_LOG) "setup 1/5: Python virtual environment" sh .ci/make_venv.sh $(VENV)
-	@sh .ci/step.sh $(SETUP_LOG) "setup 2/5: dependencies (ROS 2 Jazzy wheels, numpy, scipy, numba, ...)" \
+	@sh .ci/step.sh $(SETUP_LOG) "setup 1/6: Python virtual environment" sh .ci/make_venv.sh $(VENV)
+	@sh .ci/step.sh $(SETUP_LOG) "setup 2/6: dependencies (ROS 2 Jazzy wheels, numpy, scipy, numba, ...)" \
 	  $(VENV)/bin/pip install --disable-pip-version-check -q -r requirements.txt
-	@sh .ci/step.sh $(SETUP_LOG) "setup 2/5: the bench's peer (Basilisk, bsk; its pins clash with ours)" \
+	@sh .ci/step.sh $(SETUP_LOG) "setup 3/6: the bench's peer (Basilisk, bsk; its pins clash with ours)" \
 	  $(VENV)/bin/pip install --disable-pip-version-check -q --no-deps -r requirements-peers.txt
-	@sh .ci/step.sh $(SETUP_LOG) "setup 3/5: this package (editable) and its ament layout" \
+	@sh .ci/step.sh $(SETUP_LOG) "setup 4/6: this package (editable) and its ament layout" \
 	  $(MAKE) --no-print-directory ament-layout
-	@sh .ci/step.sh $(SETUP_LOG) "setup 4/5: message interfaces (tf2_msgs, simulation_interfaces)" \
+	@sh .ci/step.sh $(SETUP_LOG) "setup 5/6: message interfaces (tf2_msgs, simulation_interfaces)" \
 	  sh .ci/build_interfaces.sh $(VENV)
-	@sh .ci/step.sh $(SETUP_LOG) "setup 5/5: compiling the step kernels (numba, cached on disk)" \
+	@sh .ci/step.sh $(SETUP_LOG) "setup 6/6: compiling the step kernels (numba, cached on disk)" \
 	  $(PY) -m rigid_body_sim.compiled
 	@touch $@
 
