@@ -58,13 +58,19 @@ def off():
 @jit
 def eccentric_anomaly(mean_anomaly, e):
     """E with M = E − e sin E (Kepler's equation) by Newton's method from E0 = M + e sin M,
-    M first reduced to [−π, π); converges in a few iterations for e < 0.9."""
+    M first reduced to [−π, π); converges in a few iterations for e < 0.9.
+
+    It stops once the step taken leaves at most KEPLER_TOL/2: Newton's error after a step
+    δ is ≤ max|f''|/(2 min|f'|)·δ² ≤ e·δ²/(2(1 − e)) (f = E − e sin E − M), so the
+    iteration that would only confirm convergence (a step below 1e-15, two of the ~11
+    sines and cosines of an orbit position) is not run. A circular orbit stops at once
+    (E0 = M, its step is 0)."""
     m = mean_anomaly - TWO_PI * math.floor(mean_anomaly / TWO_PI + 0.5)
     big_e = m + e * math.sin(m)
     for _ in range(KEPLER_MAX_ITER):
         step = (big_e - e * math.sin(big_e) - m) / (1.0 - e * math.cos(big_e))
         big_e -= step
-        if abs(step) <= KEPLER_TOL:
+        if abs(step) <= KEPLER_TOL or e * step * step <= (1.0 - e) * KEPLER_TOL:
             break
     return big_e
 
@@ -175,10 +181,9 @@ def radial(env, t):
 
 
 @inline
-def _in_body(q, ux, uy, uz, r, env):
-    """(ĉ x, y, z, 3μ/r³): the radial unit vector (ux, uy, uz) at radius r in the frame of
-    q (principal → inertial, so ĉ = q⁻¹ r̂ q; q normalised here: the RK loops' stages are
-    not unit) and the gradient's factor."""
+def to_body(q, ux, uy, uz):
+    """q⁻¹ u q: an inertial vector in the frame of q (principal → inertial; q normalised
+    here: the RK loops' stages are not unit). The radial vector's and the field's."""
     x, y, z, w = q[0], q[1], q[2], q[3]
     s = 1.0 / (x * x + y * y + z * z + w * w)
     c0 = ((1.0 - 2.0 * s * (y * y + z * z)) * ux + 2.0 * s * (x * y + w * z) * uy
@@ -187,6 +192,14 @@ def _in_body(q, ux, uy, uz, r, env):
           + 2.0 * s * (y * z + w * x) * uz)
     c2 = (2.0 * s * (x * z + w * y) * ux + 2.0 * s * (y * z - w * x) * uy
           + (1.0 - 2.0 * s * (x * x + y * y)) * uz)
+    return c0, c1, c2
+
+
+@inline
+def _in_body(q, ux, uy, uz, r, env):
+    """(ĉ x, y, z, 3μ/r³): the radial unit vector (ux, uy, uz) at radius r in the frame of
+    q (:func:`to_body`) and the gradient's factor."""
+    c0, c1, c2 = to_body(q, ux, uy, uz)
     return c0, c1, c2, 3.0 * env[MU] / (r * r * r)
 
 
