@@ -103,6 +103,8 @@ def test_bad_grid_is_refused():
     sol = TorqueFreeSolution((1.0, 2.0, 3.0), (0.0, 0.0, 0.0, 1.0), (0.1, 1.0, 0.2))
     with pytest.raises(ValueError, match='dt > 0'):
         sol.at_grid(np.arange(10.0), 0.0)
+    with pytest.raises(ValueError, match=r'out must be \(10, 4\)'):
+        sol.at_grid(np.arange(10.0), 0.1, out=(np.empty((9, 4)), np.empty((10, 3))))
     with pytest.raises(ValueError, match='one body'):
         TorqueFreeSolution((1.0, 2.0, 3.0), (0.0, 0.0, 0.0, 1.0),
                            ((0.1, 1.0, 0.2), (0.2, 0.1, 1.0))).at_grid(np.arange(10.0), 0.1)

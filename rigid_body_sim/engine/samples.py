@@ -188,13 +188,6 @@ class BlockBuilder:
             self._dipole[i] = dipole
         self.n += 1
 
-    def add_many(self, t_ns, q, m):
-        """Torque-free rows (e.g. the exact flow evaluated at many instants)."""
-        k = len(t_ns)
-        s = slice(self.n, self.n + k)
-        self._t[s], self._q[s], self._m[s], self._tau[s] = t_ns, q, m, 0.0
-        self.n += k
-
     def columns(self, cap: int):
         """(t ns, q, m, τ body) of rows [0, cap), views that a compiled loop fills from row
         ``n`` on (the caller then counts the rows it wrote into ``n``)."""

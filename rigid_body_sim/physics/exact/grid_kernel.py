@@ -30,7 +30,7 @@ from .. import jit as jit_settings
 from . import constants as exact_constants, double_double, elliptic_kernel, kernel as exact_kernel
 from .double_double import dd_add, dd_mul_d, reduce_4pi
 from .elliptic_kernel import ellipj, rf, rj
-from .kernel import (C, CPHI, ELLIPTIC, KIND, KP2, LAM_H, LAM_L, MX, MY, MZ, N, P0, R0_H, R0_L,
+from .kernel import (C, CPHI, ELLIPTIC, G, KIND, KP2, LAM_H, LAM_L, MX, MY, MZ, N, P0, R0_H, R0_L,
                      S, SIGD, U0, W, WC, _qmul, _reduced, _secular, evaluate_into)
 from ..jit import depends_on, jit
 import numpy as np
@@ -147,15 +147,24 @@ def _onto(c, st):
 
 
 @jit
-def _write(c, st, q, m):
-    """q (4,), m (3,) ← the attitude and momentum of the state ``st`` (:func:`_hop`)."""
+def _write(c, st, ig, q, m):
+    """q (4,), m (3,) ← the attitude and momentum of the state ``st`` (:func:`_hop`);
+    ig = 1/G."""
     sw, cw, dw, cp, sp, ca, sa = st
     sg = c[S]
     cs, ss = (ca + sg * sa) * _RH, (ca - sg * sa) * _RH   # ψ/2 = π/4 − s(A + δ)/2
     mx = c[MX] * cw
     my = sg * c[MY] * sw
     mz = c[SIGD] * c[MZ] * dw
-    ct, st = _half(mz, math.sqrt(mx * mx + my * my))                # θ/2
+    # θ/2 from cos θ = m_z/G (|m| = G to round-off: the half-angles' norm is 1 to an ulp
+    # and q is normalised below), sin θ = |m_xy|/G ≥ 0
+    cx = mz * ig
+    if cx >= 0.0:
+        ct = math.sqrt(0.5 * (1.0 + cx))
+        st = 0.5 * (math.sqrt(mx * mx + my * my) * ig) / ct
+    else:
+        st = math.sqrt(0.5 * (1.0 - cx))
+        ct = 0.5 * (math.sqrt(mx * mx + my * my) * ig) / st
     x, y, z, w = st * cs, -st * ss, ct * ss, ct * cs                 # Rx(θ)·Rz(ψ)
     x, y, z, w = _qmul(c[C], c[C + 1], c[C + 2], c[C + 3],
                        cp * x - sp * y, cp * y + sp * x, cp * z + sp * w, cp * w - sp * z)
@@ -197,6 +206,7 @@ def at_grid(c, ts, dt, tab, q, m):
         return
     nn = c[N]
     g = math.sqrt(nn * (1.0 - c[KP2] + nn) * (1.0 + nn))
+    ig = 1.0 / c[G]
     chain = CHAIN if c[KP2] >= CHAIN_KP2 else 1
     a = _anchor(c, ts[h])
     block = 0
@@ -208,7 +218,7 @@ def at_grid(c, ts, dt, tab, q, m):
         else:                                            # from the previous block's anchor
             a = _onto(c, _hop(c, _hop(c, a, tab, 2 * h + 1, g), tab, 2 * h + 2, g))
         for k in range(first, last + 1):
-            _write(c, _hop(c, a, tab, k - centre + h + 1, g), q[k], m[k])
+            _write(c, _hop(c, a, tab, k - centre + h + 1, g), ig, q[k], m[k])
         block += 1
 
 

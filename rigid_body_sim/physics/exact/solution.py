@@ -215,12 +215,13 @@ class TorqueFreeSolution(NumpyPath):
         exact_kernel.evaluate(self._rows, body, tt, q, m)
         return q.reshape(shape + (4,)), m.reshape(shape + (3,))
 
-    def at_grid(self, t, dt):
+    def at_grid(self, t, dt, out=None):
         """(q (n, 4), m (n, 3)) of one body at the times t (n,) spaced by dt (s), as a
         sampler's grid (its times rounded to float64 are fine): :meth:`at` of those
         times to round-off (~1e-14 rad; where the problem is ill-conditioned, beside the
         separatrix, both as far from the 40-digit reference), in ~1/8 of its time
-        (:mod:`.grid_kernel`). Where the grid does not apply, :meth:`at` itself."""
+        (:mod:`.grid_kernel`). Where the grid does not apply, :meth:`at` itself.
+        ``out``: (q, m) arrays of those shapes to write into (returned)."""
         if self.batch_shape:
             raise ValueError(f'at_grid takes one body, this solution has {self.batch_shape}')
         t = np.ascontiguousarray(t, dtype=float)
@@ -232,7 +233,10 @@ class TorqueFreeSolution(NumpyPath):
             h = grid_kernel.half_width(self._row0, dt)
             self._grid = (dt, grid_kernel.offsets(self._row0, dt, h) if h >= 2 else
                           np.empty((0, 5)))
-        q, m = np.empty((len(t), 4)), np.empty((len(t), 3))
+        q, m = (np.empty((len(t), 4)), np.empty((len(t), 3))) if out is None else out
+        if q.shape != (len(t), 4) or m.shape != (len(t), 3):
+            raise ValueError(f'at_grid out must be ({len(t)}, 4) and ({len(t)}, 3) arrays, got '
+                             f'{q.shape} and {m.shape}')
         grid_kernel.at_grid(self._row0, t, dt, self._grid[1], q, m)
         return q, m
 
