@@ -477,8 +477,13 @@ class Engine:
             return 0
         times = self._next_sample + p * np.arange(k, dtype=np.int64)
         t0, solution = self._anchored()
-        q, m = solution.at((times - t0) / NS)
-        self._builder.add_many(times, q, m)
+        # a grid: by addition theorems from an evaluation every few samples (grid_kernel),
+        # written straight into the block's rows
+        b = self._builder
+        t_col, q_col, m_col, tau_col = b.columns(b.n + k)
+        q, m = solution.at_grid((times - t0) / NS, p / NS, out=(q_col[b.n:], m_col[b.n:]))
+        t_col[b.n:], tau_col[b.n:] = times, 0.0
+        b.n += k
         self._q, self._m = q[-1].copy(), m[-1].copy()
         self.t_ns = int(times[-1])
         self._next_sample = self.t_ns + p

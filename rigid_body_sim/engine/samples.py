@@ -191,13 +191,6 @@ class BlockBuilder:
             self._dipole[i] = dipole
         self.n += 1
 
-    def add_many(self, t_ns, q, m):
-        """Torque-free rows (e.g. the exact flow evaluated at many instants)."""
-        k = len(t_ns)
-        s = slice(self.n, self.n + k)
-        self._t[s], self._q[s], self._m[s], self._tau[s] = t_ns, q, m, 0.0
-        self.n += k
-
     def fill_dipole(self, start: int, dipole) -> None:
         """Rows [start, n) written by a compiled loop held ``dipole`` (body frame, A·m²)."""
         if self._dipole is None:

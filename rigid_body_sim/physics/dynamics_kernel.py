@@ -295,7 +295,45 @@ def _environment(q, t, env, moments, dm):
     kick_environment(q, t, env, moments, dm, 1.0)
 
 
+@inline
+def orbit_at(env, t, fr):
+    """The orbit's (r̂ x, y, z, r) at t when the gravity gradient is on (``fr``:
+    ``orbit_kernel.frame``), else a placeholder the kicks below do not read."""
+    if env[orbit_kernel.ON] != 0.0:
+        return orbit_kernel.radial_framed(env, t, fr)
+    return 0.0, 0.0, 0.0, 1.0
+
+
+@inline
+def kick_environment_at(q, t, env, moments, m, s, rad):
+    """:func:`kick_environment` with the orbit at t given (:func:`orbit_at`), the same
+    numbers: a loop evaluating several attitudes at one instant evaluates the orbit once."""
+    if env[orbit_kernel.ON] != 0.0:
+        gx, gy, gz = orbit_kernel.gravity_gradient_at(q, rad[0], rad[1], rad[2], rad[3], env,
+                                                      moments)
+        m[0] = m[0] + s * gx
+        m[1] = m[1] + s * gy
+        m[2] = m[2] + s * gz
+    if env[orbit_kernel.MAG_MODEL] != 0.0:
+        bx, by, bz = magnetic_kernel.magnetorquer_torque(q, t, env)
+        m[0] = m[0] + s * bx
+        m[1] = m[1] + s * by
+        m[2] = m[2] + s * bz
+    if env[orbit_kernel.SRP_ON] != 0.0 or env[orbit_kernel.DRAG_ON] != 0.0:
+        fx, fy, fz = facets_kernel.facets_torque(q, t, env)
+        m[0] = m[0] + s * fx
+        m[1] = m[1] + s * fy
+        m[2] = m[2] + s * fz
+
+
+@jit
+def _environment_at(q, t, env, moments, dm, rad):
+    """:func:`_environment` with the orbit at t given (:func:`orbit_at`)."""
+    kick_environment_at(q, t, env, moments, dm, 1.0, rad)
+
+
 # they embed the terms' kernels
+_environment_at = depends_on(_environment_at, orbit_kernel, magnetic_kernel, facets_kernel)
 environment_torque = depends_on(environment_torque, orbit_kernel, magnetic_kernel,
                                 facets_kernel)
 environment_torque_full = depends_on(environment_torque_full, orbit_kernel, magnetic_kernel,

@@ -16,7 +16,7 @@ by ``jit`` (NUMBA_DISABLE_JIT=1 runs it as Python).
 """
 import math
 
-from ..jit import jit
+from ..jit import depends_on, jit
 from ..orbit import kernel as k
 
 MU0_OVER_4PI = 1e-7  # T·m/A
@@ -56,12 +56,10 @@ def magnetorquer_torque(q, t, env):
     if mx == 0.0 and my == 0.0 and mz == 0.0:
         return 0.0, 0.0, 0.0
     ux, uy, uz = field_world(t, env)
-    x, y, z, w = q[0], q[1], q[2], q[3]
-    s = 1.0 / (x * x + y * y + z * z + w * w)
-    b0 = ((1.0 - 2.0 * s * (y * y + z * z)) * ux + 2.0 * s * (x * y + w * z) * uy
-          + 2.0 * s * (x * z - w * y) * uz)
-    b1 = (2.0 * s * (x * y - w * z) * ux + (1.0 - 2.0 * s * (x * x + z * z)) * uy
-          + 2.0 * s * (y * z + w * x) * uz)
-    b2 = (2.0 * s * (x * z + w * y) * ux + 2.0 * s * (y * z - w * x) * uy
-          + (1.0 - 2.0 * s * (x * x + y * y)) * uz)
+    b0, b1, b2 = k.to_body(q, ux, uy, uz)          # the gravity gradient's rotation
     return my * b2 - mz * b1, mz * b0 - mx * b2, mx * b1 - my * b0
+
+
+# they call the orbit's position and its rotation to the body (see jit.depends_on)
+for _kernel in (field_world, magnetorquer_torque):
+    depends_on(_kernel, k)

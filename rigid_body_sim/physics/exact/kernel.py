@@ -60,6 +60,39 @@ def _qmul(px, py, pz, pw, qx, qy, qz, qw):
 
 
 @jit
+def _reduced(c, uh, ul):
+    """u = (uh, ul) = 2jK + r, |r| ≤ K: (sn, cn, dn of r, j, P_r(r)) of an elliptic row."""
+    nn = c[N]
+    kk = c[KF]
+    rh, rl, j = dd_reduce(uh, ul, c[TK_H], c[TK_L])      # u = 2jK + r, |r| ≤ K
+    r = rh + rl
+    near = abs(r) > 0.5 * kk
+    if near:                                             # quarter-period identities at K − |r|
+        sg = 1.0 if r >= 0.0 else -1.0
+        xh, xl = dd_add(c[K_H], c[K_L], -sg * rh, -sg * rl)
+        x = xh + xl
+    else:
+        x = abs(r)
+    kp = c[KP]
+    sv, cv, dv, _ = ellipj(x, 1.0 - c[KP2], c[KP2])
+    sn = math.copysign(cv / dv if near else sv, r)
+    cn = kp * sv / dv if near else cv
+    dn = kp / dv if near else dv
+    s2 = sn * sn
+    p = sn * rf(cn * cn, dn * dn, 1.0) - (nn / 3.0) * sn * s2 * rj(cn * cn, dn * dn, 1.0,
+                                                                   1.0 + nn * s2)
+    return sn, cn, dn, j, p
+
+
+@jit
+def _secular(c, t, j):
+    """(G/Iz)t + j·cphi·2Π(−N|k²) in double-double (φ's part that grows with t)."""
+    sh, sl = dd_mul_d(c[R0_H], c[R0_L], t)
+    ph, pl = dd_mul_d(c[CP_H], c[CP_L], j)
+    return dd_add(sh, sl, ph, pl)
+
+
+@jit
 def _moving(c, t):
     """Working-frame E(t) = Rz(φ)Rx(θ)Rz(ψ) as (x, y, z, w), m_work and P_r (exact.py's
     _moving for one elliptic or separatrix body)."""
@@ -79,25 +112,9 @@ def _moving(c, t):
         psi = math.atan2(mx, my)
         sh, sl = dd_mul_d(c[RS_H], c[RS_L], t)
     else:
-        kk = c[KF]
-        rh, rl, j = dd_reduce(uh, ul, c[TK_H], c[TK_L])  # u = 2jK + r, |r| ≤ K
-        r = rh + rl
-        near = abs(r) > 0.5 * kk
-        if near:                                         # quarter-period identities at K − |r|
-            sg = 1.0 if r >= 0.0 else -1.0
-            xh, xl = dd_add(c[K_H], c[K_L], -sg * rh, -sg * rl)
-            x = xh + xl
-        else:
-            x = abs(r)
-        kp = c[KP]
-        sv, cv, dv, _ = ellipj(x, 1.0 - c[KP2], c[KP2])
-        sn = math.copysign(cv / dv if near else sv, r)
-        cn = kp * sv / dv if near else cv
-        dn = kp / dv if near else dv
+        sn, cn, dn, j, p = _reduced(c, uh, ul)
         s2 = sn * sn
         c2 = cn * cn
-        d2 = dn * dn
-        p = sn * rf(c2, d2, 1.0) - (nn / 3.0) * sn * s2 * rj(c2, d2, 1.0, 1.0 + nn * s2)
         jm2 = j - 2.0 * math.floor(0.5 * j)                # j mod 2, j mod 4 in [0, 2), [0, 4)
         jm4 = j - 4.0 * math.floor(0.25 * j)
         par = 1.0 - 2.0 * jm2
@@ -106,9 +123,7 @@ def _moving(c, t):
         mz = c[SIGD] * c[MZ] * dn
         delta = math.atan2((c[MY] - c[MX]) * sn * cn, c[MX] * c2 + c[MY] * s2)
         psi = 0.5 * math.pi - c[S] * (jm4 * math.pi + math.atan2(sn, cn) + delta)
-        sh, sl = dd_mul_d(c[R0_H], c[R0_L], t)
-        ph, pl = dd_mul_d(c[CP_H], c[CP_L], j)
-        sh, sl = dd_add(sh, sl, ph, pl)
+        sh, sl = _secular(c, t, j)
     phi = reduce_4pi(sh, sl) + c[CPHI] * (p - c[P0])
     theta = math.atan2(math.hypot(mx, my), mz)
     sp, cp = math.sin(0.5 * phi), math.cos(0.5 * phi)
@@ -190,5 +205,6 @@ def anchor_one(c):
     c[C], c[C + 1], c[C + 2], c[C + 3] = _qmul(x, y, z, w, -ex, -ey, -ez, ew)
 
 
-for _kernel in (fill_elliptic, _moving, evaluate_into, evaluate, at_one, at_times, anchor_one):
+for _kernel in (fill_elliptic, _reduced, _secular, _moving, evaluate_into, evaluate, at_one,
+                at_times, anchor_one):
     depends_on(_kernel, double_double, elliptic_kernel, exact_constants, jit_settings)

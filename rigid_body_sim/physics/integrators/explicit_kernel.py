@@ -7,7 +7,7 @@ the right-hand side, evaluated at each stage's instant.
 import numpy as np
 
 from .. import dynamics_kernel
-from ..dynamics_kernel import _environment, _finite, _normalise, _rates
+from ..dynamics_kernel import _environment, _environment_at, _finite, _normalise, _rates, orbit_at
 from ..jit import COMPILED, depends_on, jit
 from ..environment import facets_kernel, magnetic_kernel
 from ..orbit import kernel as orbit_kernel
@@ -47,36 +47,41 @@ def rk4_run(q, m, h, n, moments, tau, model, coefficient, t0, env):
 
 @jit
 def rk4_steps(q, m, h, n, moments, tau, model, coefficient, scratch, t0, env):
-    """rk4_run with caller-owned scratch (10, 4): no allocation per call (see euler_steps)."""
+    """rk4_run with caller-owned scratch (10, 4): no allocation per call (see euler_steps).
+    The orbit is evaluated once per instant (stages 2 and 3 share t + h/2) and its frame
+    once per call (``orbit_kernel.frame``): the same numbers, ~1/3 less work a step."""
     k1q, k2q, k3q, k4q, qs = scratch[0], scratch[1], scratch[2], scratch[3], scratch[4]
     k1m, k2m, k3m, k4m = scratch[5, :3], scratch[6, :3], scratch[7, :3], scratch[8, :3]
     ms = scratch[9, :3]
+    if env is not None:
+        fr = orbit_kernel.frame(env, t0)
     for k in range(n):
         t = t0 + k * h
         _rates(q, m, moments, tau, model, coefficient, k1q, k1m)
         if env is not None:
-            _environment(q, t, env, moments, k1m)
+            _environment_at(q, t, env, moments, k1m, orbit_at(env, t, fr))
         for i in range(4):
             qs[i] = q[i] + 0.5 * h * k1q[i]
         for i in range(3):
             ms[i] = m[i] + 0.5 * h * k1m[i]
         _rates(qs, ms, moments, tau, model, coefficient, k2q, k2m)
         if env is not None:
-            _environment(qs, t + 0.5 * h, env, moments, k2m)
+            mid = orbit_at(env, t + 0.5 * h, fr)
+            _environment_at(qs, t + 0.5 * h, env, moments, k2m, mid)
         for i in range(4):
             qs[i] = q[i] + 0.5 * h * k2q[i]
         for i in range(3):
             ms[i] = m[i] + 0.5 * h * k2m[i]
         _rates(qs, ms, moments, tau, model, coefficient, k3q, k3m)
         if env is not None:
-            _environment(qs, t + 0.5 * h, env, moments, k3m)
+            _environment_at(qs, t + 0.5 * h, env, moments, k3m, mid)
         for i in range(4):
             qs[i] = q[i] + h * k3q[i]
         for i in range(3):
             ms[i] = m[i] + h * k3m[i]
         _rates(qs, ms, moments, tau, model, coefficient, k4q, k4m)
         if env is not None:
-            _environment(qs, t + h, env, moments, k4m)
+            _environment_at(qs, t + h, env, moments, k4m, orbit_at(env, t + h, fr))
         for i in range(4):
             q[i] += (h / 6.0) * (k1q[i] + 2.0 * k2q[i] + 2.0 * k3q[i] + k4q[i])
         for i in range(3):

@@ -58,15 +58,45 @@ def off():
 @jit
 def eccentric_anomaly(mean_anomaly, e):
     """E with M = E − e sin E (Kepler's equation) by Newton's method from E0 = M + e sin M,
-    M first reduced to [−π, π); converges in a few iterations for e < 0.9."""
+    M first reduced to [−π, π); converges in a few iterations for e < 0.9.
+
+    It stops once the step taken leaves at most KEPLER_TOL/2: Newton's error after a step
+    δ is ≤ max|f''|/(2 min|f'|)·δ² ≤ e·δ²/(2(1 − e)) (f = E − e sin E − M), so the
+    iteration that would only confirm convergence (a step below 1e-15, two of the ~11
+    sines and cosines of an orbit position) is not run. A circular orbit stops at once
+    (E0 = M, its step is 0)."""
     m = mean_anomaly - TWO_PI * math.floor(mean_anomaly / TWO_PI + 0.5)
     big_e = m + e * math.sin(m)
     for _ in range(KEPLER_MAX_ITER):
         step = (big_e - e * math.sin(big_e) - m) / (1.0 - e * math.cos(big_e))
         big_e -= step
-        if abs(step) <= KEPLER_TOL:
+        if abs(step) <= KEPLER_TOL or e * step * step <= (1.0 - e) * KEPLER_TOL:
             break
     return big_e
+
+
+@inline
+def _frame(env, dt):
+    """The unit vectors P (to periapsis) and Q (90° ahead of it), inertial frame, at
+    t = T0 + dt (the node and the argument of periapsis advanced by their rates)."""
+    raan = env[RAAN] + env[RAAN_RATE] * dt
+    argp = env[ARGP] + env[ARGP_RATE] * dt
+    co, so = math.cos(raan), math.sin(raan)
+    cw, sw = math.cos(argp), math.sin(argp)
+    ci, si = math.cos(env[INC]), math.sin(env[INC])
+    return (co * cw - so * sw * ci, so * cw + co * sw * ci, sw * si,       # P
+            -co * sw - so * cw * ci, -so * sw + co * cw * ci, cw * si)     # Q
+
+
+@inline
+def _perifocal(env, dt):
+    """The perifocal position (xp, yp), cos E and sin E at t = T0 + dt."""
+    a = env[A]
+    e = env[E]
+    big_e = eccentric_anomaly(env[M0] + env[M_RATE] * dt, e)
+    cos_e = math.cos(big_e)
+    sin_e = math.sin(big_e)
+    return a * (cos_e - e), a * math.sqrt(1.0 - e * e) * sin_e, cos_e, sin_e
 
 
 @inline
@@ -74,21 +104,37 @@ def _conic(env, t):
     """The conic at t: the perifocal position (xp, yp), cos E, sin E, and the unit vectors
     P (to periapsis) and Q (90° ahead of it) in the inertial frame."""
     dt = t - env[T0]
-    a = env[A]
-    e = env[E]
-    big_e = eccentric_anomaly(env[M0] + env[M_RATE] * dt, e)
-    raan = env[RAAN] + env[RAAN_RATE] * dt
-    argp = env[ARGP] + env[ARGP_RATE] * dt
-    cos_e = math.cos(big_e)
-    sin_e = math.sin(big_e)
-    xp = a * (cos_e - e)
-    yp = a * math.sqrt(1.0 - e * e) * sin_e
-    co, so = math.cos(raan), math.sin(raan)
-    cw, sw = math.cos(argp), math.sin(argp)
-    ci, si = math.cos(env[INC]), math.sin(env[INC])
-    return (xp, yp, cos_e, sin_e,
-            co * cw - so * sw * ci, so * cw + co * sw * ci, sw * si,       # P
-            -co * sw - so * cw * ci, -so * sw + co * cw * ci, cw * si)     # Q
+    xp, yp, cos_e, sin_e = _perifocal(env, dt)
+    px, py, pz, qx, qy, qz = _frame(env, dt)
+    return xp, yp, cos_e, sin_e, px, py, pz, qx, qy, qz
+
+
+@jit
+def frame(env, t):
+    """(P, Q, fixed): :func:`_frame` at t, fixed = 1.0 when the node and the periapsis do
+    not move (Kepler: their rates are 0, so raan + 0·dt is raan at every t and P, Q are
+    these very numbers at every instant). A loop takes it once per call and passes it to
+    :func:`radial_framed`: 6 of the ~11 sines and cosines of an orbit position."""
+    px, py, pz, qx, qy, qz = _frame(env, t - env[T0])
+    fixed = 1.0 if env[RAAN_RATE] == 0.0 and env[ARGP_RATE] == 0.0 else 0.0
+    return px, py, pz, qx, qy, qz, fixed
+
+
+@jit
+def radial_framed(env, t, fr):
+    """:func:`radial` (the same numbers) with ``fr`` = :func:`frame`'s result: its P, Q
+    when fixed, else computed at t as radial does."""
+    dt = t - env[T0]
+    xp, yp, _, _ = _perifocal(env, dt)
+    if fr[6] != 0.0:
+        px, py, pz, qx, qy, qz = fr[0], fr[1], fr[2], fr[3], fr[4], fr[5]
+    else:
+        px, py, pz, qx, qy, qz = _frame(env, dt)
+    x = xp * px + yp * qx
+    y = xp * py + yp * qy
+    z = xp * pz + yp * qz
+    r = math.sqrt(x * x + y * y + z * z)
+    return x / r, y / r, z / r, r
 
 
 @jit
@@ -134,12 +180,10 @@ def radial(env, t):
     return x / r, y / r, z / r, r
 
 
-@jit
-def radial_in_body(q, t, env):
-    """(ĉ x, y, z, 3μ/r³): the radial unit vector at time t in the frame of q (principal →
-    inertial, so ĉ = q⁻¹ r̂ q; q normalised here: the RK loops' stages are not unit) and
-    the gradient's factor."""
-    ux, uy, uz, r = radial(env, t)
+@inline
+def to_body(q, ux, uy, uz):
+    """q⁻¹ u q: an inertial vector in the frame of q (principal → inertial; q normalised
+    here: the RK loops' stages are not unit). The radial vector's and the field's."""
     x, y, z, w = q[0], q[1], q[2], q[3]
     s = 1.0 / (x * x + y * y + z * z + w * w)
     c0 = ((1.0 - 2.0 * s * (y * y + z * z)) * ux + 2.0 * s * (x * y + w * z) * uy
@@ -148,7 +192,22 @@ def radial_in_body(q, t, env):
           + 2.0 * s * (y * z + w * x) * uz)
     c2 = (2.0 * s * (x * z + w * y) * ux + 2.0 * s * (y * z - w * x) * uy
           + (1.0 - 2.0 * s * (x * x + y * y)) * uz)
+    return c0, c1, c2
+
+
+@inline
+def _in_body(q, ux, uy, uz, r, env):
+    """(ĉ x, y, z, 3μ/r³): the radial unit vector (ux, uy, uz) at radius r in the frame of
+    q (:func:`to_body`) and the gradient's factor."""
+    c0, c1, c2 = to_body(q, ux, uy, uz)
     return c0, c1, c2, 3.0 * env[MU] / (r * r * r)
+
+
+@jit
+def radial_in_body(q, t, env):
+    """(ĉ x, y, z, 3μ/r³) at time t (:func:`_in_body` of :func:`radial`)."""
+    ux, uy, uz, r = radial(env, t)
+    return _in_body(q, ux, uy, uz, r, env)
 
 
 @jit
@@ -156,7 +215,16 @@ def gravity_gradient_torque(q, t, env, moments):
     """τ_gg = 3μ/r³ · ĉ × (I ĉ) (principal frame, N·m) as three floats, I = diag(moments),
     at time t. Callers test env for None first, so the free body's loops are compiled
     without it (see dynamics_kernel)."""
-    c0, c1, c2, k = radial_in_body(q, t, env)
+    ux, uy, uz, r = radial(env, t)
+    return gravity_gradient_at(q, ux, uy, uz, r, env, moments)
+
+
+@jit
+def gravity_gradient_at(q, ux, uy, uz, r, env, moments):
+    """:func:`gravity_gradient_torque` with the orbit's radial unit vector and radius at
+    the instant given (:func:`radial` or :func:`radial_framed`): a loop that needs the
+    torque at one instant for several attitudes evaluates the orbit once."""
+    c0, c1, c2, k = _in_body(q, ux, uy, uz, r, env)
     i0 = moments[0] * c0
     i1 = moments[1] * c1
     i2 = moments[2] * c2
