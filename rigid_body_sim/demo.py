@@ -246,8 +246,9 @@ def add_arguments(parser):
     add_set_argument(parser)
     parser.add_argument('--no-viewer', dest='viewer', action='store_false',
                         help='do not start the Foxglove viewer node')
-    parser.add_argument('--viewer-port', type=int, default=8765,
-                        help='port of the Foxglove viewer (default 8765)')
+    parser.add_argument('--viewer-port', type=int,
+                        default=os.environ.get('DEMO_VIEWER_PORT', '8765'),
+                        help='port of the Foxglove viewer (default: $DEMO_VIEWER_PORT or 8765)')
     parser.add_argument('--lockstep', action='store_true',
                         help='the simulator holds each control instant until the '
                              'controller\'s command for it (docs/live-nodes.md, Lockstep)')

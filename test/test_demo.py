@@ -4,6 +4,7 @@ import math
 import os
 import re
 import signal
+import socket
 import subprocess
 import sys
 import time
@@ -14,12 +15,20 @@ import pytest
 REPO = Path(__file__).resolve().parent.parent
 
 
+def _free_port():
+    with socket.socket() as s:
+        s.bind(('127.0.0.1', 0))
+        return s.getsockname()[1]
+
+
 def test_make_demo_runs_the_live_graph_and_records_a_bag(tmp_path):
     # DEMO_DURATION counts simulated seconds from the first sample: 24 s is past the 17 s
     # free phase (one full flip) and into the control phases
+    # the viewer on a free port: a demo of another test session may hold 8765, and a demo
+    # whose viewer is lost exits 1
     out = subprocess.run(['make', '-C', str(REPO), 'demo', 'DEMO_DURATION=24',
-                          f'DEMO_OUT={tmp_path}'],
-                         capture_output=True, text=True, timeout=240)
+                          f'DEMO_OUT={tmp_path}'], capture_output=True, text=True, timeout=240,
+                         env=dict(os.environ, DEMO_VIEWER_PORT=str(_free_port())))
     assert out.returncode == 0, out.stdout[-3000:] + out.stderr[-3000:]
     text = out.stdout
     assert 'Traceback' not in text + out.stderr
@@ -84,7 +93,8 @@ def test_interrupting_the_demo_stops_everything_and_keeps_the_bag(tmp_path, sign
     demo exits 130 within seconds with its summary and no traceback, every node it started
     is gone, and the bag is finished (bag info reads it without recover)."""
     cli = os.path.join(os.path.dirname(sys.executable), 'rigid-body-sim')
-    proc = subprocess.Popen([cli, 'demo', '--duration', '120', '--out', str(tmp_path)],
+    proc = subprocess.Popen([cli, 'demo', '--duration', '120', '--out', str(tmp_path),
+                             '--viewer-port', str(_free_port())],
                             stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     deadline = time.monotonic() + 90
     while time.monotonic() < deadline and not (tmp_path / 'simulator.log').exists():
@@ -225,13 +235,9 @@ def test_a_node_lost_mid_run_is_named_and_the_demo_fails(tmp_path, name, sig):
     ends a node with 0) is named at once with its exit code and its last log lines, and
     the demo exits 1: a run cut short never ends with 0. Without the simulator the run is
     over; a lost viewer stops nothing and the run goes to its end."""
-    import socket
-    with socket.socket() as s:
-        s.bind(('127.0.0.1', 0))
-        port = s.getsockname()[1]
     cli = os.path.join(os.path.dirname(sys.executable), 'rigid-body-sim')
     demo = subprocess.Popen([cli, 'demo', '--scene', 'slew', '--duration', '8', '--out',
-                             str(tmp_path), '--viewer-port', str(port)],
+                             str(tmp_path), '--viewer-port', str(_free_port())],
                             stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
                             start_new_session=True)
     try:
@@ -259,3 +265,20 @@ def test_a_node_lost_mid_run_is_named_and_the_demo_fails(tmp_path, name, sig):
         assert float(ended.group(1)) < 8.0, out[-3000:]
     else:
         assert float(ended.group(1)) == 8.0, out[-3000:]
+
+
+def test_a_viewer_without_its_port_is_named_and_the_run_goes_on(tmp_path):
+    """The viewer's port held by another program: the viewer exits 1 at start with the
+    reason; the demo names it with that reason, runs to its end and exits 1 (it said 0)."""
+    cli = os.path.join(os.path.dirname(sys.executable), 'rigid-body-sim')
+    with socket.socket() as held:
+        held.bind(('127.0.0.1', 0))
+        held.listen()
+        port = held.getsockname()[1]
+        out = subprocess.run([cli, 'demo', '--scene', 'slew', '--duration', '3', '--out',
+                              str(tmp_path), '--viewer-port', str(port)],
+                             capture_output=True, text=True, timeout=240)
+    text = out.stdout + out.stderr
+    assert out.returncode == 1, text[-3000:]
+    assert 'demo: the viewer node exited with 1' in text and str(port) in text, text[-3000:]
+    assert 'ended at t = 3.00 s' in out.stdout and 'Traceback' not in text, text[-3000:]
