@@ -306,7 +306,7 @@ def run(args) -> int:
     procs, node, executor, watcher, interrupted = [], None, None, None, False
     try:
         procs.append(Process('recorder', ['--ros-args', '-p', f'output:={bag}',
-                                           '-p', f'scene:={scene.name}'], out))
+                                          '-p', f'scene:={scene.name}'], out))
         rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
         node = Node('demo_status')
         p = scene.simulator
