@@ -192,8 +192,8 @@ def test_interrupt_keeps_finished_runs_and_resume_runs_only_the_rest(tmp_path, h
         if camp.poll() is None:
             os.killpg(camp.pid, signal.SIGKILL)
             camp.wait()
-    assert camp.returncode == 130, stderr
-    assert 'Traceback' not in stderr and 'interrupted' in stderr
+    assert camp.returncode == 130, stderr + stdout[-2000:]
+    assert 'Traceback' not in stderr and 'interrupted' in stderr, stderr[-3000:]
     kept = _read_rows(out)
     assert 0 < len(kept) < n
     res = cli(*args, '--resume')
