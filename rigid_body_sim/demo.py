@@ -12,43 +12,16 @@ import math
 import os
 import shutil
 import signal
-import subprocess
 import sys
 import time
 
 import numpy as np
 
+from .demo_nodes import CONTROLLER_ID, SIMULATOR_ID, Process, check_lost, judge_simulator
 from .demo_summary import stamp_origin, summarize
 from .scene import SceneError, load
 
 STARTUP_TIMEOUT = 60.0  # wall s for the first sample (imports, kernels from cache, discovery)
-
-
-def _executable(name):
-    """The installed node executable (ament layout), else the module behind it."""
-    path = os.path.join(sys.prefix, 'lib', 'rigid_body_sim', name)
-    return ([path] if os.path.exists(path)
-            else [sys.executable, '-m', f'rigid_body_sim.nodes.{name}'])
-
-
-class _Process:
-    def __init__(self, name, args, log_dir):
-        self.name = name
-        self.log_path = os.path.join(log_dir, f'{name}.log')
-        self.log = open(self.log_path, 'wb')
-        self.proc = subprocess.Popen(_executable(name) + args, stdout=self.log,
-                                     stderr=subprocess.STDOUT, start_new_session=True)
-
-    def stop(self, timeout=10.0):
-        if self.proc.poll() is None:
-            os.killpg(self.proc.pid, signal.SIGINT)
-            try:
-                self.proc.wait(timeout)
-            except subprocess.TimeoutExpired:
-                os.killpg(self.proc.pid, signal.SIGKILL)
-                self.proc.wait()
-        self.log.close()
-        return self.proc.returncode
 
 
 class _Watcher:
@@ -116,12 +89,12 @@ class _Watcher:
             self.torque_seen = True
 
     def _on_diag(self, msg):
-        for status in msg.status:
-            if status.name.startswith('attitude_controller'):
+        for status in msg.status:  # only this graph's nodes': /diagnostics is the domain's
+            if status.hardware_id == CONTROLLER_ID:
                 for kv in status.values:
                     if kv.key == 'mission_phase' and kv.value != 'waiting':
                         self.phase = kv.value
-            if status.name.startswith('attitude_simulator'):
+            if status.hardware_id == SIMULATOR_ID:
                 values = {kv.key: kv.value for kv in status.values}
                 if self.origin is None and 'sim_time' in values:
                     self.origin = stamp_origin(msg.header.stamp, values['sim_time'],
@@ -273,8 +246,9 @@ def add_arguments(parser):
     add_set_argument(parser)
     parser.add_argument('--no-viewer', dest='viewer', action='store_false',
                         help='do not start the Foxglove viewer node')
-    parser.add_argument('--viewer-port', type=int, default=8765,
-                        help='port of the Foxglove viewer (default 8765)')
+    parser.add_argument('--viewer-port', type=int,
+                        default=os.environ.get('DEMO_VIEWER_PORT', '8765'),
+                        help='port of the Foxglove viewer (default: $DEMO_VIEWER_PORT or 8765)')
     parser.add_argument('--lockstep', action='store_true',
                         help='the simulator holds each control instant until the '
                              'controller\'s command for it (docs/live-nodes.md, Lockstep)')
@@ -331,8 +305,8 @@ def run(args) -> int:
     previous_term = signal.signal(signal.SIGTERM, _interrupt)
     procs, node, executor, watcher, interrupted = [], None, None, None, False
     try:
-        procs.append(_Process('recorder', ['--ros-args', '-p', f'output:={bag}',
-                                           '-p', f'scene:={scene.name}'], out))
+        procs.append(Process('recorder', ['--ros-args', '-p', f'output:={bag}',
+                                          '-p', f'scene:={scene.name}'], out))
         rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
         node = Node('demo_status')
         p = scene.simulator
@@ -344,15 +318,15 @@ def run(args) -> int:
         # until they are matched on its topics: the bag and the controller's mission clock
         # start with the first sample.
         if scene.controlled:
-            procs.append(_Process('controller', params, out))
+            procs.append(Process('controller', params, out))
         _wait_for_nodes(node, executor, ['mcap_recorder'] + (
             ['attitude_controller'] if scene.controlled else []), procs)
-        procs.append(_Process('simulator', params + ['-p', 'wait_for_subscribers:=1'] + (
+        procs.append(Process('simulator', params + ['-p', 'wait_for_subscribers:=1'] + (
             ['-p', 'wait_for_controller:=true'] if scene.controlled else []), out))
         sim = procs[-1]
         if getattr(args, 'viewer', False):  # its own process: a viewer problem stops nothing
-            procs.append(_Process('viewer', ['--ros-args', '-p', f'port:={args.viewer_port}'],
-                                  out))
+            procs.append(Process('viewer', ['--ros-args', '-p', f'port:={args.viewer_port}'],
+                                 out))
             url = f'ws://127.0.0.1:{args.viewer_port}'
             print(f'demo: live 3D view: open {url} in Foxglove (app: Open connection → '
                   f'Foxglove WebSocket; web: https://app.foxglove.dev/?ds=foxglove-websocket'
@@ -361,8 +335,12 @@ def run(args) -> int:
         start, last_print = time.monotonic(), 0.0
         while watcher.t0 is None or watcher.t < args.duration:
             executor.spin_once(timeout_sec=0.05)
-            if sim.proc.poll() is not None:
-                break  # the simulator reached its duration (or failed: see its log)
+            if sim.exited():
+                break  # its duration reached, or lost: judged once its last samples are in
+            # a lost recorder or controller makes the rest of the run worthless; a lost
+            # viewer is reported and the run goes on
+            if any(p.name != 'viewer' for p in check_lost(procs, sim)):
+                break
             now = time.monotonic()
             if watcher.t0 is None and now - start > STARTUP_TIMEOUT:
                 print(f'demo: no sample from the simulator after {STARTUP_TIMEOUT:g} s; see '
@@ -384,10 +362,16 @@ def run(args) -> int:
         if interrupted:
             print('demo: interrupted; stopping the nodes (the recorder finishes its bag)',
                   flush=True)
+        sim = next((p for p in procs if p.name == 'simulator'), None)
+        check_lost(procs, sim)  # those that exited since the loop's last look
+        sim_ended = sim is not None and sim.exited()  # on its own, not stopped below
         codes = {p.name: p.stop() for p in procs[1:]}
         end = time.monotonic() + (0.2 if interrupted else 1.0)  # the last messages
         while executor is not None and time.monotonic() < end:
             executor.spin_once(timeout_sec=0.05)
+        if sim_ended:
+            judge_simulator(sim, watcher.t, scene.simulator['duration'],
+                            1.0 / scene.simulator['publish_rate'])
         if procs:
             codes['recorder'] = procs[0].stop()
         if node is not None:
@@ -396,9 +380,11 @@ def run(args) -> int:
         signal.signal(signal.SIGINT, previous_int)
         signal.signal(signal.SIGTERM, previous_term)
 
-    if codes.get('viewer') not in (0, None, -signal.SIGINT):  # reported, not a demo failure
-        print(f'  viewer: exited with {codes.pop("viewer")} (log: {out}/viewer.log)')
-    failed = {n: c for n, c in codes.items() if c not in (0, None, -signal.SIGINT)}
+    # a lost node fails the demo whatever its code (SIGINT from elsewhere ends one with 0);
+    # one the demo stopped fails when it did not stop cleanly
+    failed = {p.name: p.lost for p in procs if p.lost is not None}
+    failed.update({n: c for n, c in codes.items()
+                   if n not in failed and c not in (0, None, -signal.SIGINT)})
     code = summarize(scene, bag, out, watcher, target, failed,
                      {p.name: p.log_path for p in procs}, interrupted)
     return code if code else (130 if interrupted else 0)

@@ -50,6 +50,7 @@ def bag_samples(bag, scene):
     from rclpy.serialization import deserialize_message
     from .bag.reader import iter_messages
     from .bag.schema import message_class
+    from .demo_nodes import SIMULATOR_ID
     p = scene.simulator
     rtf = 1.0 if p['publish_clock'] else (p['real_time_factor'] or 1.0)
     series = {'/attitude': {}, '/angular_velocity': {}, '/angular_momentum': {}}
@@ -61,7 +62,8 @@ def bag_samples(bag, scene):
         if m.topic == '/diagnostics':
             for status in msg.status:
                 values = {kv.key: kv.value for kv in status.values}
-                if origin is None and status.name.startswith('attitude_simulator') and \
+                # the demo's simulator's: the bag has every simulator's of the domain
+                if origin is None and status.hardware_id == SIMULATOR_ID and \
                         'sim_time' in values:
                     origin = stamp_origin(msg.header.stamp, values['sim_time'], rtf)
             continue

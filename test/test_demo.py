@@ -4,6 +4,7 @@ import math
 import os
 import re
 import signal
+import socket
 import subprocess
 import sys
 import time
@@ -14,12 +15,20 @@ import pytest
 REPO = Path(__file__).resolve().parent.parent
 
 
+def _free_port():
+    with socket.socket() as s:
+        s.bind(('127.0.0.1', 0))
+        return s.getsockname()[1]
+
+
 def test_make_demo_runs_the_live_graph_and_records_a_bag(tmp_path):
     # DEMO_DURATION counts simulated seconds from the first sample: 24 s is past the 17 s
     # free phase (one full flip) and into the control phases
+    # the viewer on a free port: a demo of another test session may hold 8765, and a demo
+    # whose viewer is lost exits 1
     out = subprocess.run(['make', '-C', str(REPO), 'demo', 'DEMO_DURATION=24',
-                          f'DEMO_OUT={tmp_path}'],
-                         capture_output=True, text=True, timeout=240)
+                          f'DEMO_OUT={tmp_path}'], capture_output=True, text=True, timeout=240,
+                         env=dict(os.environ, DEMO_VIEWER_PORT=str(_free_port())))
     assert out.returncode == 0, out.stdout[-3000:] + out.stderr[-3000:]
     text = out.stdout
     assert 'Traceback' not in text + out.stderr
@@ -84,7 +93,8 @@ def test_interrupting_the_demo_stops_everything_and_keeps_the_bag(tmp_path, sign
     demo exits 130 within seconds with its summary and no traceback, every node it started
     is gone, and the bag is finished (bag info reads it without recover)."""
     cli = os.path.join(os.path.dirname(sys.executable), 'rigid-body-sim')
-    proc = subprocess.Popen([cli, 'demo', '--duration', '120', '--out', str(tmp_path)],
+    proc = subprocess.Popen([cli, 'demo', '--duration', '120', '--out', str(tmp_path),
+                             '--viewer-port', str(_free_port())],
                             stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     deadline = time.monotonic() + 90
     while time.monotonic() < deadline and not (tmp_path / 'simulator.log').exists():
@@ -186,3 +196,89 @@ def test_a_node_that_fails_at_start_has_its_last_log_line_in_the_summary(tmp_pat
     assert 'lockstep needs publish_clock' in last, log[-3000:]
     assert f'simulator: exited with 2: {last}' in summary, summary
     assert 'try a longer --duration' not in text, summary
+
+
+def test_another_simulator_in_the_domain_does_not_end_the_demo(tmp_path, ros_process):
+    """/diagnostics is one topic for the whole ROS domain: a simulator of another graph
+    (another namespace, as test_viewer's module fixture runs beside its demo test) reports
+    on it too. Its statuses once gave the demo its time origin, so the demo's first sample
+    read as tens of seconds after t = 0: the demo stopped every node at once and exited 0
+    (the viewer's client got nothing). The demo now reads only its own simulator's."""
+    from ros_helpers import unique_namespace, venv_exe, wait_output
+    other = ros_process(venv_exe('simulator'), '--ros-args', '-r',
+                        f'__ns:={unique_namespace("other_graph")}')
+    assert wait_output(other, 'kernels loaded', 90.0)  # then it publishes from t = 0
+    cli = os.path.join(os.path.dirname(sys.executable), 'rigid-body-sim')
+    out = subprocess.run([cli, 'demo', '--scene', 'slew', '--duration', '4', '--no-viewer',
+                          '--out', str(tmp_path)], capture_output=True, text=True, timeout=240)
+    assert out.returncode == 0, out.stdout[-3000:] + out.stderr[-3000:]
+    assert 'ended at t = 4.00 s' in out.stdout, out.stdout[-3000:]
+    # the summary's time origin, from the bag's diagnostics, is its simulator's too
+    free = re.search(r'free until ([0-9.]+) s', out.stdout)
+    assert free and float(free.group(1)) < 1.0, out.stdout[-3000:]
+    assert other.poll() is None
+
+
+def _child(parent, pattern):
+    """The pid of the child of ``parent`` whose command line matches ``pattern``."""
+    out = subprocess.run(['pgrep', '-P', str(parent), '-f', pattern], capture_output=True,
+                         text=True)
+    pids = [int(p) for p in out.stdout.split()]
+    assert len(pids) == 1, (pattern, out.stdout)
+    return pids[0]
+
+
+@pytest.mark.parametrize('name, sig', [('simulator', signal.SIGINT),
+                                       ('viewer', signal.SIGKILL)])
+def test_a_node_lost_mid_run_is_named_and_the_demo_fails(tmp_path, name, sig):
+    """A node that exits before the demo stops it (killed; or SIGINT from elsewhere, which
+    ends a node with 0) is named at once with its exit code and its last log lines, and
+    the demo exits 1: a run cut short never ends with 0. Without the simulator the run is
+    over; a lost viewer stops nothing and the run goes to its end."""
+    cli = os.path.join(os.path.dirname(sys.executable), 'rigid-body-sim')
+    demo = subprocess.Popen([cli, 'demo', '--scene', 'slew', '--duration', '8', '--out',
+                             str(tmp_path), '--viewer-port', str(_free_port())],
+                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+                            start_new_session=True)
+    try:
+        lines = []
+        for line in demo.stdout:  # the status line, every 2 s without a terminal
+            lines.append(line)
+            if re.match(r't = +([1-9][0-9.]*) s', line):  # mid-run: t >= 1 s
+                break
+        assert lines and lines[-1].startswith('t ='), ''.join(lines)
+        os.kill(_child(demo.pid, rf'rigid_body_sim[/.](nodes\.)?{name}( |$)'), sig)
+        rest, _ = demo.communicate(timeout=180)
+    finally:
+        if demo.poll() is None:
+            os.killpg(demo.pid, signal.SIGKILL)
+            demo.wait()
+    out = ''.join(lines) + rest
+    code = 0 if sig == signal.SIGINT else -sig  # a node ends with 0 on SIGINT
+    assert demo.returncode == 1, out[-3000:]
+    assert f'demo: the {name} node exited with {code}' in out, out[-3000:]
+    assert f'{name}.log); its last lines:\n    | ' in out, out[-3000:]
+    assert 'Traceback' not in out, out[-3000:]
+    ended = re.search(r'ended at t = ([0-9.]+) s', out)
+    assert ended, out[-3000:]
+    if name == 'simulator':
+        assert float(ended.group(1)) < 8.0, out[-3000:]
+    else:
+        assert float(ended.group(1)) == 8.0, out[-3000:]
+
+
+def test_a_viewer_without_its_port_is_named_and_the_run_goes_on(tmp_path):
+    """The viewer's port held by another program: the viewer exits 1 at start with the
+    reason; the demo names it with that reason, runs to its end and exits 1 (it said 0)."""
+    cli = os.path.join(os.path.dirname(sys.executable), 'rigid-body-sim')
+    with socket.socket() as held:
+        held.bind(('127.0.0.1', 0))
+        held.listen()
+        port = held.getsockname()[1]
+        out = subprocess.run([cli, 'demo', '--scene', 'slew', '--duration', '3', '--out',
+                              str(tmp_path), '--viewer-port', str(port)],
+                             capture_output=True, text=True, timeout=240)
+    text = out.stdout + out.stderr
+    assert out.returncode == 1, text[-3000:]
+    assert 'demo: the viewer node exited with 1' in text and str(port) in text, text[-3000:]
+    assert 'ended at t = 3.00 s' in out.stdout and 'Traceback' not in text, text[-3000:]

@@ -60,12 +60,19 @@ def test_demo_status_line_is_empty_until_the_first_sample_then_has_no_nan():
 
     def report(rtf):
         return DiagnosticArray(status=[DiagnosticStatus(
-            name='attitude_simulator: simulation',
+            name='attitude_simulator: simulation', hardware_id='/attitude_simulator',
             values=[KeyValue(key='real_time_factor_achieved', value=str(rtf))])])
     fresh._on_diag(report(0.02))
     assert np.isnan(fresh.rtf)
     fresh._on_diag(report(0.998))
     assert fresh.rtf == 0.998
+    # a simulator of another graph in the ROS domain (another namespace) reports on the same
+    # /diagnostics: its time origin and rate are not the demo's simulator's
+    fresh._on_diag(DiagnosticArray(status=[DiagnosticStatus(
+        name='attitude_simulator: simulation', hardware_id='/other/attitude_simulator',
+        values=[KeyValue(key='sim_time', value='30.0'),
+                KeyValue(key='real_time_factor_achieved', value='0.5')])]))
+    assert fresh.rtf == 0.998 and fresh.origin is None
 
 
 def test_setup_stage_is_one_line_and_shows_the_log_only_on_failure(tmp_path):

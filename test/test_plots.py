@@ -167,6 +167,14 @@ def test_control_figures_follow_the_prediction(name, figures):
         assert measured == pytest.approx(predicted, rel=0.02)
 
 
+def test_a_slew_beginning_at_the_last_sample_draws_its_first_point():
+    """A live run cut short at its second sample (the demo's simulator lost at t = 0.02 s)
+    has its slew begin at the last sample: the eigen-axis law over no time span is its
+    initial values (solve_ivp gave no solution and control.png raised IndexError)."""
+    th, dth = analytic.eigenaxis_slew(1.2, 0.3, 1.0, 1.0, [0.0])
+    assert th.tolist() == [1.2] and dth.tolist() == [0.3]
+
+
 def test_bench_chart_never_plots_the_reference_against_itself(tmp_path):
     from types import SimpleNamespace
 

@@ -379,6 +379,9 @@ def test_demo_starts_the_viewer_and_prints_its_url(client_js, tmp_path):
     finally:
         out, _ = demo.communicate(timeout=120)
     assert demo.returncode == 0, out[-3000:]
+    # the whole run, not one cut short (the module's own simulator, in another namespace,
+    # once gave the demo its time origin: it stopped at its first sample with 0)
+    assert 'ended at t = 25.00 s' in out, out[-3000:]
     assert f'open ws://127.0.0.1:{port} in Foxglove' in out
     assert s['counts'].get('/tf', 0) > 0 and s['counts'].get('/state', 0) > 0, s['counts']
     log = (tmp_path / 'viewer.log').read_text()

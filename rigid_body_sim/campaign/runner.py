@@ -31,10 +31,12 @@ IN_FLIGHT_PER_THREAD = 3
 WINDOW_REFRESH = 2.0    # s between looks at the cluster's size
 # A local cluster's housekeeping, slowed down: the workers' statistical profiler (every 10 ms)
 # off, event-loop health checks every 200 ms (20 ms), system monitor every 2 s (0.5 s). This
-# halves Dask's own CPU while runs are in flight; a campaign needs none of them.
+# halves Dask's own CPU while runs are in flight; a campaign needs none of them. Each worker
+# process runs campaign/worker_setup.py at its start (its shutdown logs no false alarm).
 LOCAL_CONFIG = {'distributed.worker.profile.enabled': False,
                 'distributed.admin.tick.interval': '200ms',
-                'distributed.admin.system-monitor.interval': '2s'}
+                'distributed.admin.system-monitor.interval': '2s',
+                'distributed.worker.preload': ['rigid_body_sim.campaign.worker_setup']}
 
 
 class _InterruptedSyncCancel(logging.Filter):

@@ -92,6 +92,9 @@ def eigenaxis_slew(theta0, rate0, natural_frequency, damping_ratio, t):
     t = np.asarray(t, float)
     wn, zeta = float(natural_frequency), float(damping_ratio)
 
+    if not t.size or t[-1] <= 0.0:  # a slew that begins at a run's last sample: no span
+        return np.full(t.shape, float(theta0)), np.full(t.shape, float(rate0))
+
     def rhs(_, y):
         return (y[1], -2 * wn ** 2 * np.sin(0.5 * y[0]) - 2 * zeta * wn * y[1])
     sol = solve_ivp(rhs, (0.0, float(t[-1]) if t.size else 0.0), (theta0, rate0),
