@@ -94,3 +94,36 @@ def test_a_fast_tumble_on_an_eccentric_orbit_keeps_the_a_priori_choice():
     scene = generated.draw_gravity_gradient(generated.SEED, 14)
     result = simulate(scene.scene_file(), duration=scene.duration / 50)
     assert 'possibly chaotic' not in result.reason and 'a priori' in result.reason
+
+
+def test_update_from_a_body_only_run_keeps_the_orbit_family(tmp_path):
+    """``--update DIR`` with the body family alone rewrote generated.csv with its rows only:
+    the orbit family's rows were dropped (their targets stayed, judging nothing shown).
+    Each family's rows and targets now change only with a run of that family."""
+    body = {f: '' for f in generated.FIELDS}
+    body.update(scene='gen1-0', kind='free', status='ok', cpu_ratio=1.2, error_ratio=0.5)
+    gg = dict(body, scene='gen1-gg0', kind='gravity_gradient')
+    empty = generated.summary([])
+    for family, row in (('body', body), ('gravity_gradient', gg)):
+        generated.merge(str(tmp_path), family, [row],
+                        generated.family_targets(family, empty, SEED), SEED)
+
+    def scenes():
+        with open(tmp_path / 'generated.csv', newline='') as f:
+            return [r['scene'] for r in csv.DictReader(f)]
+
+    def notes():
+        with open(tmp_path / 'targets.csv', newline='') as f:
+            return {r['target']: r['note'] for r in csv.DictReader(f)}
+    before = notes()
+    generated.update(str(tmp_path), [dict(body, scene='gen1-1')], SEED + 1)
+    assert sorted(scenes()) == ['gen1-1', 'gen1-gg0']
+    after = notes()
+    assert set(after) == set(before)
+    for target, note in after.items():
+        moved = target.startswith('generated:')
+        assert (f'seed {SEED + 1}' in note) == moved, (target, note)
+    generated.update(str(tmp_path), [dict(gg, scene='gen1-gg1')], SEED + 2)
+    assert sorted(scenes()) == ['gen1-1', 'gen1-gg1']
+    assert all((f'seed {SEED + 2}' in note) == t.startswith('generated, gravity gradient:')
+               for t, note in notes().items())
