@@ -363,7 +363,7 @@ def _piloted(s, usable, best, principal_attitude, prior_cost):
         err = 0.0
         for lv in levels:
             e, _ = yield from pilot.error(s.integrator(c), p, lv, h, s.horizon,
-                                          c.growth == 'drift')
+                                          c.growth == 'drift' or s.damping is not None)
             err = max(err, safety * e)
         # an error falling faster than h³ from the same method's pilot at a larger step, read
         # within GUARD_FROM of the budget, is not believed: a lucky reading of an oscillating
