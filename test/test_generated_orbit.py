@@ -77,13 +77,14 @@ def test_auto_meets_its_budget_on_eccentric_librations(index):
     e = 0.23, 0.54, 0.69, where the gradient's rate at perigee exceeds the body's own. auto
     took rk4 within its a-priori bound and erred 85, 3.1e4 and 66× the budget: the forced
     libration is chaotic there (dop853 at rtol 1e-9 erred 3 rad on scene 27), beyond any
-    bound growing as T or T². auto now says it cannot know and takes dop853 at its tightest
-    rtol."""
+    bound growing as T or T². auto now says it cannot know (no predicted error) and takes
+    dop853 at its tightest rtol."""
     scene = generated.draw_gravity_gradient(generated.SEED, index)
     ref, ref_error, _ = generated.reference(scene)
     assert ref_error * generated.JUDGE <= scene.budget
     result = simulate(scene.scene_file())
-    assert 'possibly chaotic' in result.reason
+    assert 'possibly chaotic' in result.reason and \
+        math.isinf(result.selection.predicted_error)
     assert generated.error(result, ref) <= scene.budget - ref_error, result.reason
 
 

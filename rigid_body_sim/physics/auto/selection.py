@@ -174,8 +174,11 @@ def selecting(body: RigidBody, dissipation: Dissipation, attitude, angular_veloc
             error grows exponentially there, not as the a-priori bound's T or T², and no
             pilot of a share of the run can see how far (generated orbit scenes: rk4 within
             its bound erred 66–3·10⁴× the budget, dop853 at rtol 1e-9 3 rad). auto cannot
-            know that error, says so, and takes the most accurate: dop853 at its tightest
-            rtol.
+            know that error, says so (``predicted_error`` inf), and takes the most
+            accurate: dop853 at its tightest rtol. Without commands only (a control law
+            drives the motion), and not on a circular orbit: a small libration there is
+            all but linear (config/gravity_gradient.yaml), though a larger one can exceed
+            dop853's bound too (seed 7, orbit scene 21: 4.6×).
         restarting: the engine restarts an adaptive method at every event (SGP4's or
             NRLMSIS's anchored environment), as commanded torque does: in its cost.
     """
@@ -203,7 +206,7 @@ def selecting(body: RigidBody, dissipation: Dissipation, attitude, angular_veloc
     if not torque:  # a method another one supersedes is not asked (Candidate.supersedes)
         superseded = {c.supersedes for c in usable}
         usable = [c for c in usable if c.name not in superseded]
-    if forced and adaptive and s.torque_rate >= s.spin:
+    if forced and not commanded and adaptive and s.torque_rate >= s.spin:
         return _forced_choice(s, adaptive[0], accuracy, horizon, effects(
             commanded, dissipation, environment))
     best, why, unasked, asked = None, [], [], 0
@@ -277,8 +280,9 @@ def _forced_choice(s, c, accuracy, horizon, what):
               f'(torque rate {s.torque_rate:.3g} rad/s ≥ the body\'s {s.spin:.3g}), '
               'possibly chaotic: its error can grow exponentially, so no a-priori bound or '
               f'pilot can promise {accuracy:g} rad over {horizon:g} s; the most accurate: '
-              f'{c.name} at rtol {rtol:.0e} (E≤{err:.2g} if the growth were not exponential)')
-    return Selection(c.name, s.max_step, reason, err, cost, prior_cost=_prior_cost(1),
+              f'{c.name} at rtol {rtol:.0e} (E≤{err:.2g} were the growth not exponential: '
+              'not a promise)')
+    return Selection(c.name, s.max_step, reason, math.inf, cost, prior_cost=_prior_cost(1),
                      options=_options(c, {c.name: rtol}, s.G))
 
 
