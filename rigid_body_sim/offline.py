@@ -7,6 +7,7 @@ recorder's format (same topics, types and stamps as live) and into the plots, so
 does not grow with the length of the run.
 """
 import json
+import math
 import os
 import sys
 import time
@@ -69,7 +70,9 @@ class RunResult:
                 'samples': self.sample_count, 'cpu_seconds': round(self.cpu_seconds, 6),
                 'selection_cpu_seconds': round(self.selection_cpu_seconds, 6),
                 'evaluations': self.evaluations, 'pilot_steps': self.pilot_steps,
-                'predicted_error': self.selection.predicted_error if self.selection else None,
+                # inf: auto said it cannot know (a libration): null in JSON
+                'predicted_error': self.selection.predicted_error if self.selection and
+                math.isfinite(self.selection.predicted_error) else None,
                 'selection_planned_cpu_seconds': (self.selection.planned_cost if self.selection
                                                   else None),
                 'kernel_load_cpu_seconds': round(self.kernel_load_cpu_seconds, 6),

@@ -475,11 +475,21 @@ def read_rows(path):
 
 
 def update(folder, rows, seed=SEED):
-    """Put a run of the suite (its ``rows``) into a full run's ``folder``: generated.csv
-    and the suite's target rows (:func:`.common.replace_section`)."""
+    """Put a run of the suite (its ``rows``) into a full run's ``folder``: generated.csv,
+    where the rows of a family the run did not hold stay as they were (a body-only run
+    dropped the orbit family's), and each run family's target rows
+    (:func:`.common.replace_section`)."""
+    from . import report
     from .common import replace_section
-    t_rows, _ = targets_for(rows, seed)
-    return replace_section(folder, 'generated.csv', FIELDS, rows, t_rows, ('generated:',))
+    present = [f for f in FAMILIES if any(_family_of(r) == f for r in rows)]
+    kept = [r for r in report._rows(folder, 'generated.csv') or []
+            if _family_of(r) not in present]
+    merged, out = kept + list(rows), None
+    for family in present:
+        s = summary([r for r in rows if _family_of(r) == family])
+        out = replace_section(folder, 'generated.csv', FIELDS, merged,
+                              family_targets(family, s, seed), (f'{TARGET_NAMES[family]}:',))
+    return out
 
 
 def main(argv=None):

@@ -131,9 +131,11 @@ class EngineConfig:
         (``commanded``), the control law's bandwidth (in process, or ``law_bandwidth`` of an
         outside one whose gains are known), else that of the largest command,
         √(√3·max_torque/I_min); with the gravity gradient at least its own,
-        √(3μ/r_p³ · (I_max − I_min)/I_min). Before any command (``commanded`` False) only
-        the environment's: the engine chooses again at the first command, so a scene's
-        max_torque must not set the step of a run that has none."""
+        √(3μ/r_p³ · (I_max − I_min)/I_min), and the rods', SRP's and drag's their own
+        (``MagneticSettings.torque_rate``, ``Sunlight.torque_rate``). Before any command
+        (``commanded`` False) only the environment's: the engine chooses again at the
+        first command, so a scene's max_torque must not set the step of a run that has
+        none."""
         rate = 0.0
         if commanded and self.control is not None:
             rate = self.control.bandwidth()
@@ -146,6 +148,8 @@ class EngineConfig:
             rate = max(rate, env.gravity_gradient_rate(self.body.principal_moments))
         if env is not None and env.magnetorquers:
             rate = max(rate, env.magnetic.torque_rate(self.body.principal_moments))
+        if env is not None and env.sunlight is not None:  # SRP and drag on the facets
+            rate = max(rate, env.sunlight.torque_rate(self.body.principal_moments, env.orbit))
         return rate
 
     def replace(self, **changes) -> 'EngineConfig':

@@ -269,7 +269,9 @@ class Engine:
                   max_step=c.event_spacing(),
                   torque_rate=c.torque_rate(self._torque_seen) if torque else 0.0,
                   dynamics=self.dynamics,
-                  environment=terms)
+                  environment=terms, forced=bool(terms) and c.environment.periodic_forcing,
+                  # an adaptive method restarts where the environment is re-made per event
+                  restarting=self.orbit_anchored or bool(terms) and c.environment.magnetorquers)
         state = (self.body, c.dissipation, self.attitude, self.angular_velocity)
         if not torque and not c.dissipation.active:
             sel = select(*state, **kw)

@@ -97,6 +97,13 @@ class EnvironmentSettings:
             elements = self.sunlight.fill(elements, self.orbit, t, to_frame)
         return elements
 
+    @property
+    def periodic_forcing(self) -> bool:
+        """Whether the gravity gradient varies periodically along the orbit (a
+        non-circular one): a forced libration, whose error ``auto`` cannot bound a priori
+        (``physics.auto.selection``, ``forced``)."""
+        return self.gravity_gradient and self.orbit.eccentricity > 0.0
+
     def gravity_gradient_rate(self, moments) -> float:
         """The gravity gradient's rate scale (1/s) at perigee: √(3μ/r³ · (I_max − I_min)/
         I_min), the fastest libration it can drive (``auto``'s torque rate)."""

@@ -10,7 +10,7 @@ import numpy as np
 
 from ..param_spec import ParamSpec
 from ..physics.environment import earth, facets as facet_model, sunlight
-from ..physics.orbit import kernel as orbit_kernel
+from ..physics.orbit import MU, kernel as orbit_kernel
 
 DRAG_MODELS = ('none', 'exponential', 'nrlmsis')
 SHADOW_CODES = {'cylindrical': 0.0, 'conical': 1.0}
@@ -83,6 +83,26 @@ class Sunlight:
     def anchored(self) -> bool:
         """NRLMSIS's local fit is re-made at each interval between events."""
         return self.drag == 'nrlmsis'
+
+    def torque_rate(self, moments, orbit) -> float:
+        """The facets' rate scale (1/s) for ``auto``'s torque rate: √(τ_max/I_min), τ_max
+        a bound of SRP's and drag's torque, Σ|c_i|·|F_i| with |F_i| ≤ 2·P·A_i (a mirror at
+        normal incidence) for SRP and ½ρv²·C_D·A_i for drag, ρ the exponential table's
+        at the perigee's height above the equator (its least) and v the escape speed
+        there plus the atmosphere's co-rotation (bounds of the speed relative to the air).
+        NRLMSIS's density is not looked up here: the table's stands for it."""
+        f = self.facets
+        arm = np.linalg.norm(f.centres, axis=1) * f.areas
+        force = 0.0
+        if self.srp:
+            force += 2.0 * facet_model.SOLAR_PRESSURE
+        torque = force * float(np.sum(arm))
+        if self.drag != 'none':
+            r = orbit.perigee_radius
+            rho = facet_model.exponential_density(r - facet_model.EARTH_RADIUS)
+            v = math.sqrt(2.0 * MU / r) + earth.EARTH_ROTATION_RATE * r
+            torque += 0.5 * rho * v * v * float(np.sum(arm * f.drag_coefficient))
+        return math.sqrt(torque / min(moments))
 
     def fill(self, env: np.ndarray, orbit, t: float, to_frame=None) -> np.ndarray:
         """``env`` (the orbit's elements near t) with the terms' slots set and the facets

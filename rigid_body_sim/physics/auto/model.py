@@ -44,8 +44,11 @@ class RunModel:
     """The time scales of a run, and the cost and a-priori error of a method on it."""
 
     def __init__(self, dyn, q, m, accuracy, horizon, max_step, torque_rate, costs=None,
-                 environment=()):
+                 environment=(), commanded=False):
         self.dyn, self.q, self.m = dyn, q, m
+        # commanded torque: held between control instants, so an adaptive method restarts
+        # at each (its cost in ``tolerance``)
+        self.commanded = commanded
         # per-step costs: measured on this machine if calibrated, else the classes' own
         self.costs = costs or calibration.current()
         # µs per evaluation of the environment's torques ('gravity gradient'): a method pays
@@ -55,6 +58,7 @@ class RunModel:
         self.G = math.sqrt(sum(x * x for x in m.tolist()))  # floats: numpy's per-call cost
         self.stiffness = dyn.dissipation_stiffness(self.G)
         spin = self.G / min(dyn.moments.tolist())
+        self.spin, self.torque_rate = spin, torque_rate
         self.omega = spin + torque_rate + self.stiffness
         self.events = max(1, math.ceil(horizon / max_step - 1e-9))
         self.turned = spin * horizon  # rad, for the round-off
@@ -125,8 +129,7 @@ class RunModel:
         scale = c.k * turned * max(1.0, turned / DOP853_DRIFT)
         rtol = RTOL_RANGE[1]
         for _ in range(2):  # the round-off depends on the steps, weakly on rtol
-            steps = max(DOP853_STEPS * turned * rtol ** -0.125,
-                        self.stiffness * self.horizon / DOP853_STABLE, 1.0)
+            steps = self._adaptive_steps(turned, rtol)
             room = self.accuracy - ROUNDOFF * steps * turned
             rtol = min(max(room / scale, RTOL_RANGE[0]), RTOL_RANGE[1])
         call = c.call[0 if self.damping is None else 1] * 1e-6
@@ -134,6 +137,27 @@ class RunModel:
                     + self.term_cost * c.environment_evals) * 1e-6
         cost = RUN_COST + self.events * (EVENT_COST + call) + steps * per_step
         return rtol, cost, scale * rtol + ROUNDOFF * steps * turned
+
+    def tightest(self, c):
+        """(rtol, run cost s, a-priori error rad) of an adaptive candidate at its tightest
+        rtol (RTOL_RANGE[0])."""
+        turned = self.omega * self.horizon
+        rtol = RTOL_RANGE[0]
+        steps = self._adaptive_steps(turned, rtol)
+        call = c.call[0 if self.damping is None else 1] * 1e-6
+        per_step = (self.costs.cost(c)[0 if self.damping is None else 1]
+                    + self.term_cost * c.environment_evals) * 1e-6
+        scale = c.k * turned * max(1.0, turned / DOP853_DRIFT)
+        return (rtol, RUN_COST + self.events * (EVENT_COST + call) + steps * per_step,
+                scale * rtol + ROUNDOFF * steps * turned)
+
+    def _adaptive_steps(self, turned, rtol):
+        """The adaptive method's steps over the run at rtol: its natural steps (at least
+        stiffness·T/DOP853_STABLE), plus, with commanded torque, one step more per event:
+        a new torque restarts it, and the last step before each instant is cut short."""
+        natural = max(DOP853_STEPS * turned * rtol ** -0.125,
+                      self.stiffness * self.horizon / DOP853_STABLE, 1.0)
+        return natural + (self.events if self.commanded else 0)
 
     def roundoff(self, c, h):
         """Attitude error (rad) from rounding over the run at step h."""
@@ -203,8 +227,8 @@ class RunModel:
         return min(((h, self.prior_error(c, h)) for h in steps), key=lambda he: he[1])
 
     def applicable(self, c, torque):
-        if c.adaptive:  # its restarts at every control instant are not in its cost model
-            return not torque and self.damping is not None
+        if c.adaptive:  # its restarts at control instants are in its cost (tolerance)
+            return bool(torque or self.damping is not None)
         if c.coupled_only and not (torque or self.damping):
             return False
         if c.exact_damping:

@@ -148,7 +148,8 @@ def _free_choice(moments, max_step, m):
 def selecting(body: RigidBody, dissipation: Dissipation, attitude, angular_velocity, *,
               torque: bool, accuracy: float, duration: float, max_step: float,
               torque_rate: float = 0.0, prior_only: bool = False,
-              dynamics: Dynamics = None, environment: tuple = ()):
+              dynamics: Dynamics = None, environment: tuple = (), forced: bool = False,
+              restarting: bool = False):
     """Generator form of :func:`select`: yields often (every few ms of pilot work) so that a
     caller can interleave the selection with its own work; its return value is the Selection.
 
@@ -166,6 +167,20 @@ def selecting(body: RigidBody, dissipation: Dissipation, attitude, angular_veloc
         environment: names of the environment's torques in the model ('gravity gradient'):
             torques from the start (``torque`` is implied), asked of the methods that
             integrate them only (``Integrator.environment``), named in the reason.
+        forced: the environment's torque is periodic in time along the orbit (the gravity
+            gradient on a non-circular orbit). Where its rate (``torque_rate``) reaches the
+            body's own (|L|/I_min) the body librates under a periodic forcing, which can be
+            chaotic (an eccentric orbit's pitch libration: Beletsky; Tong & Rimrott): an
+            error grows exponentially there, not as the a-priori bound's T or T², and no
+            pilot of a share of the run can see how far (generated orbit scenes: rk4 within
+            its bound erred 66–3·10⁴× the budget, dop853 at rtol 1e-9 3 rad). auto cannot
+            know that error, says so (``predicted_error`` inf), and takes the most
+            accurate: dop853 at its tightest rtol. Without commands only (a control law
+            drives the motion), and not on a circular orbit: a small libration there is
+            all but linear (config/gravity_gradient.yaml), though a larger one can exceed
+            dop853's bound too (seed 7, orbit scene 21: 4.6×).
+        restarting: the engine restarts an adaptive method at every event (SGP4's or
+            NRLMSIS's anchored environment), as commanded torque does: in its cost.
     """
     commanded, torque = torque, torque or bool(environment)
     if not (accuracy > 0 and math.isfinite(accuracy)):
@@ -179,7 +194,8 @@ def selecting(body: RigidBody, dissipation: Dissipation, attitude, angular_veloc
     horizon = duration if duration > 0 else DEFAULT_HORIZON
     # the attitude matters to the pilot only (set below): the a-priori pass skips its cost
     s = RunModel(dynamics or Dynamics(moments, dissipation), None, m, accuracy, horizon,
-                 max_step, torque_rate, environment=environment)
+                 max_step, torque_rate, environment=environment,
+                 commanded=commanded or restarting)
     if s.omega == 0.0:
         return Selection('splitting2', max_step, 'body at rest, no torque: any step is exact',
                          0.0, s.run_cost(CANDIDATES[0], max_step))
@@ -190,6 +206,9 @@ def selecting(body: RigidBody, dissipation: Dissipation, attitude, angular_veloc
     if not torque:  # a method another one supersedes is not asked (Candidate.supersedes)
         superseded = {c.supersedes for c in usable}
         usable = [c for c in usable if c.name not in superseded]
+    if forced and not commanded and adaptive and s.torque_rate >= s.spin:
+        return _forced_choice(s, adaptive[0], accuracy, horizon, effects(
+            commanded, dissipation, environment))
     best, why, unasked, asked = None, [], [], 0
     # cheapest first by the least each could cost (at its largest step); one that could not
     # save more than asking it costs is not asked: on a short run the fixed part of the run
@@ -227,10 +246,8 @@ def selecting(body: RigidBody, dissipation: Dissipation, attitude, angular_veloc
         if err > accuracy:
             why.append(f'{c.name} cannot promise {accuracy:g} rad even at rtol '
                        f'{rtol:.0e}')
-    effects = [e for e, on in (('commanded torque', commanded),
-                               (f'{dissipation.model} dissipation', dissipation.active))
-               if on] + list(environment)
-    head = (f'{" + ".join(effects)} → cheapest method meeting {accuracy:g} rad over '
+    head = (f'{effects(commanded, dissipation, environment)} → cheapest method meeting '
+            f'{accuracy:g} rad over '
             f'{horizon:g} s; Ω = {s.omega:.3g} rad/s; {s.costs.source}')
     prior = 'a priori (k·(hΩ)^p·ΩT): ' + ', '.join(why)
     if torque or prior_only:
@@ -246,6 +263,27 @@ def selecting(body: RigidBody, dissipation: Dissipation, attitude, angular_veloc
                      f'accurate predicted ({err:.2g} rad)')
     return Selection(c.name, h, f'{head}; {prior}; pilot: ' + '; '.join(notes), err, cost,
                      steps, spent, prior_cost, _options(c, tolerances, s.G))
+
+
+def effects(commanded, dissipation, environment) -> str:
+    """What the model holds besides the free body, for the reason."""
+    return ' + '.join([e for e, on in (('commanded torque', commanded),
+                                       (f'{dissipation.model} dissipation',
+                                        dissipation.active)) if on] + list(environment))
+
+
+def _forced_choice(s, c, accuracy, horizon, what):
+    """The adaptive candidate c at its tightest rtol, where a periodic forcing at least
+    as fast as the body's own rate makes the error unknowable a priori (``forced``)."""
+    rtol, cost, err = s.tightest(c)
+    reason = (f'{what} on a non-circular orbit → libration under a periodic forcing '
+              f'(torque rate {s.torque_rate:.3g} rad/s ≥ the body\'s {s.spin:.3g}), '
+              'possibly chaotic: its error can grow exponentially, so no a-priori bound or '
+              f'pilot can promise {accuracy:g} rad over {horizon:g} s; the most accurate: '
+              f'{c.name} at rtol {rtol:.0e} (E≤{err:.2g} were the growth not exponential: '
+              'not a promise)')
+    return Selection(c.name, s.max_step, reason, math.inf, cost, prior_cost=_prior_cost(1),
+                     options=_options(c, {c.name: rtol}, s.G))
 
 
 def _options(c, tolerances, momentum):
@@ -329,7 +367,7 @@ def _piloted(s, usable, best, principal_attitude, prior_cost):
         err = 0.0
         for lv in levels:
             e, _ = yield from pilot.error(s.integrator(c), p, lv, h, s.horizon,
-                                          c.growth == 'drift')
+                                          c.growth == 'drift' or s.damping is not None)
             err = max(err, safety * e)
         # an error falling faster than h³ from the same method's pilot at a larger step, read
         # within GUARD_FROM of the budget, is not believed: a lucky reading of an oscillating

@@ -146,7 +146,9 @@ def _pilot(method, dynamics, q, m, model, candidate) -> Callable[[float], Option
         p = cls.order_on(dynamics, model.G, h)
         worst = 0.0
         for lv in levels:
-            work = pilot.error(integ, p, lv, h, model.horizon, method in DRIFTING)
+            # under dissipation every method's energy drifts (auto's pilot likewise)
+            work = pilot.error(integ, p, lv, h, model.horizon,
+                               method in DRIFTING or dynamics.dissipation.active)
             try:
                 while True:
                     next(work)

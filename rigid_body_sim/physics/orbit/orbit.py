@@ -107,6 +107,10 @@ class KeplerOrbit(Orbit):
     def perigee_radius(self) -> float:
         return self.a * (1.0 - self.e)
 
+    @property
+    def eccentricity(self) -> float:
+        return self.e
+
 
 class J2Orbit(KeplerOrbit):
     """Mean elements drifting at J2's secular rates, p = a(1 − e²):

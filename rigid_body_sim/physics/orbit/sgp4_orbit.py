@@ -93,6 +93,11 @@ class Sgp4Orbit(Orbit):
         """m, from the TLE's mean elements (SGP4's a in Earth radii)."""
         return float(self.sat.a * self.sat.radiusearthkm * 1e3 * (1.0 - self.sat.ecco))
 
+    @property
+    def eccentricity(self) -> float:
+        """The TLE's mean eccentricity."""
+        return float(self.sat.ecco)
+
     def state(self, t: float):
         """(r m, v m/s) at sim time t; OrbitError with SGP4's code if it fails."""
         fr = self.fr0 + float(t) / SECONDS_PER_DAY
