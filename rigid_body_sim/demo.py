@@ -387,4 +387,15 @@ def run(args) -> int:
                    if n not in failed and c not in (0, None, -signal.SIGINT)})
     code = summarize(scene, bag, out, watcher, target, failed,
                      {p.name: p.log_path for p in procs}, interrupted)
-    return code if code else (130 if interrupted else 0)
+    return exit_code(code, interrupted, watcher.t0 is not None)
+
+
+def exit_code(summary_code: int, interrupted: bool, started: bool) -> int:
+    """The demo's exit status: the summary's failure code if any; 130 after Ctrl-C; 1 when
+    no sample ever arrived (the run never started: 'no sample from the simulator'), even
+    if every node exited cleanly; else 0."""
+    if summary_code:
+        return summary_code
+    if interrupted:
+        return 130
+    return 0 if started else 1

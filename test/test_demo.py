@@ -282,3 +282,13 @@ def test_a_viewer_without_its_port_is_named_and_the_run_goes_on(tmp_path):
     assert out.returncode == 1, text[-3000:]
     assert 'demo: the viewer node exited with 1' in text and str(port) in text, text[-3000:]
     assert 'ended at t = 3.00 s' in out.stdout and 'Traceback' not in text, text[-3000:]
+
+
+def test_a_demo_that_never_got_a_sample_fails():
+    """'no sample from the simulator after 60 s' ends the demo with 1, not 0, though every
+    node it stopped exited cleanly; Ctrl-C stays 130 and a summary's failure its own."""
+    from rigid_body_sim.demo import exit_code
+    assert exit_code(0, False, started=False) == 1
+    assert exit_code(0, False, started=True) == 0
+    assert exit_code(0, True, started=False) == 130
+    assert exit_code(2, False, started=True) == 2
