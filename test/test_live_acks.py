@@ -56,3 +56,47 @@ def test_as_fast_as_possible_waits_once_a_window_and_every_topic_gets_every_samp
     waits, not_sent = int(found.group(1)), int(found.group(2))
     assert 1 <= waits <= math.ceil(samples / KEEP_ALL_WINDOW) + 1 and not_sent == 0, \
         found.group(0)
+
+
+SUBSCRIBER = r'''
+import sys, rclpy
+from geometry_msgs.msg import QuaternionStamped
+from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
+rclpy.init()
+node = rclpy.create_node('stalled_reader')
+first = []
+def got(m):
+    if not first:
+        first.append(m)
+        print('first message', flush=True)
+node.create_subscription(QuaternionStamped, sys.argv[1] + '/attitude', got, QoSProfile(
+    history=HistoryPolicy.KEEP_ALL, depth=1, reliability=ReliabilityPolicy.RELIABLE))
+print('subscribed', flush=True)
+rclpy.spin(node)
+'''
+
+
+def test_a_stopped_reliable_subscriber_holds_no_run_and_kills_no_node(ros_process, namespace):
+    """A keep-all subscriber whose process is stopped (SIGSTOP) mid-run acknowledges
+    nothing: the paced history fills, the waits time out and then publishes on its topic
+    are refused. The simulator counts and warns, reaches its duration and exits 0 (a
+    refused publish raised RCLError out of the loop with a keep-all history unhandled)."""
+    import signal
+    import sys
+    from ros_helpers import wait_output
+    reader = ros_process(sys.executable, '-c', SUBSCRIBER, namespace)
+    assert wait_output(reader, 'subscribed', 120), reader.output()[-3000:]
+    # t = 0 held until attitude's reader is matched (the other topics have none: 5 s)
+    sim = start_simulator(ros_process, namespace, real_time_factor=0.0, publish_clock=True,
+                          publish_rate=100.0, duration=80.0, wait_for_subscribers=1,
+                          wait_for_subscribers_timeout=5.0)
+    try:
+        assert wait_output(reader, 'first message', 120), reader.output()[-3000:]
+        reader.signal(signal.SIGSTOP)
+        assert sim.wait(240) == 0, sim.output()[-3000:]
+    finally:
+        reader.signal(signal.SIGCONT)
+    out = sim.output()
+    assert 'Traceback' not in out and 'duration 80 s reached' in out, out[-3000:]
+    assert f'{namespace}/attitude' in out and 'acknowledge' in out, out[-3000:]
+    assert re.search(r'\d+ waits for acknowledgements', out), out[-3000:]
