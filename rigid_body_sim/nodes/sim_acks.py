@@ -7,8 +7,13 @@ messages (``paced_qos``), and the node waits for acknowledgements once per
 KEEP_ALL_WINDOW messages a topic. Nothing is overwritten before every reader has it, so
 a wait that times out loses nothing either; the waits only bound the backlog (what a
 subscriber sees lags the simulation by at most a window) and let Fast DDS send in bursts
-(measured: 77-80 µs of the node's CPU a sample, against 97-128 µs waiting every 50
-samples and 128-190 µs never waiting, nine topics subscribed, load 13).
+(the node's CPU a sample, nine topics subscribed, loaded machine: median 111 µs over 14
+runs, 77-150 but one; waiting every 50 samples 97-152 µs; keep-all never waiting 128-190).
+
+What bounds the rate then is delivery: nine messages a sample to another process cost
+Fast DDS's sending thread ~43 µs a sample and the bench's Python subscriber ~135 µs. The
+102-142x of earlier sessions came from keep-last without waits, which loses what it
+has not sent yet: to a keep-all subscriber it delivered 1,060 of 4,000 samples.
 
 Why not keep-last with a wait every 50 samples, as before: Fast DDS overwrites a
 keep-last history's oldest message acknowledged or not (a subscriber stopped for a
