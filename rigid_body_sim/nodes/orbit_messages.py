@@ -132,13 +132,23 @@ class OrbitPublishers:
         if tf_type is not None:  # /tf where tf2_msgs exists (as the node's own transform)
             self.pubs.append((node.create_publisher(tf_type, '/tf', tf_qos),
                               tf_type(transforms=[self.msgs.transform])))
+        self.active = []  # the publishers with subscribers (refresh)
+        self.published = 0  # messages published (the simulator's diagnostics)
+
+    def refresh(self):
+        """Only topics with subscribers are filled and published: a topic nobody
+        subscribes to costs nothing (a late subscriber joins here)."""
+        self.active = [(p, m) for p, m in self.pubs if p.get_subscription_count() > 0]
 
     def destroy(self, node):
         for publisher, _ in self.pubs:
             node.destroy_publisher(publisher)
-        self.pubs = []
+        self.pubs, self.active = [], []
 
     def publish(self, block, i: int, stamp_ns: int):
+        if not self.active:
+            return
         self.msgs.fill(block, i, stamp_ns)
-        for publisher, msg in self.pubs:
+        for publisher, msg in self.active:
             publisher.publish(msg)
+            self.published += 1

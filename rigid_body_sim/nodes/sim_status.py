@@ -53,7 +53,9 @@ def _craft_counts(craft) -> dict:
                                                 craft.engine.magnetics.torque(
                                                     craft.engine.t, craft.engine.attitude))}
                if hold is not None else {}),
-            **{f'messages_built.{k}': n for k, n in craft.msgs.built().items()}}
+            **{f'messages_built.{k}': n for k, n in craft.msgs.built().items()},
+            **({'orbit_messages_published': craft.orbit.published}
+               if craft.orbit is not None else {})}
 
 
 def diagnostics(sim) -> DiagnosticArray:
@@ -73,6 +75,7 @@ def diagnostics(sim) -> DiagnosticArray:
             'commands_rejected.unknown_spacecraft':
                 sim._commands.rejected['unknown_spacecraft']}),
         'messages_published': sim._published,  # state topics, /tf included
+        **sim._acks.values(),  # the waits for acknowledgements (sim_acks)
         'missed_deadlines': sim._missed,
         # kernels first loaded after t = 0 (each a stall of the loop; warm_live prevents it)
         'kernels_loaded_after_t0': sim.kernels_after_t0(),

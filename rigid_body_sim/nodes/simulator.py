@@ -40,8 +40,8 @@ import sys
 import time
 from dataclasses import replace
 
-from rclpy.duration import Duration
 from rclpy.node import Node
+from rclpy._rclpy_pybind11 import RCLError
 
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import Vector3Stamped, WrenchStamped
@@ -61,6 +61,7 @@ from .usage import ros_arguments
 from .sim_services import AVAILABLE as SIM_SERVICES, SimulationServices
 from .sim_control import Control
 from .sim_fleet import Fleet, check_parameters
+from .sim_acks import FINAL_ACK_TIMEOUT, Acknowledgements, paced_qos
 from .sim_holds import Holds
 from .sim_status import diagnostics, summary
 from .spacecraft import STATE_DEPTH
@@ -77,8 +78,6 @@ LIVE_BLOCK = 16              # samples per engine call (each is published before
 SUBSCRIBER_REFRESH_S = 0.25  # how often matched-subscriber counts are re-read
 MAX_LAG_S = 1.0              # behind the wall-clock target by more: drop the backlog
 PILOT_SLICE_S = 0.002        # least time for auto's pilot per loop turn (as fast as possible)
-ACK_EVERY = STATE_DEPTH // 2  # as fast as possible: wait for acknowledgements this often
-ACK_TIMEOUT = Duration(seconds=1.0)  # then go on (a subscriber that hangs stalls no run)
 
 
 class Simulator(Control, Fleet, Holds, Node):
@@ -113,10 +112,14 @@ class Simulator(Control, Fleet, Holds, Node):
         self._log = self.get_logger()
         self._clock_ns, self._clock_subscribed = -1, False
         self._qos = qos_profile(self._p['qos'])
-        self._state_qos = qos_profile(self._p['qos'], STATE_DEPTH)
+        # paced (as fast as possible, or a recorder waited for): keep every unacknowledged
+        # message, so that no reliable reader loses one and the node never stops to ask
+        keep_all = self._paced and self._p['qos'] == 'reliable'  # sim_acks: why
+        self._state_qos = paced_qos(self._p['qos']) if self._paced else \
+            qos_profile(self._p['qos'], STATE_DEPTH)
+        self._tf_qos = paced_qos('reliable') if self._paced else qos_profile('reliable', 100)
         pub = self.create_publisher
-        self._tf_pub = pub(TFMessage, '/tf', qos_profile('reliable', 100)) \
-            if TFMessage is not None else None
+        self._tf_pub = pub(TFMessage, '/tf', self._tf_qos) if TFMessage is not None else None
         self._clock_pub = None
         if self._p['publish_clock']:
             self._clock_pub = pub(Clock, '/clock', qos_profile('reliable'))
@@ -151,7 +154,7 @@ class Simulator(Control, Fleet, Holds, Node):
         self._published = 0  # state messages published (diagnostics: messages_published)
         self._resets = 0  # ~/reset and set_state: viewers restart their drift and traces on it
         self._worst_late = 0.0
-        self._unacked, self._ack_warn = 0, 0.0  # samples since the last wait for acks
+        self._acks = Acknowledgements(self._acked_publishers, self._log, keep_all)
         # lockstep: the next control instant to hold (ns), the instant held (None: free to
         # advance), when its hold began (wall), whether its pause was reported
         self._lockstep = lockstep.period_ns(self._p) if self._p['lockstep'] else 0
@@ -280,22 +283,34 @@ class Simulator(Control, Fleet, Holds, Node):
 
     def _publish(self, craft, block, late=True):
         rtf = self._p['real_time_factor'] if late else 0
-        craft.publish_sensors(block, self.stamp_ns)
+        try:
+            sensors = craft.publish_sensors(block, self.stamp_ns)
+        except RCLError as exc:  # a paced reader's history is full (sim_acks)
+            sensors = 0
+            self._acks.refused('sensor topics', exc)
         msgs, active = craft.msgs, craft.active
+        # paced: every message counts toward the next wait for acknowledgements (sim_acks)
+        count = self._paced
+        if count and sensors:  # readings on the busiest sensor topic, before the samples'
+            self._acks.published(sensors)
         for i in range(len(block)):
             t_ns = int(block.t_ns[i])
             data = msgs.encoded(block, i, self.stamp_ns(t_ns), craft.active_names) \
                 if active else None
             new = self._tick_clock(t_ns)  # the first spacecraft at this sample instant
-            for publisher, name in active:
-                publisher.publish(data[name])
+            for send, publisher, name in craft.active_raw:
+                try:
+                    send(data[name])
+                except RCLError as exc:  # a paced reader's history is full (sim_acks)
+                    self._acks.refused(publisher.topic_name, exc)
             if craft.orbit is not None:
-                craft.orbit.publish(block, i, self.stamp_ns(t_ns))
+                try:
+                    craft.orbit.publish(block, i, self.stamp_ns(t_ns))
+                except RCLError as exc:
+                    self._acks.refused('orbit topics', exc)
             self._published += len(active)
-            if self._paced and active:
-                self._unacked += 1
-                if self._unacked >= ACK_EVERY:
-                    self._wait_acked()
+            if count:
+                self._acks.published()
             if rtf > 0 and new:
                 late = time.monotonic() - self._due_wall(t_ns)
                 self._worst_late = max(self._worst_late, late)
@@ -308,18 +323,18 @@ class Simulator(Control, Fleet, Holds, Node):
         were waited for (a recorder: it must get every sample, even if it lags)."""
         return not self._p['real_time_factor'] or self._p['wait_for_subscribers'] > 0
 
-    def _wait_acked(self):
-        """Hold until reliable subscribers have acknowledged what was published, so that
-        no more than ACK_EVERY samples are ever unacknowledged and the STATE_DEPTH history
-        never overwrites one a subscriber (a recorder) has not got. A subscriber that keeps
-        up acknowledges within milliseconds: then this costs nothing."""
-        self._unacked = 0
-        slow = [c.prefix + name for c in self._crafts.values() for p, name in c.active
-                if not p.wait_for_all_acked(ACK_TIMEOUT)]
-        if slow and time.monotonic() >= self._ack_warn:
-            self._ack_warn = time.monotonic() + 5.0
-            self._log.warning(f'subscribers of {", ".join(slow)} acknowledge nothing for '
-                              f'{ACK_TIMEOUT.nanoseconds / NS:g} s; going on without them')
+    def _acked_publishers(self):
+        """Every publisher the spacecraft publish on per sample or reading (one without
+        readers answers at once)."""
+        for c in self._crafts.values():
+            yield from c.publishers()
+            if c.orbit is not None:
+                yield from (p for p, _ in c.orbit.pubs)
+
+    def _wait_acked(self, timeout=FINAL_ACK_TIMEOUT):
+        """Hold until reliable subscribers have acknowledged what was published
+        (``sim_acks``)."""
+        self._acks.wait(timeout)
 
     def _catch_up(self, now=None):
         """Real-time modes: process what is due by the wall clock."""
@@ -395,6 +410,7 @@ class Simulator(Control, Fleet, Holds, Node):
                 # the last samples are still in flight when the run ends: a recorder that
                 # was waited for must get them before this process takes its writers away
                 self._wait_acked()
+                self._log.info(self._acks.summary())
 
     def _warm(self):
         """Load every kernel the spacecraft will use before t = 0 (``warm_live``): one
