@@ -57,7 +57,8 @@ def test_orbit_topics_nobody_subscribes_to_are_not_published(ros_process, namesp
     rclpy_node.create_subscription(QuaternionStamped, f'{namespace}/attitude',
                                    attitude.append, qos)
     probe.wait_for(lambda: len(attitude) > 20, 120.0, 'attitude messages received')
-    probe.wait_diag(lambda d, s: int(d.get('messages_built.attitude', 0)) > len(attitude),
+    seen = len(attitude)  # fixed: the subscription goes on receiving while we wait
+    probe.wait_diag(lambda d, s: int(d.get('messages_built.attitude', 0)) > seen,
                     30.0, 'diagnostics after those messages')
     assert int(probe.diag()['orbit_messages_published']) == 0, probe.diag()
     rclpy_node.create_subscription(WrenchStamped, f'{namespace}/environment_torque',
