@@ -1,7 +1,8 @@
 """The engine: one closed loop for every front end (live node, offline run, demo, bench).
 
-It owns the state, sim time, the integrator (and ``auto``'s selection), the torque
-sources, the schedule of events and faults, and produces blocks of samples.
+It owns the state, sim time, the integrator (and ``auto``'s selection: the mixin of
+``method_choice``), the torque sources, the schedule of events and faults, and produces
+blocks of samples.
 
 Time is an integer count of nanoseconds, never a float summed step by step. The engine
 advances from event to event — sample instants (multiples of the sample period), source
@@ -21,13 +22,13 @@ from typing import Iterator, Optional
 
 import numpy as np
 
-from ..physics import INTEGRATORS, Dynamics, IntegrationError, create, rotation
+from ..physics import Dynamics, IntegrationError, rotation
 from ..physics.exact import TorqueFreeSolution
-from ..physics.auto import select, selecting
 from ..physics.orbit import OrbitError
 from . import closed_loop, health, sensing
 from .actuators import Actuators
 from .magnetic import Magnetics
+from .method_choice import MethodChoice
 from .config import NS, EngineConfig
 from .samples import BlockBuilder, SampleBlock
 from .sources import NEVER, CommandHold, ControlLaw
@@ -36,11 +37,7 @@ from .specs import AUTO
 
 __all__ = ['Engine', 'IntegrationError', 'NEVER']
 
-# the method of scenes with wheels or CMGs: the registered one that advances them
-ACTUATED = next(name for name, cls in INTEGRATORS.items() if cls.requires_actuators)
-
-
-class Engine:
+class Engine(MethodChoice):
     """Advance a rigid body through its events; see the module docstring.
 
     ``blocking_selection``: run ``auto``'s pilot to completion when a choice is needed
@@ -234,117 +231,6 @@ class Engine:
         return self._tau_body
 
     # ------------------------------------------------------------------ methods
-    def _use(self, name, h_max, reason, **options):
-        if name != self.method or options:
-            self._retired_nfev += self._integ.nfev if self._integ else 0
-            self._integ = create(name, self.dynamics, **options)
-        terms = self.environment_terms
-        if terms and not reason.startswith('auto'):  # auto's reason names them itself
-            reason = f'{reason}; model: free body + {" + ".join(terms)}'
-        self.method, self.reason = name, reason
-        self.step_max = float(h_max)
-        self._anchor = None
-
-    def _choose(self):
-        """Pick the method for the current state (``auto``) or take the configured one."""
-        c = self.config
-        self._selection = None
-        if self.actuators is not None:  # wheels / CMGs: the method that carries them
-            self._use(ACTUATED, min(c.step, c.event_spacing()),
-                      f'actuators (wheels/CMGs): {ACTUATED}, |H| kept to round-off; at the '
-                      'scene\'s step', actuators=self.actuators)
-            return
-        if c.integrator != AUTO:
-            self._use(c.integrator, c.event_spacing(),
-                      f'set by the scene or parameter ({c.integrator})',
-                      **dict(c.integrator_options))
-            self.method_warnings = self._check_method() if self.check_method else []
-            return
-        # the environment's torques act from the start, as a torque the pilot cannot foresee
-        terms = self.environment_terms
-        torque = self._torque_seen or bool(terms)
-        # the budget covers the rest of the run (what went before was exact or is done)
-        left = (self.end_ns - self.t_ns) / NS if c.duration_ns > 0 else 0.0
-        kw = dict(torque=self._torque_seen, accuracy=c.accuracy, duration=left,
-                  max_step=c.event_spacing(),
-                  torque_rate=c.torque_rate(self._torque_seen) if torque else 0.0,
-                  dynamics=self.dynamics,
-                  environment=terms, forced=bool(terms) and c.environment.periodic_forcing,
-                  # an adaptive method restarts where the environment is re-made per event
-                  restarting=self.orbit_anchored or bool(terms) and c.environment.magnetorquers)
-        state = (self.body, c.dissipation, self.attitude, self.angular_velocity)
-        if not torque and not c.dissipation.active:
-            sel = select(*state, **kw)
-            self._use(sel.name, kw['max_step'],
-                      f'auto: {sel.reason}; evaluated at sample and event instants only')
-            return
-        work = selecting(*state, **kw)
-        if self.blocking_selection or torque:  # with torque the choice is a priori: at once
-            self._selection = work
-            self.work()
-        else:
-            cpu0 = time.process_time()
-            sel = select(*state, prior_only=True, **kw)
-            self.selection_cpu += time.process_time() - cpu0
-            self._use(sel.name, sel.step, f'auto: provisional a-priori choice while the '
-                      f'selection pilot runs: {sel.reason}', **dict(sel.options))
-            self._selection = work
-
-    def _check_method(self):
-        """[(verdict, message)] for the fixed method at its step from the current state:
-        outside its stability region ('refuse' far outside, else 'warn'), or a predicted
-        error (auto's error model, physics.auto.step_advice) far from the accuracy budget,
-        too damped or too amplified alike ('warn', with the step that would meet it)."""
-        from ..physics.auto.step_advice import advise, run_step
-        from ..physics.integrators.stability import check_step
-        c = self.config
-        spacing = c.sample_period if c.control is None else \
-            min(c.sample_period, c.control.period_ns / NS)
-        left = (self.end_ns - self.t_ns) / NS if c.duration_ns > 0 else 0.0
-        torque = c.control is not None or self._torque_seen
-        verdict, message = check_step(self.method, self.dynamics, self._m,
-                                      run_step(c.step, spacing), left)
-        if verdict == 'refuse':
-            return [(verdict, message)]
-        out = [(verdict, message)] if verdict == 'warn' else []
-        advice = advise(self.method, self.dynamics, self._q, self._m, c.step,
-                        accuracy=c.accuracy, duration=left, spacing=spacing, torque=torque,
-                        torque_rate=c.torque_rate() if torque else 0.0)
-        if advice is not None and advice.far:
-            out.append(('warn', advice.message()))
-        return out
-
-    @property
-    def selection_pending(self) -> bool:
-        return self._selection is not None
-
-    def work(self, deadline: Optional[float] = None) -> bool:
-        """Feed ``auto``'s pilot until done or ``deadline`` (time.monotonic()); True while
-        it is still pending. The choice applies at the current instant."""
-        work = self._selection
-        if work is None:
-            return False
-        cpu0 = time.process_time()
-        try:
-            while deadline is None or time.monotonic() < deadline:
-                next(work)
-        except StopIteration as done:
-            self.selection_cpu += time.process_time() - cpu0  # setting up the run is the run's
-            sel = done.value
-            self._selection = None
-            self.selected = sel
-            self._use(sel.name, min(sel.step, self.config.event_spacing()) if sel.step > 0
-                      else self.config.event_spacing(), f'auto: {sel.reason}',
-                      **dict(sel.options))
-        except (ValueError, IntegrationError) as exc:
-            self.selection_cpu += time.process_time() - cpu0
-            self._selection = None
-            self._use('splitting2', min(self.config.step, self.config.event_spacing()),
-                      f'auto: selection failed ({exc}); splitting2 at the scene\'s step')
-        else:
-            self.selection_cpu += time.process_time() - cpu0
-        return self._selection is not None
-
     def reconfigure(self, config: EngineConfig):
         """Apply new settings now, state and time continuous. Inertia and the initial state
         take effect on :meth:`reset`; dissipation, numerics and limits at once."""
