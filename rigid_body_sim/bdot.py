@@ -41,6 +41,20 @@ def gain_from_parameters(p, i_min: float) -> float:
                      'bdot.magnetic_inclination) for the Avanzini-Giulietti gain')
 
 
+def averaged_decay_rate(gain: float, moments) -> float:
+    """The rate (1/s) at which B-dot slows the slowest principal rate, by the averaged
+    closed loop (Avanzini & Giulietti 2012, §III): with Ḃ ≈ B × ω the torque is
+    −k(ω − (b̂·ω)b̂), and over a tumble the field's direction in body axes averages to
+    ⟨b̂b̂ᵀ⟩ = 1/3, so each principal rate decays as e^{−(2/3)(k/I_i)t}; the major axis's is
+    the slowest: (2/3)k/I_max. Saturation of the rods only slows the start."""
+    return 2.0 / 3.0 * float(gain) / float(np.max(moments))
+
+
+def predicted_time(rate_start: float, rate_end: float, gain: float, moments) -> float:
+    """Seconds from |ω| = rate_start to rate_end (rad/s) at :func:`averaged_decay_rate`."""
+    return math.log(rate_start / rate_end) / averaged_decay_rate(gain, moments)
+
+
 class Bdot:
     """m = −k·Ḃ/|B|² from consecutive readings, clipped per rod to ``max_dipole``."""
 

@@ -8,7 +8,9 @@ Then the scene's own story
 * an axisymmetric body with double-bracket dissipation: nutation.png (tan θ ∝ e^{ct});
 * a controlled run: control.png (critically damped slew, exponential detumble);
 * the gravity gradient in a circular orbit, started relative to LVLH: libration.png
-  (plots.orbit: pitch and roll–yaw at their small-libration frequencies).
+  (plots.orbit: pitch and roll–yaw at their small-libration frequencies);
+* a B-dot detumble (controller mode bdot): bdot.png (plots.orbit: |ω| against the
+  averaged closed loop's decay) in place of control.png.
 A scene whose environment exerts a torque (orbit terms) has no free phase.
 """
 import numpy as np
@@ -65,7 +67,10 @@ def write_figures(samples, body, out_dir, title, free_end=np.inf, scene=None):
             and not np.isfinite(torque_free_end):
         figures.append(story.nutation(s, body, out_dir, title, unit, scale,
                                       sim['dissipation.coefficient']))
-    if scene is not None and scene.controlled:
+    if scene is not None and scene.controlled and scene.controller.get('mode') == 'bdot':
+        figures.append(orbit.bdot_detumble(s, body.principal_moments, scene.controller,
+                                           out_dir, title, unit, scale))
+    elif scene is not None and scene.controlled:
         ctl = dict(scene.controller)
         ctl.setdefault('max_torque', sim.get('max_torque', np.inf))
         figures.append(story.control(s, out_dir, title, unit, scale, ctl, free_end))

@@ -5,6 +5,9 @@
   roll–yaw at the roots of the quartic: ``physics.analytic.libration_frequencies``). The
   dashed curves are sinusoids at the predicted frequencies (amplitudes and phases fitted);
   the measured frequencies are fitted freely, starting from the predicted ones.
+* bdot.png — a B-dot detumble: |ω| against the averaged closed loop's decay
+  (``bdot.averaged_decay_rate``, the major axis's e^{−(2/3)(k/I_max)t}) down to the residual
+  of about 2n that B-dot leaves (the field turns at ~2n in the orbit frame).
 """
 import math
 
@@ -12,6 +15,7 @@ import numpy as np
 from scipy.optimize import least_squares
 from scipy.spatial.transform import Rotation
 
+from .. import bdot
 from ..physics import analytic
 from ..physics.orbit import frames
 from .common import pyplot, save
@@ -82,3 +86,45 @@ def libration(s, orbit, moments, out_dir, title, unit, scale):
                 'against the small-libration frequencies', plt,
                 {'pitch_frequency': (pitch_m, pitch_w),
                  'roll_yaw_frequencies': ((low_m, high_m), (low, high))})
+
+
+HALF_DEGREE = math.radians(0.5)  # rad/s: a detumbled spacecraft, as the B-dot scene asks
+
+
+def bdot_detumble(s, moments, controller, out_dir, title, unit, scale):
+    """|ω| of a B-dot run against the averaged closed loop's exponential decay; the
+    values: the time to 0.5 °/s in orbits (measured, predicted) and the gain."""
+    plt = pyplot()
+    t = np.asarray(s['t'], float)
+    w = np.linalg.norm(np.asarray(s['angular_velocity'], float), axis=1)
+    n = float(controller['bdot.orbit_rate'])
+    gain = bdot.gain_from_parameters(controller, float(np.min(moments)))
+    rate = bdot.averaged_decay_rate(gain, moments)
+    period = 2.0 * math.pi / n if n > 0.0 else math.nan
+    predicted = bdot.predicted_time(w[0], HALF_DEGREE, gain, moments) if w[0] > HALF_DEGREE \
+        else 0.0
+    below = np.nonzero(w < HALF_DEGREE)[0]
+    measured = t[below[0]] - t[0] if len(below) else math.nan
+    fig, ax = plt.subplots(1, 1, figsize=(8, 4.8))
+    ax.semilogy(t / scale, np.degrees(w), lw=2.5, alpha=0.5, label='simulated |ω|')
+    floor = 2.0 * n
+    envelope = np.maximum(w[0] * np.exp(-rate * (t - t[0])), floor)
+    ax.semilogy(t / scale, np.degrees(envelope), 'k--', lw=0.9,
+                label=f'averaged closed loop: e^(−(2/3)(k/I_max)t), k = {gain:.3g} kg·m²/s')
+    if n > 0.0:
+        ax.axhline(math.degrees(floor), color='0.5', ls=':', lw=0.8,
+                   label='2n: the residual B-dot leaves')
+    ax.axhline(0.5, color='g', ls=':', lw=0.8)
+    if predicted > 0.0:
+        ax.axvline((t[0] + predicted) / scale, color='g', ls='--', lw=0.8,
+                   label=f'0.5 °/s predicted at {predicted / period:.3g} orbit'
+                   + (f' (reached at {measured / period:.3g})' if measured == measured else ''))
+    ax.set_xlabel(f't [{unit}] (sim time)')
+    ax.set_ylabel('|ω| [°/s]')
+    ax.grid(alpha=0.3, which='both')
+    ax.legend(fontsize=8)
+    ax.set_title(f'{title}: B-dot detumble (orbit {period / 60:.1f} min)', fontsize=10)
+    return save(fig, out_dir, 'bdot.png', '|ω| under B-dot against the averaged closed '
+                'loop\'s decay', plt,
+                {'orbits_to_half_degree': (measured / period, predicted / period),
+                 'gain': gain})
