@@ -244,10 +244,10 @@ def simulate(scene: SceneFile, duration=None, integrator=None, step=None, accura
                      output_cpu_seconds=output)
 
 
-def warm_for(engine: 'Engine') -> None:
+def warm_for(engine: 'Engine') -> set:
     """The run's warm-up (``engine.warm.warm_for``), imported with the engine."""
     from .engine.warm import warm_for as warm
-    warm(engine)
+    return warm(engine)
 
 
 def _integration_error() -> tuple:
@@ -464,19 +464,20 @@ def run(args) -> int:
     try:
         scene = load(args.scene, args.set, args.namespace)
         out = args.out or os.path.join('out', scene.name)
-        # The kernels come from numba's disk cache before the clock starts: loaded lazily
-        # they landed in the first method's run or in auto's pilot (0.22 s of a 0.23 s
-        # "selection" on explorer1, whose pilot proper takes 1 ms).
-        from . import compiled
+        # The kernels the run can use come from numba's disk cache before the clock
+        # starts: loaded lazily they landed in the first method's run or in auto's pilot
+        # (0.22 s of a 0.23 s "selection" on explorer1, whose pilot proper takes 1 ms).
+        from .engine.warm import load_kernels, warm_selection
+        p = effective_parameters(scene, args.duration, args.integrator)
         load0 = time.process_time()
-        compiled.warm()
+        warm_selection(p['integrator'], p['dissipation.model'])
         kernel_load = time.process_time() - load0
         # the checks (step, stability, predicted error) before anything is replaced: a
         # refused run leaves the previous one in place
         engine = engine_for(scene, args.duration, args.integrator, args.step, args.accuracy,
                             check_stability=True)
         load0 = time.process_time()
-        warm_for(engine)
+        load_kernels(engine.config, warm_for(engine))
         kernel_load += time.process_time() - load0
         _replace_previous(out)
         if not args.no_bag:
