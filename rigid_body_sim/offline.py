@@ -467,9 +467,10 @@ def run(args) -> int:
         # The kernels the run can use come from numba's disk cache before the clock
         # starts: loaded lazily they landed in the first method's run or in auto's pilot
         # (0.22 s of a 0.23 s "selection" on explorer1, whose pilot proper takes 1 ms).
-        from .engine.warm import load_kernels, warm_selection
+        from .engine.warm import load_kernels, start_numba, warm_selection
         p = effective_parameters(scene, args.duration, args.integrator)
         load0 = time.process_time()
+        start_numba()
         warm_selection(p['integrator'], p['dissipation.model'])
         kernel_load = time.process_time() - load0
         # the checks (step, stability, predicted error) before anything is replaced: a

@@ -9,6 +9,18 @@ from .specs import AUTO
 from ..physics import INTEGRATORS
 
 
+def start_numba() -> None:
+    """numba's own start-up now (its typing and target registries, and scipy.linalg for
+    its BLAS check: ~0.3 CPU-s, paid once per process by the first kernel compiled or
+    loaded): a front that times its kernel loading counts it there, not in whatever
+    first calls a kernel (an orbit scene's engine build). Nothing without the JIT."""
+    from ..physics import jit
+    if jit.COMPILED:
+        from numba.core.registry import cpu_target
+        cpu_target.target_context.refresh()
+        cpu_target.typing_context.refresh()
+
+
 def warm_selection(integrator: str, dissipation_model: str) -> None:
     """Before an offline engine is built (its build makes ``auto``'s choice, counted as
     selection CPU): auto's costs read, and where its pilot may run (torque-free with
