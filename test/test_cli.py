@@ -100,6 +100,20 @@ def test_the_offline_modules_import_without_numba_or_the_bag_writer():
     assert proc.stdout.strip().splitlines()[-1] == '[]'
 
 
+def test_the_tools_that_run_nodes_import_without_numba():
+    """The tools that start nodes and report (bench.common's report and best_of) run no
+    kernel themselves: importing them (their --help, their whole run) loads no numba."""
+    import sys
+    tools = ('lockstep', 'lockstep_floor', 'fleet', 'flood_report', 'recovery', 'two_hosts')
+    proc = subprocess.run([sys.executable, '-c', (
+        'import importlib, sys; '
+        f'[importlib.import_module("rigid_body_sim.tools." + t) for t in {tools!r}]; '
+        'importlib.import_module("rigid_body_sim.bench.common"); '
+        'print("numba" in sys.modules)')], capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    assert proc.stdout.strip().splitlines()[-1] == 'False'
+
+
 @pytest.mark.parametrize('package', ['rigid_body_sim.engine', 'rigid_body_sim.physics',
                                      'rigid_body_sim.bag'])
 def test_the_packages_names_resolve_on_first_use(package):
