@@ -12,15 +12,19 @@ import os
 import sys
 import time
 from dataclasses import dataclass, field
-from typing import Optional
+from typing import TYPE_CHECKING, Optional
 
 import numpy as np
 
-from .engine import Engine, EngineConfig, SampleBlock
-from .engine.warm import warm_for
-from .physics import IntegrationError
+# the engine core and the integrators are imported where a run is built (engine_for), not
+# here, where a refused argument or scene file does not need them (the scene's checks still
+# import numba through the parameter specs: 0.61 → 0.55 CPU-s for a bad file)
+from .engine.samples import SampleBlock
 from .scene import SceneError, SceneFile, content_sha256, load
 from .sensors.specs import SensorSettings
+
+if TYPE_CHECKING:
+    from .engine import Engine
 
 PLOT_POINTS = 20_000  # samples kept for the plots (a long run is decimated evenly)
 
@@ -144,13 +148,14 @@ OFFLINE_BLOCK = 16384
 
 
 def engine_for(scene: SceneFile, duration=None, integrator=None, step=None, accuracy=None,
-               integrator_options=None, check_stability=False) -> Engine:
+               integrator_options=None, check_stability=False) -> 'Engine':
     """The engine for ``scene`` with CLI overrides; SceneError naming the problem.
     ``check_stability``: refuse or warn about a fixed method's step before the run: its
     stability, and its error predicted against the accuracy (``Engine.check_method``; the
     CLI does; the benchmarks run unstable steps on purpose). It also refuses a fixed
     method's step longer than the sample (or control) period, which the engine would
     otherwise shorten to that period without a word."""
+    from .engine import Engine, EngineConfig
     p = effective_parameters(scene, duration, integrator, step, accuracy)
     if scene.spacecraft:
         raise SceneError(f'{scene.path}: declares spacecraft ({", ".join(scene.spacecraft)}); '
@@ -242,6 +247,19 @@ def simulate(scene: SceneFile, duration=None, integrator=None, step=None, accura
                      output_cpu_seconds=output)
 
 
+def warm_for(engine: 'Engine') -> set:
+    """The run's warm-up (``engine.warm.warm_for``), imported with the engine."""
+    from .engine.warm import warm_for as warm
+    return warm(engine)
+
+
+def _integration_error() -> tuple:
+    """(IntegrationError,) once the integrators are imported, else (): none can have been
+    raised before, and importing them to check would load numba for a bad scene file."""
+    base = sys.modules.get('rigid_body_sim.physics.integrators.base')
+    return (base.IntegrationError,) if base is not None else ()
+
+
 def kernel_signatures() -> int:
     """Compiled signatures held by the package's numba kernels now (0 without numba's JIT):
     their growth over a stretch is what that stretch compiled or loaded from the cache."""
@@ -259,6 +277,7 @@ class BagSink:
 
     def __init__(self, scene: SceneFile, directory: str, extra: dict, parameters=None):
         from .bag.writer import BagWriter
+        from .engine import EngineConfig
         from .engine.actuators import ActuatorConfig
         from .param_spec import coerce_all
         from .engine.specs import SIMULATOR
@@ -448,19 +467,21 @@ def run(args) -> int:
     try:
         scene = load(args.scene, args.set, args.namespace)
         out = args.out or os.path.join('out', scene.name)
-        # The kernels come from numba's disk cache before the clock starts: loaded lazily
-        # they landed in the first method's run or in auto's pilot (0.22 s of a 0.23 s
-        # "selection" on explorer1, whose pilot proper takes 1 ms).
-        from . import compiled
+        # The kernels the run can use come from numba's disk cache before the clock
+        # starts: loaded lazily they landed in the first method's run or in auto's pilot
+        # (0.22 s of a 0.23 s "selection" on explorer1, whose pilot proper takes 1 ms).
+        from .engine.warm import load_kernels, start_numba, warm_selection
+        p = effective_parameters(scene, args.duration, args.integrator)
         load0 = time.process_time()
-        compiled.warm()
+        start_numba()
+        warm_selection(p['integrator'], p['dissipation.model'])
         kernel_load = time.process_time() - load0
         # the checks (step, stability, predicted error) before anything is replaced: a
         # refused run leaves the previous one in place
         engine = engine_for(scene, args.duration, args.integrator, args.step, args.accuracy,
                             check_stability=True)
         load0 = time.process_time()
-        warm_for(engine)
+        load_kernels(engine.config, warm_for(engine))
         kernel_load += time.process_time() - load0
         _replace_previous(out)
         if not args.no_bag:
@@ -501,7 +522,7 @@ def run(args) -> int:
             if scene.controlled and scene.controller['feedback'] == 'sensors':
                 from .sensors.plots import write_pointing_plot
                 result.plots.append(os.path.abspath(write_pointing_plot(s, scene, out)))
-    except (SceneError, ValueError, IntegrationError, BagError) as exc:
+    except (SceneError, ValueError, BagError, *_integration_error()) as exc:
         print(f'error: {exc}', file=sys.stderr)
         return 2
     for note in result.actuators.notes if result.actuators is not None else ():

@@ -82,3 +82,47 @@ def test_stability_limits_are_the_textbook_ones():
     h = largest_stable_step('rk4', stiff, m, 1.0)
     assert h * lam == pytest.approx(2.785, rel=0.01)
     assert check_step('splitting2', stiff, m, 10.0, 100.0) == ('ok', None)
+
+
+def test_the_offline_modules_import_without_numba_or_the_bag_writer():
+    """engine, physics and bag resolve their names on first use: a fresh process importing
+    the offline run's module, BagError and the rotation helpers (what a refused argument or
+    scene file reaches first) loads neither numba, scipy, mcap nor the engine's core."""
+    import sys
+    proc = subprocess.run([sys.executable, '-c', (
+        'import sys; from rigid_body_sim import offline; '
+        'from rigid_body_sim.bag.errors import BagError; '
+        'from rigid_body_sim.physics import rotation, body; '
+        'print(sorted(m for m in ("numba", "scipy", "mcap", "rigid_body_sim.engine.core", '
+        '"rigid_body_sim.physics.integrators") if m in sys.modules))')],
+        capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    assert proc.stdout.strip().splitlines()[-1] == '[]'
+
+
+def test_the_tools_that_run_nodes_import_without_numba():
+    """The tools that start nodes and report (bench.common's report and best_of) run no
+    kernel themselves: importing them (their --help, their whole run) loads no numba."""
+    import sys
+    tools = ('lockstep', 'lockstep_floor', 'fleet', 'flood_report', 'recovery', 'two_hosts')
+    proc = subprocess.run([sys.executable, '-c', (
+        'import importlib, sys; '
+        f'[importlib.import_module("rigid_body_sim.tools." + t) for t in {tools!r}]; '
+        'importlib.import_module("rigid_body_sim.bench.common"); '
+        'print("numba" in sys.modules)')], capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    assert proc.stdout.strip().splitlines()[-1] == 'False'
+
+
+@pytest.mark.parametrize('package', ['rigid_body_sim.engine', 'rigid_body_sim.physics',
+                                     'rigid_body_sim.bag'])
+def test_the_packages_names_resolve_on_first_use(package):
+    """Every name a package exports is there when asked for (and listed by dir()); a name
+    it does not have raises AttributeError naming it."""
+    import importlib
+    module = importlib.import_module(package)
+    for name in module.__all__:
+        assert getattr(module, name) is not None, name
+        assert name in dir(module)
+    with pytest.raises(AttributeError, match='no_such_name'):
+        module.no_such_name  # noqa: B018

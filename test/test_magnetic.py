@@ -62,6 +62,35 @@ def test_the_loops_dipole_is_its_closed_form(model):
         assert 1.5e-5 < np.linalg.norm(got) < 6e-5  # 500 km: 20-50 µT
 
 
+def test_the_models_range_is_read_from_the_file_as_ppigrf_reads_it():
+    """The epoch check reads IGRF-14's range from the coefficient file's header, without
+    ppigrf and pandas: the same file as ppigrf's, the same first and last dates as its
+    read_shc."""
+    from ppigrf import ppigrf
+    assert os.path.samefile(magnetic_field.coefficient_file(), ppigrf.shc_fn_igrf14)
+    g, _ = ppigrf.read_shc(ppigrf.shc_fn_igrf14)
+    first, last = magnetic_field.model_range()
+    assert (first, last) == (g.index[0].to_pydatetime().replace(tzinfo=timezone.utc),
+                             g.index[-1].to_pydatetime().replace(tzinfo=timezone.utc))
+    assert (first.year, last.year) == (1900, 2030)
+
+
+def test_loading_an_igrf_scene_leaves_ppigrf_and_pandas_unimported():
+    """A fresh process loads bdot_detumble (IGRF) and builds its configuration, the epoch
+    checked: ppigrf and pandas (~0.5 CPU-s) wait until the field is evaluated."""
+    import subprocess
+    import sys
+    proc = subprocess.run([sys.executable, '-c', (
+        'import sys; from rigid_body_sim.scene import load; '
+        'from rigid_body_sim.engine import EngineConfig; s = load("bdot_detumble"); '
+        'c = EngineConfig.from_parameters(s.simulator); '
+        'assert c.environment.magnetic.field.model == "igrf"; '
+        'print(sorted(m for m in ("pandas", "ppigrf") if m in sys.modules))')],
+        capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    assert proc.stdout.strip().splitlines()[-1] == '[]'
+
+
 def test_igrf_along_the_orbit_is_ppigrfs_to_a_nanotesla():
     """The table (every 5 s, linear between) at the midpoints, where its error is largest,
     against ppigrf itself over an orbit at 500 km, i = 97.4°: within 1.5 nT and 6e-5 of

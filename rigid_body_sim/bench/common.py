@@ -7,9 +7,11 @@ import time
 
 import numpy as np
 
-from ..control import ControlConfig
-from ..engine import NS, ControlSettings, Engine, EngineConfig
-from ..physics import IntegrationError, RigidBody, rotation
+# the engine and the control law are imported where an engine is built (engine_for):
+# the tools that import this module for report() and best_of() (lockstep, fleet, flood,
+# recovery, ...) then answer --help and run their nodes without loading numba (0.35 CPU-s)
+from ..physics import rotation
+from ..physics.body import RigidBody
 
 REF_RTOL = 1e-13
 EPS = np.finfo(float).eps
@@ -61,6 +63,8 @@ def engine_for(scene, method, h=None, **options):
     """The simulation engine on a bench scene: one sample at the end, fixed steps h (or,
     h None, one adaptive call per interval between events: the whole horizon, or each
     control period for controlled scenes), their law as the in-process control source."""
+    from ..control import ControlConfig
+    from ..engine import NS, ControlSettings, Engine, EngineConfig
     ns = int(round(scene.t_end * NS))
     control = None
     if scene.control is not None:
@@ -133,8 +137,9 @@ def reference(scene):
     return fine[0], fine[1], 'dop853 rtol 1e-13', float(rotation.angle_between(fine[0], looser[0]))
 
 
+# (IntegrationError, once re-exported here, is imported from physics by every section)
 __all__ = ['cpu', 'metrics', 'propagate', 'engine_for', 'timed', 'timed_engine', 'reference',
-           'invariants', 'IntegrationError', 'EPS']
+           'invariants', 'EPS']
 
 
 def write_csv(path, fields, rows):

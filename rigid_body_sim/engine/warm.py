@@ -1,23 +1,80 @@
 """Kernels loaded before a run's clock starts, for every front that has a clock (the CLI's
-CPU figure, the live node's real-time pacing)."""
+CPU figure, the live node's real-time pacing).
+
+Only the kernels the run can use: loading all of them (:func:`compiled.warm`, 19 modules
+from the disk cache) cost a 1 s offline run ~0.5 CPU-s whatever its scene needed."""
 from .config import NS
 from .core import Engine
+from .specs import AUTO
 from ..physics import INTEGRATORS
 
 
-def warm_for(engine: Engine) -> None:
+def start_numba() -> None:
+    """numba's own start-up now (its typing and target registries, and scipy.linalg for
+    its BLAS check: ~0.3 CPU-s, paid once per process by the first kernel compiled or
+    loaded): a front that times its kernel loading counts it there, not in whatever
+    first calls a kernel (an orbit scene's engine build). Nothing without the JIT."""
+    from ..physics import jit
+    if jit.COMPILED:
+        from numba.core.registry import cpu_target
+        cpu_target.target_context.refresh()
+        cpu_target.typing_context.refresh()
+
+
+def warm_selection(integrator: str, dissipation_model: str) -> None:
+    """Before an offline engine is built (its build makes ``auto``'s choice, counted as
+    selection CPU): auto's costs read, and where its pilot may run (torque-free with
+    dissipation: the pilot runs candidates), every candidate's kernels loaded, so that
+    the selection's CPU is the choice's, not the loading's (0.22 s of a 0.23 s selection
+    on explorer1)."""
+    if integrator != AUTO:
+        return
+    from ..physics.auto import calibration
+    calibration.current()
+    if dissipation_model != 'none':
+        from ..physics.integrators import AUTO_CANDIDATES
+        _load_modules(c.name for c in AUTO_CANDIDATES)
+
+
+def _load_modules(methods) -> None:
+    """Each of ``methods``' kernel modules' own warm-up (every loop of the module: a
+    partial step to an event's instant runs another loop than the samples do)."""
+    for module in dict.fromkeys(m for name in methods if name in INTEGRATORS
+                                for m in INTEGRATORS[name].kernel_modules):
+        module.warm()
+
+
+def warm_for(engine: Engine) -> set:
     """Load every kernel ``engine``'s run will use, with the argument types it will pass,
-    before its clock starts: :func:`compiled.warm` loads each module's kernels, but some
-    are first called inside a run (the gyrostat loop of wheel scenes: 60 ms of a 64 ms
-    run). A fresh engine of the same configuration (so ``auto`` chooses the same) runs the
-    first few sample periods, past the mission's free phase, where the law's method starts."""
+    before its clock starts: a fresh engine of the same configuration (so ``auto``
+    chooses the same, and re-chooses the same when the law's torque first appears) runs
+    the first few sample periods, past the mission's free phase, where the law's method
+    starts. Some loops are first called inside a run (the gyrostat loop of wheel scenes:
+    60 ms of a 64 ms run). Returns the names of the methods it ran (:func:`load_kernels`)."""
     c = engine.config
     span = 3 * c.sample_period_ns
     if c.control is not None:
         span += round(c.control.free_time * 1e9) + 3 * c.control.period_ns
     copy = Engine(c)
+    methods = {copy.method}
     for _ in copy.run(min(copy.end_ns, copy.t_ns + span)):
-        pass
+        methods.add(copy.method)
+    methods.add(copy.method)
+    return methods
+
+
+def load_kernels(config, methods) -> None:
+    """Every loop of ``methods`` (what :func:`warm_for` ran) and, for a scene with them,
+    the control law's and the sensor noise's kernels: what the rest of the run may call
+    that its first periods did not. Not last before the clock: a :func:`warm_for` after it
+    leaves the caches warm with the run's own code."""
+    _load_modules(sorted(methods))
+    if config.control is not None:
+        from .. import control_kernel
+        control_kernel.warm()
+    if config.sensors is not None:
+        from ..sensors import noise
+        noise.warm()
 
 
 def warm_live(engine: Engine) -> None:
@@ -65,6 +122,4 @@ def warm_live(engine: Engine) -> None:
         advance(3)
     # and each method's loops as its module loads them (a partial step to an event's
     # instant runs another of its loops than the samples do)
-    for module in dict.fromkeys(m for name in methods if name in INTEGRATORS
-                                for m in INTEGRATORS[name].kernel_modules):
-        module.warm()
+    _load_modules(methods)

@@ -10,11 +10,28 @@
 * :mod:`.jit` — numba's settings for every kernel.
 * :mod:`.propagator` — propagation in the user's body frame.
 """
-from .body import RigidBody
-from .dynamics import DISSIPATION_MODELS, Dissipation, Dynamics
-from .integrators import INTEGRATORS, IntegrationError, Integrator, create, get_integrator
-from .propagator import Propagator, State, poinsot
+import importlib
 
-__all__ = ['RigidBody', 'Dissipation', 'Dynamics', 'DISSIPATION_MODELS', 'INTEGRATORS',
-           'Integrator', 'IntegrationError', 'create', 'get_integrator', 'Propagator', 'State',
-           'poinsot']
+# The names below are imported on first use (module ``__getattr__``): a module that needs
+# only ``rotation`` or ``body`` (the engine's specs and samples, a scene's checks) then does
+# not load the integrators' kernels and numba, which --help and a refused input never run.
+_HOME = {'RigidBody': 'body', 'Dissipation': 'dynamics', 'Dynamics': 'dynamics',
+         'DISSIPATION_MODELS': 'dynamics', 'INTEGRATORS': 'integrators',
+         'Integrator': 'integrators', 'IntegrationError': 'integrators',
+         'create': 'integrators', 'get_integrator': 'integrators', 'Propagator': 'propagator',
+         'State': 'propagator', 'poinsot': 'propagator'}
+
+__all__ = list(_HOME)
+
+
+def __getattr__(name):
+    home = _HOME.get(name)
+    if home is None:
+        raise AttributeError(f'module {__name__!r} has no attribute {name!r}')
+    value = getattr(importlib.import_module(f'.{home}', __name__), name)
+    globals()[name] = value  # once: later look-ups are plain attribute reads
+    return value
+
+
+def __dir__():
+    return sorted(set(globals()) | set(_HOME))

@@ -11,7 +11,9 @@ inertial frame; the Earth turns under the orbit by :func:`earth.gmst` from the e
 
 The model is defined from 1900 to 2030: an epoch outside is refused, naming it.
 """
-from datetime import timedelta
+import importlib.util
+import os
+from datetime import datetime, timedelta
 from functools import lru_cache
 
 import numpy as np
@@ -31,10 +33,35 @@ def _coefficients():
     return ppigrf.read_shc(ppigrf.shc_fn_igrf14)
 
 
+def coefficient_file() -> str:
+    """ppigrf's IGRF-14 coefficient file (``ppigrf.shc_fn_igrf14``, in its package's
+    directory), found without importing ppigrf: its import loads pandas (~0.5 CPU-s),
+    which a scene's epoch check does not need."""
+    spec = importlib.util.find_spec('ppigrf')
+    if spec is None or not spec.submodule_search_locations:  # missing: ppigrf's own error
+        from ppigrf import ppigrf
+        return ppigrf.shc_fn_igrf14
+    return os.path.join(spec.submodule_search_locations[0], 'IGRF14.shc')
+
+
+def _decimal_year(value: float) -> datetime:
+    """A decimal year as ppigrf reads it (``yearfrac_to_datetime``): the fraction of the
+    year's days from its 1 January, UTC."""
+    year = int(value)
+    leap = year % 4 == 0 and (year % 100 != 0 or year % 400 == 0)
+    return earth.utc(datetime(year, 1, 1) + timedelta(days=(value - year) * (365 + leap)))
+
+
+@lru_cache(maxsize=1)
 def model_range():
-    """(first, last) datetime (UTC) the coefficient file covers."""
-    g, _ = _coefficients()
-    return (earth.utc(g.index[0].to_pydatetime()), earth.utc(g.index[-1].to_pydatetime()))
+    """(first, last) datetime (UTC) the coefficient file covers: the first and last of the
+    model dates on the file's line after its parameters (the header ``read_shc`` reads,
+    without the coefficients and pandas)."""
+    with open(coefficient_file()) as f:
+        lines = (line for line in f if not line.startswith('#'))
+        next(lines)  # N_MIN, N_MAX, NTIMES, SP_ORDER, N_STEPS
+        years = [float(x) for x in next(lines).split()]
+    return _decimal_year(years[0]), _decimal_year(years[-1])
 
 
 def check_epoch(epoch, duration=0.0):
@@ -135,7 +162,9 @@ class FieldAlongOrbit:
         self.model, self.orbit, self.spacing = model, orbit, float(spacing)
         self.epoch = check_epoch(epoch)
         self.angle0 = float(earth.gmst(self.epoch))
-        self.moment = dipole_moment(self.epoch)
+        # the dipole's moment only: igrf reads its coefficients (ppigrf, pandas) when the
+        # field is first evaluated, not when a scene is loaded
+        self.moment = dipole_moment(self.epoch) if model == 'dipole' else None
         self._table = np.zeros((0, 3))
 
     def angle(self, t):
