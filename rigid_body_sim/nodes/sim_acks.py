@@ -49,6 +49,7 @@ KEEP_LAST_WINDOW = STATE_DEPTH // 2  # keep-last publishers: samples between two
 KEEP_ALL_WINDOW = 500  # keep-all: messages between two waits (the backlog's bound)
 ACK_TIMEOUT = Duration(seconds=1.0)  # then go on (a subscriber that hangs stalls no run)
 FINAL_ACK_TIMEOUT = Duration(seconds=5.0)  # at the end: what is still in flight
+DIAGNOSTICS_ACK_TIMEOUT = Duration(seconds=1.0)  # and then the last diagnostics
 
 
 def paced_qos(name: str) -> QoSProfile:

@@ -61,7 +61,7 @@ from .usage import ros_arguments
 from .sim_services import AVAILABLE as SIM_SERVICES, SimulationServices
 from .sim_control import Control
 from .sim_fleet import Fleet, check_parameters
-from .sim_acks import FINAL_ACK_TIMEOUT, Acknowledgements, paced_qos
+from .sim_acks import DIAGNOSTICS_ACK_TIMEOUT, FINAL_ACK_TIMEOUT, Acknowledgements, paced_qos
 from .sim_holds import Holds
 from .sim_status import diagnostics, summary
 from .spacecraft import STATE_DEPTH
@@ -333,8 +333,10 @@ class Simulator(Control, Fleet, Holds, Node):
 
     def _wait_acked(self, timeout=FINAL_ACK_TIMEOUT):
         """Hold until reliable subscribers have acknowledged what was published
-        (``sim_acks``)."""
+        (``sim_acks``), the last diagnostics included: the run's summary, which a recorder
+        keeps beside the samples (a run as fast as possible may publish no other)."""
         self._acks.wait(timeout)
+        self._diag_pub.wait_for_all_acked(DIAGNOSTICS_ACK_TIMEOUT)
 
     def _catch_up(self, now=None):
         """Real-time modes: process what is due by the wall clock."""
