@@ -237,3 +237,21 @@ def test_targets_keep_their_order_across_sections(quick_run):
     first_live = names.index('live simulator real_time_factor')
     assert names.index('batch body-steps/s at N = 1e6 (one core)') < first_live
     assert first_live < names.index('recorder messages/s with zero loss')
+
+
+def test_live_figures_are_the_worst_of_five_runs(monkeypatch):
+    """The live node's figures are the minimum of five runs (issue 29): the least
+    real-time factor, the largest CPU share at real time and first-message time; a failed
+    run is named in the status."""
+    from rigid_body_sim.bench import live
+    runs = iter([{'status': 'ok', 'real_time_factor': r, 'cpu_share_at_real_time': c,
+                  'first_message_s': f}
+                 for r, c, f in ((80.0, 0.04, 0.9), (60.0, 0.05, 1.2), (95.0, 0.03, 0.8),
+                                 (70.0, 0.06, 1.0))] + [{'status': 'exit code 1'}])
+    monkeypatch.setattr(live, '_simulator_once', lambda mod: next(runs))
+    monkeypatch.setattr(live, '_module_missing', lambda name: False)
+    out = live.simulator(False)
+    assert out['real_time_factor'] == 60.0 and out['real_time_factor_runs'] == [
+        80.0, 60.0, 95.0, 70.0]
+    assert out['cpu_share_at_real_time'] == 0.06 and out['first_message_s'] == 1.2
+    assert out['status'] == '1 of 5 runs failed: exit code 1'
