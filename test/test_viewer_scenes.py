@@ -94,6 +94,10 @@ def test_formation_draws_each_spacecraft_then_the_spawned_one_not_the_deleted(
         assert spawn.returncode == 0, spawn.stdout + spawn.stderr + sim.output()[-3000:]
         assert spin_until(node, lambda: _drawn(statuses) == set(FORMATION) | {'rescue'},
                           60.0), (_viewer_status(statuses), viewer.output()[-3000:])
+        # the viewer reports what it draws before its next scene tick sends it: let a scene
+        # update with all four go out (10 Hz scene, ≥ 1 s of samples) before the delete
+        n = len(attitude.get('rescue', ()))
+        assert spin_until(node, lambda: len(attitude.get('rescue', ())) > n + 20, 60.0)
         gone = call_service(node, node.create_client(
             DeleteEntity, f'{namespace}/attitude_simulator/delete_entity'),
             DeleteEntity.Request(entity='wingman'))
