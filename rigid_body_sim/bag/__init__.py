@@ -8,7 +8,7 @@ The names below are imported on first use (module ``__getattr__``): ``from .bag.
 import BagError`` (every offline run, a refused one included) then does not import the
 writer and mcap (~0.05 CPU-s).
 """
-import importlib
+from ..lazy_exports import lazy_exports
 
 _HOME = {'BagError': 'errors', 'DEFAULT_QOS_YAML': 'schema', 'message_definition': 'schema',
          'type_hash': 'schema', 'RUN_CONFIGURATION': 'writer', 'BagWriter': 'writer'}
@@ -17,14 +17,4 @@ __all__ = ['BagError', 'BagWriter', 'DEFAULT_QOS_YAML', 'RUN_CONFIGURATION',
            'message_definition', 'type_hash']
 
 
-def __getattr__(name):
-    home = _HOME.get(name)
-    if home is None:
-        raise AttributeError(f'module {__name__!r} has no attribute {name!r}')
-    value = getattr(importlib.import_module(f'.{home}', __name__), name)
-    globals()[name] = value  # once: later look-ups are plain attribute reads
-    return value
-
-
-def __dir__():
-    return sorted(set(globals()) | set(_HOME))
+__getattr__, __dir__ = lazy_exports(__name__, globals(), _HOME)

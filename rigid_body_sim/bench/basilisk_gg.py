@@ -239,11 +239,16 @@ def _row(scene, method, family, kind, param, cpu_s, err, orbit_err, n, status='o
             'status': status}
 
 
+def ours_kw(method, kind, p):
+    """``simulate``'s arguments for one point of a sweep: auto at an accuracy, a fixed
+    method at a step, or an adaptive one at an rtol (atol 1e-3·rtol)."""
+    return ({'integrator': 'auto', 'accuracy': p} if kind == 'accuracy' else
+            {'integrator': method, 'step': p} if kind == 'h' else
+            {'integrator': method, 'integrator_options': {'rtol': p, 'atol': p * 1e-3}})
+
+
 def _ours_once(f, method, kind, p, **extra):
-    kw = extra | ({'integrator': 'auto', 'accuracy': p} if kind == 'accuracy' else
-          {'integrator': method, 'step': p} if kind == 'h' else
-          {'integrator': method, 'integrator_options': {'rtol': p, 'atol': p * 1e-3}})
-    result, best = oracle.timed(f, **kw)
+    result, best = oracle.timed(f, **(extra | ours_kw(method, kind, p)))
     return best, result
 
 

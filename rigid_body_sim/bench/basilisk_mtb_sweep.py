@@ -93,18 +93,12 @@ def ours(f, dipole, **kw):
     return result, result.cpu_seconds + result.selection_cpu_seconds
 
 
-def _ours_kw(method, kind, p):
-    return ({'integrator': 'auto', 'accuracy': p} if kind == 'accuracy' else
-            {'integrator': method, 'step': p} if kind == 'h' else
-            {'integrator': method, 'integrator_options': {'rtol': p, 'atol': p * 1e-3}})
-
-
 def reference(f, dipole, log=print):
     """(attitude at the samples, bound on its error, what): dop853 down REF_LADDER until two
     rungs agree to within 0.7 of the last difference (round-off) or the ladder ends."""
     best, coarse = None, None
     for rtol in REF_LADDER:
-        fine = ours(f, dipole, **_ours_kw('dop853', 'rtol', rtol))[0].samples['attitude']
+        fine = ours(f, dipole, **gg.ours_kw('dop853', 'rtol', rtol))[0].samples['attitude']
         if coarse is not None:
             bound = float(np.max(rotation.angle_between(coarse, fine)))
             if best is not None and bound >= 0.7 * best[0]:
@@ -113,16 +107,6 @@ def reference(f, dipole, log=print):
         coarse = fine
     log(f'  reference: dop853 rtol {best[2]:g}, own error ≤ {best[0]:.2g} rad')
     return best[1], best[0], f'dop853 rtol {best[2]:g}'
-
-
-def _least(run, repeats=3, cap=0.3):
-    best, total, out = math.inf, 0.0, None
-    for _ in range(repeats):
-        out = run()
-        best, total = min(best, out[0]), total + out[0]
-        if total > cap:
-            break
-    return best, out
 
 
 def basilisk_run(setup, integrator, param):
@@ -154,11 +138,12 @@ def sweep(scene, quick, log=print):
     log(f'  [{cpu() - c0:.1f} s]')
     for method, kind, params in OURS:  # kernels loaded (or compiled) before any clock
         ours(f, dipole, duration=4 * setup.base.sample_period,
-             **_ours_kw(method, kind, params[0]))
+             **gg.ours_kw(method, kind, params[0]))
 
     def mine(method, kind):
         def once(p):
-            c, (_, result) = _least(lambda: ours(f, dipole, **_ours_kw(method, kind, p))[::-1])
+            kw = gg.ours_kw(method, kind, p)
+            c, (_, result) = gg._least(lambda: ours(f, dipole, **kw)[::-1])
             err = float(np.max(rotation.angle_between(result.samples['attitude'], ref)))
             return gg._row(name, method, 'ours', kind, p, c, err, math.nan,
                            len(result.samples))
@@ -166,7 +151,7 @@ def sweep(scene, quick, log=print):
 
     def peer(method, kind):
         def once(p):
-            c, (_, t, q, r) = _least(lambda: basilisk_run(setup, method[4:], p))
+            c, (_, t, q, r) = gg._least(lambda: basilisk_run(setup, method[4:], p))
             if len(q) != len(ref):
                 raise RuntimeError(f'{len(q)} samples, the reference has {len(ref)}')
             err = float(np.max(rotation.angle_between(q, ref)))

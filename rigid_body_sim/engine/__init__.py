@@ -13,7 +13,7 @@ The names below are imported on first use (module ``__getattr__``): ``from .engi
 specs`` (a node's ``--help``, a bad parameter) then does not load the physics and numba
 (0.4 CPU-s of a 0.5 CPU-s ``simulator --help``).
 """
-import importlib
+from ..lazy_exports import lazy_exports
 
 _HOME = {'NS': 'config', 'ControlSettings': 'config', 'EngineConfig': 'config',
          'Engine': 'core', 'SampleBlock': 'samples', 'CommandHold': 'sources',
@@ -22,14 +22,4 @@ _HOME = {'NS': 'config', 'ControlSettings': 'config', 'EngineConfig': 'config',
 __all__ = list(_HOME)
 
 
-def __getattr__(name):
-    home = _HOME.get(name)
-    if home is None:
-        raise AttributeError(f'module {__name__!r} has no attribute {name!r}')
-    value = getattr(importlib.import_module(f'.{home}', __name__), name)
-    globals()[name] = value  # once: later look-ups are plain attribute reads
-    return value
-
-
-def __dir__():
-    return sorted(set(globals()) | set(_HOME))
+__getattr__, __dir__ = lazy_exports(__name__, globals(), _HOME)

@@ -10,7 +10,7 @@
 * :mod:`.jit` — numba's settings for every kernel.
 * :mod:`.propagator` — propagation in the user's body frame.
 """
-import importlib
+from ..lazy_exports import lazy_exports
 
 # The names below are imported on first use (module ``__getattr__``): a module that needs
 # only ``rotation`` or ``body`` (the engine's specs and samples, a scene's checks) then does
@@ -24,14 +24,4 @@ _HOME = {'RigidBody': 'body', 'Dissipation': 'dynamics', 'Dynamics': 'dynamics',
 __all__ = list(_HOME)
 
 
-def __getattr__(name):
-    home = _HOME.get(name)
-    if home is None:
-        raise AttributeError(f'module {__name__!r} has no attribute {name!r}')
-    value = getattr(importlib.import_module(f'.{home}', __name__), name)
-    globals()[name] = value  # once: later look-ups are plain attribute reads
-    return value
-
-
-def __dir__():
-    return sorted(set(globals()) | set(_HOME))
+__getattr__, __dir__ = lazy_exports(__name__, globals(), _HOME)
