@@ -233,7 +233,7 @@ def test_targets_keep_their_order_across_sections(quick_run):
     live simulator after the sampling rows, the kernels' warm start last."""
     names = [r['target'] for r in _read(quick_run / 'targets.csv')]
     assert names[0].startswith('cpu ratio'), names
-    assert names[-1] == 'kernels ready from the cache (warm start, s)', names
+    assert names[-1] == 'kernels ready from the cache (warm start, CPU s)', names
     first_live = names.index('live simulator real_time_factor')
     assert names.index('batch body-steps/s at N = 1e6 (one core)') < first_live
     assert first_live < names.index('recorder messages/s with zero loss')

@@ -100,7 +100,7 @@ def test_a_section_run_alone_replaces_its_rows_in_a_full_runs_tables(tmp_path):
     from rigid_body_sim.bench.common import write_csv
     old = [_target_row('cpu ratio best peer / best ours', 'tumble'),
            _target_row(bg.TARGET, 'gravity_gradient', 'MISS', 3.0),
-           _target_row('kernels ready from the cache (warm start, s)', '')]
+           _target_row('kernels ready from the cache (warm start, CPU s)', '')]
     write_csv(tmp_path / 'targets.csv', targets.FIELDS, old)
     (tmp_path / 'targets.md').write_text('Measured on: a machine\n\nRegenerate: `rigid-body-sim '
                                          'bench --out x`\n\n| table |\n')

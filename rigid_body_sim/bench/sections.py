@@ -175,12 +175,7 @@ def _compile(run):
 
 
 def _compile_targets(run):
-    rows = run.results['compile']
-    warm = [r for r in rows if r['phase'] == 'warm']
-    return [targets.simple(
-        'kernels ready from the cache (warm start, s)', warm[0]['total_s'] if warm else math.nan,
-        2.0, warm[0]['total_s'] <= 2.0 if warm else None,
-        (f'cold compile {rows[0]["total_s"]:.1f} s' if warm else 'not measured in --quick'))]
+    return compile_cost.targets(run.results['compile'])
 
 
 def _exact_horizon(run):
