@@ -44,3 +44,36 @@ def test_a_peer_that_cannot_meet_the_budget_is_a_lower_bound():
     scene = replace(scene, budget=1e-16)  # past any scene's range: the sweep's own check
     rtol, c, err = gp.peer_sweep(scene, 'RK45', ref, times, cap=0.05)
     assert rtol is None and c > 0 and err > scene.budget
+
+
+@pytest.mark.parametrize('kind', ['free', 'double_bracket', 'viscous'])
+def test_mujoco_at_a_small_step_is_the_reference(kind):
+    """MuJoCo's RK4, read at the run's samples (the last one off the step grid where the
+    duration is not a multiple of the period), lands on the reference at a small step; with
+    the damping torque left out it is off by far more. The free joint's rate and torque are
+    in the body frame and its quaternion is (w, x, y, z): a mix-up of either fails here."""
+    from rigid_body_sim.bench import generated_mujoco as gm
+    scene = _first(kind)
+    ref = oracle.reference(scene)
+    times = oracle.timed(scene.scene_file())[0].samples['t']
+    h = 0.02 / max(float(np.linalg.norm(scene.omega)), 1.0)
+    _, q = gm.run(scene, h, 'RK4', times)
+    assert len(q) == len(times)
+    err = float(np.max(rotation.angle_between(q, ref.attitude)))
+    assert err < 1e-5, err
+    if kind != 'free':
+        _, q_free = gm.run(replace(scene, kind='free'), h, 'RK4', times)
+        assert float(np.max(rotation.angle_between(q_free, ref.attitude))) > 100 * err
+
+
+def test_the_mujoco_sweep_halves_its_step_to_the_budget():
+    """The sweep returns the first step meeting the budget, its error within it; a budget
+    past its reach returns no step and the last run's CPU."""
+    from rigid_body_sim.bench import generated_mujoco as gm
+    scene = replace(_first('free'), budget=1e-4)
+    ref = oracle.reference(scene)
+    times = oracle.timed(scene.scene_file())[0].samples['t']
+    h, c, err = gm.sweep(scene, 'RK4', ref, times, cap=5.0)
+    assert h is not None and c > 0 and err + ref.error <= scene.budget
+    h2, c2, err2 = gm.sweep(replace(scene, budget=1e-16), 'RK4', ref, times, cap=0.05)
+    assert h2 is None and c2 > 0 and err2 > 1e-16

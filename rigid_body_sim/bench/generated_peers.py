@@ -1,4 +1,4 @@
-"""scipy on the generated scenes: the best peer's CPU to meet each budget, against auto's.
+"""Peers on the generated scenes: the best peer's CPU to meet each budget, against auto's.
 
     python -m rigid_body_sim.bench.generated_peers [--quick] [--count N] [--out DIR]
 
@@ -8,12 +8,14 @@ generalisation suite's (``generated.draw``, same seed and index: the same scenes
 peer runs as a scipy user runs it: ``solve_ivp`` (DOP853 and RK45) on the principal-frame
 ODE of ``peers._rhs_factory`` (Python floats, the scene's dissipation model), the state
 recorded at the run's sample instants (``t_eval``: the grid and the end), the quaternion
-normalised at each sample. Its rtol goes down by decades (atol = 1e-3·rtol) to the first
-that meets the budget against the scene's reference (``oracle.reference``, whose own
-error bound counts against the peer); that run's CPU is the peer's, the least of a few
-when short. A peer that does not meet the budget within its CPU cap gives a lower bound
-on the ratio, counted apart. auto's CPU is the run's ``cpu_seconds`` with its selection
-(``oracle.timed``), as in the generalisation suite.
+normalised at each sample; MuJoCo too where it is installed (``generated_mujoco``: its
+step halved to the budget, the state read at each sample). scipy's rtol goes down by
+decades (atol = 1e-3·rtol) to the first that meets the budget against the scene's
+reference (``oracle.reference``, whose own error bound counts against the peer); that
+run's CPU is the peer's, the least of a few when short. A peer that does not meet the
+budget within its CPU cap gives a lower bound on the ratio, counted apart. auto's CPU is
+the run's ``cpu_seconds`` with its selection (``oracle.timed``), as in the generalisation
+suite.
 
 Detumble scenes are left out and counted: a peer would need our control law in its loop,
 one ``solve_ivp`` per control period, which is a measurement of our law in Python.
@@ -25,12 +27,12 @@ from types import SimpleNamespace
 import numpy as np
 
 from ..physics import rotation
-from . import generated, oracle, peers, targets
+from . import generated, generated_mujoco, oracle, peers, targets
 from .common import cpu, write_csv
 
 FIELDS = ('scene', 'kind', 'budget', 'rotation', 'samples', 'auto_method', 'auto_cpu_s',
-          'auto_error', 'peer', 'peer_rtol', 'peer_cpu_s', 'peer_error', 'ratio', 'status',
-          'reference_error')
+          'auto_error', 'peer', 'peer_rtol', 'peer_step', 'peer_cpu_s', 'peer_error', 'ratio',
+          'status', 'reference_error')
 TARGET = ('scipy against auto on the generated scenes: best peer CPU / auto CPU, worst '
           'scene (peer ≥ 10 ms)')
 REQUIRED = 10.0
@@ -110,7 +112,7 @@ def judge(scene, cap):
     row.update(samples=len(times), auto_method=auto.integrator, auto_cpu_s=auto_cpu,
                auto_error=oracle.error(auto, ref.attitude))
     runs = [(f'scipy_{method.lower()}',) + peer_sweep(scene, method, ref, times, cap)
-            for method in METHODS]
+            for method in METHODS] + generated_mujoco.runs(scene, ref, times, cap)
     met = [r for r in runs if r[1] is not None]
     if not met:  # neither met it within the cap: its last run's CPU bounds it below
         lower = min(runs, key=lambda r: r[2] if r[2] == r[2] else math.inf)
@@ -118,8 +120,9 @@ def judge(scene, cap):
                     ratio=lower[2] / auto_cpu,
                     status='lower bound: no peer met the budget within its cap')
     best = min(met, key=lambda r: r[2])
-    return dict(row, peer=best[0], peer_rtol=best[1], peer_cpu_s=best[2], peer_error=best[3],
-                ratio=best[2] / auto_cpu, status='ok')
+    setting = 'peer_step' if best[0].startswith('mujoco') else 'peer_rtol'
+    return dict(row, peer=best[0], peer_cpu_s=best[2], peer_error=best[3],
+                ratio=best[2] / auto_cpu, status='ok', **{setting: best[1]})
 
 
 def summary_target(rows, seed):
@@ -132,7 +135,9 @@ def summary_target(rows, seed):
             f'{MEANINGFUL * 1e3:g} ms (of {len(ok)} measured); {len(bounds)} where no peer '
             f'met the budget within its cap (ratio ≥ '
             f'{min((r["ratio"] for r in bounds), default=math.nan):.3g}); {skipped} not '
-            'measured (detumble, or a reference too coarse)')
+            'measured (detumble, or a reference too coarse); peers: scipy DOP853 and RK45'
+            + (', MuJoCo RK4 and Euler' if generated_mujoco.available() else
+               ', not MuJoCo (not installed)'))
     if ratios:
         note += (f'; ratio p10 {np.percentile(ratios, 10):.3g}, median '
                  f'{np.median(ratios):.3g}, worst {ratios[0]:.3g}')

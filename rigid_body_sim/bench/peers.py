@@ -21,15 +21,15 @@
 Model construction (XML compile, Basilisk InitializeSimulation) is outside the timed
 region; for ours, integrator construction is inside (it is tiny).
 """
+import contextlib
 import math
 from typing import Callable, Dict
 
 import numpy as np
 
-# bsk (pinned in requirements-peers.txt, `make venv` installs it) caps matplotlib below our
-# pin: it is installed without its dependencies.
-INSTALL_HINT = (".venv/bin/pip install mujoco==4.0.0 && "
-                ".venv/bin/pip install --no-deps -r requirements-peers.txt")
+# bsk and mujoco (pinned in requirements-peers.txt, `make venv` installs them) are installed
+# without their dependencies: bsk caps matplotlib below our pin, mujoco asks for its viewer.
+INSTALL_HINT = ".venv/bin/pip install --no-deps -r requirements-peers.txt"
 
 
 class PeerMethod:
@@ -101,15 +101,53 @@ def _no_dissipation(scene):
 
 def _damper(scene):
     """The scene's internal damping as a body-frame torque of m (principal = body frame
-    here), for peers without the model; None without dissipation."""
+    here), for peers without the model; None without dissipation. Plain floats: it runs
+    in a MuJoCo callback at every stage, where numpy's per-call cost would be the peer's."""
     d = scene.dissipation
     if not d.active:
         return None
-    moments = np.asarray(scene.moments, float)
-    c = d.coefficient
+    i1, i2, i3 = (float(v) for v in scene.moments)
+    c = float(d.coefficient)
     if d.model == 'double_bracket':
-        return lambda m: c * np.cross(m, np.cross(m, m / moments))
-    return lambda m: -c * (m / moments)
+        def double_bracket(m1, m2, m3):
+            w1, w2, w3 = m1 / i1, m2 / i2, m3 / i3
+            c1, c2, c3 = m2 * w3 - m3 * w2, m3 * w1 - m1 * w3, m1 * w2 - m2 * w1
+            return c * (m2 * c3 - m3 * c2), c * (m3 * c1 - m1 * c3), c * (m1 * c2 - m2 * c1)
+        return double_bracket
+    return lambda m1, m2, m3: (-c * m1 / i1, -c * m2 / i2, -c * m3 / i3)
+
+
+def mujoco_model(moments, h, integrator):
+    """A free body of unit mass with principal ``moments`` at the origin, no gravity."""
+    import mujoco
+    i, h = [float(v) for v in moments], float(h)  # repr of a numpy float is not XML
+    xml = (f'<mujoco><option timestep="{h!r}" gravity="0 0 0" integrator="{integrator}"/>'
+           f'<worldbody><body><freejoint/><inertial pos="0 0 0" mass="1" '
+           f'diaginertia="{i[0]!r} {i[1]!r} {i[2]!r}"/></body></worldbody></mujoco>')
+    return mujoco.MjModel.from_xml_string(xml)
+
+
+@contextlib.contextmanager
+def mujoco_damping(damper, moments):
+    """MuJoCo has no internal-dissipation model: a user adds its torque in the passive-force
+    callback, which every stage of RK4 calls (set once a step in ``qfrc_applied`` it would be
+    held across the stages and make RK4 first order). The free joint's rate and generalised
+    force are in the body frame."""
+    import mujoco
+    i1, i2, i3 = (float(v) for v in moments)
+
+    def passive(_model, data):
+        w = data.qvel
+        t1, t2, t3 = damper(w[3] * i1, w[4] * i2, w[5] * i3)
+        f = data.qfrc_passive
+        f[3] += t1
+        f[4] += t2
+        f[5] += t3
+    mujoco.set_mjcb_passive(passive)
+    try:
+        yield
+    finally:
+        mujoco.set_mjcb_passive(None)
 
 
 def _mujoco(integrator, stages):
@@ -117,10 +155,7 @@ def _mujoco(integrator, stages):
         import mujoco
         from .common import cpu
         i = scene.moments
-        xml = (f'<mujoco><option timestep="{h!r}" gravity="0 0 0" integrator="{integrator}"/>'
-               f'<worldbody><body><freejoint/><inertial pos="0 0 0" mass="1" '
-               f'diaginertia="{i[0]!r} {i[1]!r} {i[2]!r}"/></body></worldbody></mujoco>')
-        model = mujoco.MjModel.from_xml_string(xml)
+        model = mujoco_model(i, h, integrator)
         data = mujoco.MjData(model)
         q0 = scene.q0_array
         moments = np.asarray(i, float)
@@ -129,11 +164,9 @@ def _mujoco(integrator, stages):
         damper = _damper(scene)
         t0 = cpu()
         n = int(round(scene.t_end / h))
-        if damper is not None:  # MuJoCo has no such damper: its torque is set every step
-            w = data.qvel[3:6]
-            for _ in range(n):
-                data.qfrc_applied[3:6] = damper(w * moments)
-                mujoco.mj_step(model, data)
+        if damper is not None:
+            with mujoco_damping(damper, moments):
+                mujoco.mj_step(model, data, nstep=n)
         elif scene.control is None:
             mujoco.mj_step(model, data, nstep=n)
         else:

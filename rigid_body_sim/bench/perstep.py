@@ -72,7 +72,8 @@ def run(quick, log=print):
         fig['mujoco_euler'] = row('one body, torque-free', 'mujoco_euler', n, _mujoco_euler(n),
                                   'step')
     else:
-        log('  mujoco not installed: no per-step peer (pip install mujoco==4.0.0)')
+        log('  mujoco not installed: no per-step peer (pip install --no-deps -r '
+            'requirements-peers.txt)')
 
     duration = 100.0 if quick else 1000.0  # tennis_racket: 100 samples/s, exact
     spent, result = _offline('tennis_racket', duration, integrator='exact')
