@@ -40,4 +40,6 @@ if __name__ == '__main__':
         '::')[0].replace('\n', ' ')).parse_args()  # -h/--help answered without compiling
     warm()
     from .physics.auto import calibration
-    calibration.ensure()  # after warm: the loops timed are the ones runs will load
+    from .engine import event_cost
+    # after warm: the loops timed are the ones runs will load
+    calibration.ensure(events=event_cost.measure)

@@ -73,6 +73,37 @@ def test_calibration_times_every_compiled_candidate_and_round_trips(tmp_path):
     assert calibration.load(str(cache)) == (rec, '')
 
 
+def test_the_calibration_keeps_the_closed_loops_event_cost_as_a_ratio(tmp_path):
+    rec = calibration.calibrate(steps=200, repeats=1, events=lambda: 0.25)
+    if rec is None:  # NUMBA_DISABLE_JIT: nothing compiled to time
+        return
+    assert rec['event_us'] == 0.25
+    assert rec['event'] == pytest.approx(0.25 / rec['measured_us']['splitting2']['free'])
+
+
+def test_an_uncommanded_run_costs_its_events_at_the_calibrated_closed_loop_figure(cache):
+    """The event-by-event constant (15 µs and the method's call) was 100× the compiled
+    closed loop's (0.08–0.2 µs measured): it drowned the per-step costs, and within its 10 %
+    preference for a geometric method auto took splitting4 at 3× dop853's CPU on generated
+    orbit scenes. Commanded runs (or an environment re-made per event) keep it."""
+    from rigid_body_sim.physics.auto import model
+    unit = OWN['splitting2'][0]
+    calibration.save(record(event=0.5), str(cache))
+    assert calibration.current().event == pytest.approx(0.5 * unit)
+    rk4 = next(c for c in CANDIDATES if c.name == 'rk4')
+    dyn = Dynamics(np.array(MOMENTS), Dissipation('viscous', 1e-3))
+    m = np.array([2.5, 0.04, 0.0])
+    free = RunModel(dyn, None, m, 1e-6, 100.0, 0.01, 0.0)
+    held = RunModel(dyn, None, m, 1e-6, 100.0, 0.01, 0.0, commanded=True)
+    assert free.per_event(rk4) == pytest.approx(0.5 * unit * 1e-6)
+    assert held.per_event(rk4) == pytest.approx(model.EVENT_COST + rk4.call[1] * 1e-6)
+    steps = free.events * 10
+    assert free.run_cost(rk4, 0.001) == pytest.approx(
+        model.RUN_COST + free.events * 0.5 * unit * 1e-6 + steps * free.step_cost(rk4, 0.001))
+    unknown = RunModel(dyn, None, m, 1e-6, 100.0, 0.01, 0.0, costs=calibration.Costs())
+    assert unknown.per_event(rk4) == held.per_event(rk4)  # not calibrated: the constant
+
+
 def test_the_cache_sits_beside_numbas_cache_of_the_kernels():
     """In the directory where numba keeps the reference method's compiled loop (its index
     files), so that clearing numba's cache clears the calibration with it."""
@@ -105,7 +136,7 @@ def test_a_stale_cache_is_not_used_and_ensure_recalibrates(cache, monkeypatch):
     assert 'calibration stale' in calibration.current().source
     fresh = record(cpu='Fresh CPU')
     calls = []
-    monkeypatch.setattr(calibration, 'calibrate', lambda: calls.append(1) or fresh)
+    monkeypatch.setattr(calibration, 'calibrate', lambda **kw: calls.append(1) or fresh)
     assert calibration.ensure(log=lambda *_: None) == fresh and calls == [1]
     assert json.loads(cache.read_text()) == fresh
     assert calibration.ensure(log=lambda *_: None) == fresh and calls == [1]  # current: kept

@@ -88,6 +88,20 @@ def test_auto_meets_its_budget_on_eccentric_librations(index):
     assert generated.error(result, ref) <= scene.budget - ref_error, result.reason
 
 
+def test_auto_promises_nothing_near_an_unstable_lvlh_equilibrium():
+    """Seed 7's orbit scene 21: a circular orbit, 0.027 rad from LVLH with I_x < I_z (pitch
+    unstable, roll–yaw too). auto took dop853 at the rtol of its bound and erred 4.6× the
+    1e-6 budget: the body leaves the equilibrium exponentially, and so does the error. auto
+    now tests the equilibrium's stability, promises nothing and takes the most accurate."""
+    scene = generated.draw_gravity_gradient(7, 21)
+    ref, ref_error, _ = generated.reference(scene)
+    assert ref_error * generated.JUDGE <= scene.budget
+    result = simulate(scene.scene_file())
+    assert 'unstable in pitch' in result.reason and \
+        math.isinf(result.selection.predicted_error), result.reason
+    assert generated.error(result, ref) <= scene.budget - ref_error, result.reason
+
+
 def test_a_fast_tumble_on_an_eccentric_orbit_keeps_the_a_priori_choice():
     """Scene 14 of the bench's seed (e = 0.55, a tumble 56× faster than the gradient's
     rate): the spin averages the forcing, auto's bound holds (it met 1e-4 by 10×), so the

@@ -57,7 +57,10 @@ class MethodChoice:
                   dynamics=self.dynamics,
                   environment=terms, forced=bool(terms) and c.environment.periodic_forcing,
                   # an adaptive method restarts where the environment is re-made per event
-                  restarting=self.orbit_anchored or bool(terms) and c.environment.magnetorquers)
+                  restarting=self.orbit_anchored or bool(terms) and c.environment.magnetorquers,
+                  # where the gravity gradient acts: auto tests the equilibrium it starts near
+                  orbit_state=c.environment.orbit.state(self.t_ns / NS)
+                  if terms and c.environment.gravity_gradient else None)
         state = (self.body, c.dissipation, self.attitude, self.angular_velocity)
         if not torque and not c.dissipation.active:
             sel = select(*state, **kw)

@@ -32,7 +32,7 @@ from typing import Mapping, Optional, Tuple
 import numpy as np
 
 FILE_NAME = 'auto_costs.json'
-FORMAT = 2                 # the measurement scheme below: a change of it recalibrates
+FORMAT = 3                 # the measurement scheme below: a change of it recalibrates
 REFERENCE = 'splitting2'   # costs are stored as ratios to this method's torque-free cost
 CLAMP = (0.25, 4.0)        # a calibrated cost stays within this factor of its class constant
 REPEATS = 5
@@ -60,6 +60,11 @@ ADAPTIVE_EVALS = 12        # evaluations per step of the adaptive method (DOP853
 TERM_COSTS = {'gravity gradient': 0.25, 'magnetorquers': 0.08, 'solar radiation pressure': 0.27,
               'drag': 0.22}
 TERM_ORBIT = (7.0e6, 0.1, 0.9, 0.3, 0.5, 0.7)  # the timed orbit: a, e, i, node, periapsis, ν
+# An event (sample instant) of the engine's compiled closed loop, measured by the engine
+# (``engine.event_cost``, passed in: physics does not import the engine), is kept within
+# these µs in the classes' units: 0.08–0.2 µs measured at load 8 on an Intel Xeon, where
+# auto's constant (model.EVENT_COST + Candidate.call: the event-by-event loop) is 17.5
+EVENT_RANGE = (0.01, 20.0)
 
 
 @dataclass(frozen=True)
@@ -71,6 +76,7 @@ class Costs:
     damp_substep: Optional[float] = None  # µs per double-bracket substep (None: DAMP_SUBSTEP)
     source: str = 'class constants'
     environment: Mapping[str, float] = field(default_factory=dict)  # µs per evaluation
+    event: Optional[float] = None  # µs per event of the compiled closed loop (None: unknown)
 
     def cost(self, candidate) -> Tuple[float, float]:
         """µs per step of ``candidate`` (free, weakly damped): calibrated, else its own."""
@@ -203,20 +209,26 @@ def measure_environment(steps=STEPS, repeats=REPEATS) -> dict:
     return {'gravity gradient': max(timed['on'] - timed['off'], 0.0) / evals}
 
 
-def calibrate(steps=STEPS, repeats=REPEATS) -> Optional[dict]:
+def calibrate(steps=STEPS, repeats=REPEATS, events=None) -> Optional[dict]:
     """The calibration record (ratios to REFERENCE torque-free, keyed), or None where the
-    kernels are not compiled (NUMBA_DISABLE_JIT: Python loops say nothing of their cost)."""
+    kernels are not compiled (NUMBA_DISABLE_JIT: Python loops say nothing of their cost).
+    ``events``: a function measuring µs per event of the engine's compiled closed loop
+    (``engine.event_cost.measure``), kept as a ratio like the steps."""
     from .. import jit
     if not jit.COMPILED:
         return None
     measured = measure(steps, repeats)
     terms = measure_environment(steps, repeats)
     base = measured[REFERENCE]['free']
-    return {'key': key(), 'cpu': cpu_model(), 'reference': REFERENCE, 'steps': steps,
-            'repeats': repeats, 'measured_us': measured, 'environment_us': terms,
-            'ratios': {n: {k: v / base for k, v in kinds.items()}
-                       for n, kinds in measured.items()},
-            'environment': {t: v / base for t, v in terms.items()}}
+    record = {'key': key(), 'cpu': cpu_model(), 'reference': REFERENCE, 'steps': steps,
+              'repeats': repeats, 'measured_us': measured, 'environment_us': terms,
+              'ratios': {n: {k: v / base for k, v in kinds.items()}
+                         for n, kinds in measured.items()},
+              'environment': {t: v / base for t, v in terms.items()}}
+    if events is not None:
+        record['event_us'] = events()
+        record['event'] = record['event_us'] / base
+    return record
 
 
 def save(record, path=None) -> str:
@@ -245,12 +257,13 @@ def load(path=None) -> Tuple[Optional[dict], str]:
     return record, ''
 
 
-def ensure(path=None, log=print) -> Optional[dict]:
-    """The current calibration, measured and saved if missing or stale (the setup's step)."""
+def ensure(path=None, log=print, events=None) -> Optional[dict]:
+    """The current calibration, measured and saved if missing or stale (the setup's step;
+    ``events``: see :func:`calibrate`)."""
     record, why = load(path)
     if record is not None:
         return record
-    record = calibrate()
+    record = calibrate(events=events)
     if record is None:
         log('auto costs: kernels not compiled (NUMBA_DISABLE_JIT), not calibrated')
         return None
@@ -285,8 +298,10 @@ def costs_from(record) -> Costs:
     substep = _clamp((ref['double_bracket'] - ref['free']) * unit / 2, DAMP_SUBSTEP)
     environment = {t: _clamp(r * unit, TERM_COSTS[t])
                    for t, r in record.get('environment', {}).items() if t in TERM_COSTS}
+    event = record.get('event')
+    event = None if event is None else min(max(event * unit, EVENT_RANGE[0]), EVENT_RANGE[1])
     return Costs(per_step, viscous, substep,
-                 f'costs calibrated on {record.get("cpu", "this CPU")}', environment)
+                 f'costs calibrated on {record.get("cpu", "this CPU")}', environment, event)
 
 
 def _clamp(value, own):

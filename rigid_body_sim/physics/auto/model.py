@@ -29,6 +29,7 @@ RTOL_RANGE = (1e-13, 1e-3)
 ROUNDOFF = 2.5e-17        # rad per stage, step and radian turned (see Candidate.stages)
 RUN_COST = 3e-4           # s: building and finishing a run (engine, first and last sample)
 EVENT_COST = 1.5e-5       # s per event interval (a sample or control instant from Python)
+# (an uncommanded run's events are the compiled closed loop's: calibrated, Costs.event)
 DRIFT_TURNS = 30          # the calibration horizon of ``k``, in turns (growth 'drift')
 H_OMEGA_PRIOR = 1.0       # a-priori steps keep hΩ ≤ 1 (the asymptotic regime of k)
 H_OMEGA_PLAUSIBLE = 2.0   # the largest step a pilot starts from
@@ -54,6 +55,11 @@ class RunModel:
         # µs per evaluation of the environment's torques ('gravity gradient'): a method pays
         # it at each of its evaluations (Candidate.environment_evals) every step
         self.term_cost = sum(self.costs.term_cost(t) for t in environment)
+        # s per event where the compiled closed loop runs every event (no commands from
+        # outside, no environment re-made per interval) and the calibration measured it;
+        # else None: EVENT_COST and the method's call, the event-by-event loop
+        self.event = None if commanded or self.costs.event is None else \
+            self.costs.event * 1e-6
         self.accuracy, self.horizon, self.max_step = accuracy, horizon, max_step
         self.G = math.sqrt(sum(x * x for x in m.tolist()))  # floats: numpy's per-call cost
         self.stiffness = dyn.dissipation_stiffness(self.G)
@@ -109,16 +115,23 @@ class RunModel:
 
     def run_cost(self, c, h):
         steps = self.events * round(self.max_step / h)
-        call = c.call[0 if self.damping is None else 1] * 1e-6
-        return RUN_COST + self.events * (EVENT_COST + call) + steps * self.step_cost(c, h)
+        call = self.per_event(c)
+        return RUN_COST + self.events * call + steps * self.step_cost(c, h)
+
+    def per_event(self, c):
+        """s per event of a run with c: the closed loop's (calibrated), else the
+        event-by-event loop's (EVENT_COST and c's call around its compiled loop)."""
+        if self.event is not None:
+            return self.event
+        return EVENT_COST + c.call[0 if self.damping is None else 1] * 1e-6
 
     def least_cost(self, c):
         """A lower bound of c's run cost, at no call to the models: the fewest steps (at
         its largest step) at its least cost per step (auto orders candidates by it)."""
         h = min(H_OMEGA_PRIOR / self.omega, c.stability / max(self.omega, self.stiffness),
                 self.max_step)
-        call = c.call[0 if self.damping is None else 1] * 1e-6
-        return (RUN_COST + self.events * (EVENT_COST + call)
+        call = self.per_event(c)
+        return (RUN_COST + self.events * call
                 + self.horizon / h * (min(self.costs.cost(c))
                                       + self.term_cost * c.environment_evals) * 1e-6)
 
@@ -132,10 +145,10 @@ class RunModel:
             steps = self._adaptive_steps(turned, rtol)
             room = self.accuracy - ROUNDOFF * steps * turned
             rtol = min(max(room / scale, RTOL_RANGE[0]), RTOL_RANGE[1])
-        call = c.call[0 if self.damping is None else 1] * 1e-6
+        call = self.per_event(c)
         per_step = (self.costs.cost(c)[0 if self.damping is None else 1]
                     + self.term_cost * c.environment_evals) * 1e-6
-        cost = RUN_COST + self.events * (EVENT_COST + call) + steps * per_step
+        cost = RUN_COST + self.events * call + steps * per_step
         return rtol, cost, scale * rtol + ROUNDOFF * steps * turned
 
     def tightest(self, c):
@@ -144,11 +157,11 @@ class RunModel:
         turned = self.omega * self.horizon
         rtol = RTOL_RANGE[0]
         steps = self._adaptive_steps(turned, rtol)
-        call = c.call[0 if self.damping is None else 1] * 1e-6
+        call = self.per_event(c)
         per_step = (self.costs.cost(c)[0 if self.damping is None else 1]
                     + self.term_cost * c.environment_evals) * 1e-6
         scale = c.k * turned * max(1.0, turned / DOP853_DRIFT)
-        return (rtol, RUN_COST + self.events * (EVENT_COST + call) + steps * per_step,
+        return (rtol, RUN_COST + self.events * call + steps * per_step,
                 scale * rtol + ROUNDOFF * steps * turned)
 
     def _adaptive_steps(self, turned, rtol):

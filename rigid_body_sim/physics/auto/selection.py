@@ -48,7 +48,7 @@ import numpy as np
 from .. import rotation
 from ..body import RigidBody
 from ..dynamics import Dissipation, Dynamics
-from . import pilot
+from . import libration, pilot
 from ..integrators import Candidate
 from .model import CANDIDATES, RunModel, is_symmetric
 
@@ -149,7 +149,7 @@ def selecting(body: RigidBody, dissipation: Dissipation, attitude, angular_veloc
               torque: bool, accuracy: float, duration: float, max_step: float,
               torque_rate: float = 0.0, prior_only: bool = False,
               dynamics: Dynamics = None, environment: tuple = (), forced: bool = False,
-              restarting: bool = False):
+              restarting: bool = False, orbit_state: tuple = None):
     """Generator form of :func:`select`: yields often (every few ms of pilot work) so that a
     caller can interleave the selection with its own work; its return value is the Selection.
 
@@ -181,6 +181,12 @@ def selecting(body: RigidBody, dissipation: Dissipation, attitude, angular_veloc
             dop853's bound too (seed 7, orbit scene 21: 4.6×).
         restarting: the engine restarts an adaptive method at every event (SGP4's or
             NRLMSIS's anchored environment), as commanded torque does: in its cost.
+        orbit_state: (r, v), the orbit's position and velocity (m, m/s, inertial) now, where
+            the gravity gradient acts: a body starting near an LVLH equilibrium that is
+            unstable (or marginal, :mod:`.libration`) leaves it exponentially, and so does
+            any error (seed 7's orbit scenes 21 and 28: dop853 and rk4 within their bounds
+            erred 4.6× and 700× the budget). auto cannot know that error and takes the most
+            accurate, as for ``forced``. Without commands only.
     """
     commanded, torque = torque, torque or bool(environment)
     if not (accuracy > 0 and math.isfinite(accuracy)):
@@ -206,9 +212,18 @@ def selecting(body: RigidBody, dissipation: Dissipation, attitude, angular_veloc
     if not torque:  # a method another one supersedes is not asked (Candidate.supersedes)
         superseded = {c.supersedes for c in usable}
         usable = [c for c in usable if c.name not in superseded]
+    what = effects(commanded, dissipation, environment)
     if forced and not commanded and adaptive and s.torque_rate >= s.spin:
-        return _forced_choice(s, adaptive[0], accuracy, horizon, effects(
-            commanded, dissipation, environment))
+        return _unknowable(s, adaptive[0], accuracy, horizon, (
+            f'{what} on a non-circular orbit → libration under a periodic forcing (torque '
+            f'rate {s.torque_rate:.3g} rad/s ≥ the body\'s {s.spin:.3g}), possibly chaotic'))
+    if orbit_state is not None and not commanded and adaptive \
+            and 'gravity gradient' in environment:
+        near = libration.nearest(moments, body.attitude_to_principal(
+            rotation.validated(attitude)), body.to_principal(angular_velocity), *orbit_state)
+        if near is not None and not near.stable:
+            return _unknowable(s, adaptive[0], accuracy, horizon, (
+                f'{what}: the body starts {near.describe()} → it leaves it exponentially'))
     best, why, unasked, asked = None, [], [], 0
     # cheapest first by the least each could cost (at its largest step); one that could not
     # save more than asking it costs is not asked: on a short run the fixed part of the run
@@ -272,16 +287,15 @@ def effects(commanded, dissipation, environment) -> str:
                                         dissipation.active)) if on] + list(environment))
 
 
-def _forced_choice(s, c, accuracy, horizon, what):
-    """The adaptive candidate c at its tightest rtol, where a periodic forcing at least
-    as fast as the body's own rate makes the error unknowable a priori (``forced``)."""
+def _unknowable(s, c, accuracy, horizon, why):
+    """The adaptive candidate c at its tightest rtol, where the motion makes the error grow
+    exponentially (``why``: a periodic forcing at least as fast as the body's own rate,
+    ``forced``; an unstable equilibrium, ``orbit_state``), beyond any a-priori bound or
+    pilot: no promise (``predicted_error`` inf), the most accurate choice."""
     rtol, cost, err = s.tightest(c)
-    reason = (f'{what} on a non-circular orbit → libration under a periodic forcing '
-              f'(torque rate {s.torque_rate:.3g} rad/s ≥ the body\'s {s.spin:.3g}), '
-              'possibly chaotic: its error can grow exponentially, so no a-priori bound or '
-              f'pilot can promise {accuracy:g} rad over {horizon:g} s; the most accurate: '
-              f'{c.name} at rtol {rtol:.0e} (E≤{err:.2g} were the growth not exponential: '
-              'not a promise)')
+    reason = (f'{why}: its error can grow exponentially, so no a-priori bound or pilot can '
+              f'promise {accuracy:g} rad over {horizon:g} s; the most accurate: {c.name} at '
+              f'rtol {rtol:.0e} (E≤{err:.2g} were the growth not exponential: not a promise)')
     return Selection(c.name, s.max_step, reason, math.inf, cost, prior_cost=_prior_cost(1),
                      options=_options(c, {c.name: rtol}, s.G))
 
