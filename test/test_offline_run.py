@@ -8,7 +8,7 @@ import os
 import numpy as np
 import pytest
 
-from rigid_body_sim import cli, offline
+from rigid_body_sim import cli, offline, run_cli
 from rigid_body_sim.bag.reader import iter_messages, read_info
 from rigid_body_sim.engine import Engine
 from rigid_body_sim.physics import INTEGRATORS
@@ -191,11 +191,11 @@ def test_the_cli_warms_the_run_right_before_its_clock(tmp_path, capsys, monkeypa
     its cpu_seconds (1.5-2.4x the same run in-process). The warm-up is reported with the
     kernels' loading, outside cpu_seconds."""
     events = []
-    warm, sink, simulate = offline.warm_for, offline.BagSink.__init__, offline.simulate
-    monkeypatch.setattr(offline, 'warm_for', lambda e: (events.append('warm'), warm(e))[1])
-    monkeypatch.setattr(offline.BagSink, '__init__', lambda self, *a, **k: (
+    warm, sink, simulate = run_cli.warm_for, run_cli.BagSink.__init__, run_cli.simulate
+    monkeypatch.setattr(run_cli, 'warm_for', lambda e: (events.append('warm'), warm(e))[1])
+    monkeypatch.setattr(run_cli.BagSink, '__init__', lambda self, *a, **k: (
         events.append('bag'), sink(self, *a, **k))[1])
-    monkeypatch.setattr(offline, 'simulate', lambda *a, **k: (
+    monkeypatch.setattr(run_cli, 'simulate', lambda *a, **k: (
         events.append('clock'), simulate(*a, **k))[1])
     rc, _, err = _cli(capsys, 'run', 'slew', '--duration', '2', '--out', str(tmp_path),
                       '--no-plots')
