@@ -141,9 +141,17 @@ def effective_parameters(scene: SceneFile, duration=None, integrator=None, step=
     return p
 
 
-# samples per block offline: each block costs ~60 µs of Python (the compiled loop's set-up,
-# the block's copies), 1.8 ms of a 6 ms run of 30,000 samples at 1,024; 1.4 MB at 16,384
+# samples per block offline at most: each block costs ~60 µs of Python (the compiled loop's
+# set-up), 1.8 ms of a 6 ms run of 30,000 samples at 1,024; 1.4 MB at 16,384. A shorter run
+# gets a block of its own length (block_size), which it takes without a copy (BlockBuilder)
 OFFLINE_BLOCK = 16384
+
+
+def block_size(config) -> int:
+    """Samples per block for an offline run of ``config``: all of them (t = 0, every sample
+    instant, the end when off the grid) up to OFFLINE_BLOCK."""
+    d, p = config.duration_ns, config.sample_period_ns
+    return max(1, min(OFFLINE_BLOCK, d // p + 1 + (d % p != 0)))
 
 
 def engine_for(scene: SceneFile, duration=None, integrator=None, step=None, accuracy=None,
@@ -170,7 +178,7 @@ def engine_for(scene: SceneFile, duration=None, integrator=None, step=None, accu
         config = config.replace(integrator_options=dict(integrator_options))
     if check_stability:
         _check_step_fits(config, 'step' if step is None else '--step')
-    engine = Engine(config, check_method=check_stability, block_size=OFFLINE_BLOCK)
+    engine = Engine(config, check_method=check_stability, block_size=block_size(config))
     for verdict, message in engine.method_warnings:
         if verdict == 'refuse':
             raise SceneError(message)
