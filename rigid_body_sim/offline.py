@@ -204,7 +204,7 @@ def _check_step_fits(config, where) -> None:
 
 def simulate(scene: SceneFile, duration=None, integrator=None, step=None, accuracy=None,
              progress=False, integrator_options=None, sinks=(), keep='all',
-             check_stability=False, engine=None) -> RunResult:
+             check_stability=False, engine=None, until_ns=None) -> RunResult:
     """Run ``scene`` to its end; CLI overrides replace the scene's values when given.
 
     Every block of samples goes to each callable in ``sinks`` as it is produced.
@@ -213,7 +213,8 @@ def simulate(scene: SceneFile, duration=None, integrator=None, step=None, accura
     ``integrator_options`` go to a fixed integrator (e.g. dop853 rtol/atol for a reference).
     ``engine``: one already built by :func:`engine_for` (its build, auto's selection
     included, then counts before the clock: the CLI checks the method before it replaces
-    a previous run); the overrides are then ignored.
+    a previous run); the overrides are then ignored. ``until_ns``: stop at that sim time
+    (the CLI's rehearsal of a run's first periods) instead of the end.
     """
     cpu0 = time.process_time()
     chosen = engine.selection_cpu if engine is not None else 0.0  # before this clock
@@ -225,7 +226,7 @@ def simulate(scene: SceneFile, duration=None, integrator=None, step=None, accura
     first = last = final = None
     count = 0
     output = 0.0  # the sinks' CPU (a bag: encoding and writing), reported on its own
-    for block in engine.run():
+    for block in engine.run(until_ns):
         if first is None:
             first = block.row(0)
         final = block  # its last row converted once, after the run: ~70 µs a block
