@@ -48,7 +48,7 @@ def number(low=-math.inf, high=math.inf, low_open=False, integer=False):
 
 # name -> (module, one-line help)
 SUBCOMMANDS = {
-    'run': ('rigid_body_sim.offline', 'run a scene offline (no ROS graph): bag, plots, JSON'),
+    'run': ('rigid_body_sim.run_cli', 'run a scene offline (no ROS graph): bag, plots, JSON'),
     'scenes': ('rigid_body_sim.scene', 'list the built-in scenes'),
     'demo': ('rigid_body_sim.demo', 'the live demo: simulator + controller + recorder'),
     'bag': ('rigid_body_sim.bag.cli', 'inspect or recover MCAP bags (info, recover)'),

@@ -1,14 +1,13 @@
-"""``rigid-body-sim run SCENE``: a scene offline, as fast as the machine allows.
+"""A scene offline, as fast as the machine allows: :func:`simulate` and its result.
 
 The same engine as the live simulator node (``rigid_body_sim.engine``): same events, same
 steps, same samples. For controlled scenes the controller node's law runs in-process as a
-torque source, held over each control period. The samples stream into a bag in the
-recorder's format (same topics, types and stamps as live) and into the plots, so memory
-does not grow with the length of the run.
+torque source, held over each control period. The samples stream into sinks (the bag in
+the recorder's format: :mod:`.bag_sink`) and into the plots, so memory does not grow with
+the length of the run. The ``rigid-body-sim run`` command is :mod:`.run_cli`; its names
+and the sink's are still importable from here.
 """
-import json
 import math
-import os
 import sys
 import time
 from dataclasses import dataclass, field
@@ -20,8 +19,8 @@ import numpy as np
 # here, where a refused argument or scene file does not need them (the scene's checks still
 # import numba through the parameter specs: 0.61 → 0.55 CPU-s for a bad file)
 from .engine.samples import SampleBlock
-from .scene import SceneError, SceneFile, content_sha256, load
-from .sensors.specs import SensorSettings
+from .lazy_exports import lazy_exports
+from .scene import SceneError, SceneFile
 
 if TYPE_CHECKING:
     from .engine import Engine
@@ -142,9 +141,17 @@ def effective_parameters(scene: SceneFile, duration=None, integrator=None, step=
     return p
 
 
-# samples per block offline: each block costs ~60 µs of Python (the compiled loop's set-up,
-# the block's copies), 1.8 ms of a 6 ms run of 30,000 samples at 1,024; 1.4 MB at 16,384
+# samples per block offline at most: each block costs ~60 µs of Python (the compiled loop's
+# set-up), 1.8 ms of a 6 ms run of 30,000 samples at 1,024; 1.4 MB at 16,384. A shorter run
+# gets a block of its own length (block_size), which it takes without a copy (BlockBuilder)
 OFFLINE_BLOCK = 16384
+
+
+def block_size(config) -> int:
+    """Samples per block for an offline run of ``config``: all of them (t = 0, every sample
+    instant, the end when off the grid) up to OFFLINE_BLOCK."""
+    d, p = config.duration_ns, config.sample_period_ns
+    return max(1, min(OFFLINE_BLOCK, d // p + 1 + (d % p != 0)))
 
 
 def engine_for(scene: SceneFile, duration=None, integrator=None, step=None, accuracy=None,
@@ -171,7 +178,7 @@ def engine_for(scene: SceneFile, duration=None, integrator=None, step=None, accu
         config = config.replace(integrator_options=dict(integrator_options))
     if check_stability:
         _check_step_fits(config, 'step' if step is None else '--step')
-    engine = Engine(config, check_method=check_stability, block_size=OFFLINE_BLOCK)
+    engine = Engine(config, check_method=check_stability, block_size=block_size(config))
     for verdict, message in engine.method_warnings:
         if verdict == 'refuse':
             raise SceneError(message)
@@ -197,7 +204,7 @@ def _check_step_fits(config, where) -> None:
 
 def simulate(scene: SceneFile, duration=None, integrator=None, step=None, accuracy=None,
              progress=False, integrator_options=None, sinks=(), keep='all',
-             check_stability=False, engine=None) -> RunResult:
+             check_stability=False, engine=None, until_ns=None) -> RunResult:
     """Run ``scene`` to its end; CLI overrides replace the scene's values when given.
 
     Every block of samples goes to each callable in ``sinks`` as it is produced.
@@ -206,7 +213,8 @@ def simulate(scene: SceneFile, duration=None, integrator=None, step=None, accura
     ``integrator_options`` go to a fixed integrator (e.g. dop853 rtol/atol for a reference).
     ``engine``: one already built by :func:`engine_for` (its build, auto's selection
     included, then counts before the clock: the CLI checks the method before it replaces
-    a previous run); the overrides are then ignored.
+    a previous run); the overrides are then ignored. ``until_ns``: stop at that sim time
+    (the CLI's rehearsal of a run's first periods) instead of the end.
     """
     cpu0 = time.process_time()
     chosen = engine.selection_cpu if engine is not None else 0.0  # before this clock
@@ -218,7 +226,7 @@ def simulate(scene: SceneFile, duration=None, integrator=None, step=None, accura
     first = last = final = None
     count = 0
     output = 0.0  # the sinks' CPU (a bag: encoding and writing), reported on its own
-    for block in engine.run():
+    for block in engine.run(until_ns):
         if first is None:
             first = block.row(0)
         final = block  # its last row converted once, after the run: ~70 µs a block
@@ -253,297 +261,8 @@ def warm_for(engine: 'Engine') -> set:
     return warm(engine)
 
 
-def _integration_error() -> tuple:
-    """(IntegrationError,) once the integrators are imported, else (): none can have been
-    raised before, and importing them to check would load numba for a bad scene file."""
-    base = sys.modules.get('rigid_body_sim.physics.integrators.base')
-    return (base.IntegrationError,) if base is not None else ()
-
-
-def kernel_signatures() -> int:
-    """Compiled signatures held by the package's numba kernels now (0 without numba's JIT):
-    their growth over a stretch is what that stretch compiled or loaded from the cache."""
-    try:
-        from numba.core.registry import CPUDispatcher
-    except ImportError:  # pragma: no cover - numba is a dependency
-        return 0
-    return sum(len(v.signatures) for name, module in list(sys.modules.items())
-               if name.startswith('rigid_body_sim') and module is not None
-               for v in list(vars(module).values()) if isinstance(v, CPUDispatcher))
-
-
-class BagSink:
-    """Samples → the recorder's bag format: same topics, types, frames and stamps as live."""
-
-    def __init__(self, scene: SceneFile, directory: str, extra: dict, parameters=None):
-        from .bag.writer import BagWriter
-        from .engine import EngineConfig
-        from .engine.actuators import ActuatorConfig
-        from .param_spec import coerce_all
-        from .engine.specs import SIMULATOR
-        from .nodes.state_messages import StateMessages
-        p = scene.simulator
-        self.msgs = StateMessages(p['frame_id'], p['child_frame_id'], torque=scene.controlled,
-                                  actuators=ActuatorConfig.from_parameters(
-                                      coerce_all(SIMULATOR, p)))
-        self.writer = BagWriter(directory, name=os.path.basename(os.path.normpath(directory)))
-        self.path = os.path.abspath(directory)
-        for topic, type_name in self.msgs.topic_types():
-            self.writer.add_topic(f'/{topic}', type_name)
-        self.sensors = None  # the scene's gyro / star tracker topics, if it has sensors
-        settings = SensorSettings.from_parameters(p)
-        if settings is not None:
-            from .nodes.sensor_messages import SensorMessages
-            self.sensors = SensorMessages(settings, p['frame_id'], p['child_frame_id'])
-            for topic, type_name in self.sensors.topic_types():
-                self.writer.add_topic(f'/{topic}', type_name)
-        self.orbit = None  # the orbit's topics, for a scene with an orbit (as live)
-        config = EngineConfig.from_parameters(p)
-        if config.environment is not None:
-            from .nodes.orbit_messages import OrbitMessages
-            self.orbit = OrbitMessages(config, p['frame_id'], p['child_frame_id'],
-                                       p['orbit.frame_id'])
-            for topic, name in self.orbit.topic_types():
-                self.writer.add_topic(f'/{topic}', name)
-        self.magnetometer = None  # magnetic_field, for a scene with a magnetometer
-        magnetic = None if config.environment is None else config.environment.magnetic
-        if magnetic is not None and magnetic.magnetometer is not None:
-            from .nodes import magnetic_messages
-            self.magnetometer = magnetic_messages.MagnetometerMessages(
-                magnetic.magnetometer, p['child_frame_id'])
-            self.writer.add_topic(f'/{magnetic_messages.TOPIC}', magnetic_messages.TYPE)
-        self.msgs.prepare()  # the encoder's templates now, not in the first sample's time
-        self.record = run_record(scene, parameters or scene.simulator, extra)
-        self.writer.add_run_configuration(self.record)
-
-    def finish(self, result: 'RunResult'):
-        """Complete the run record with what ran (readers use the last record)."""
-        self.record.update(ran(result))
-        self.writer.add_run_configuration(self.record)
-
-    def __call__(self, block: SampleBlock):
-        write = self.writer.write
-        sensed = self.sensors is not None and block.sensors is not None
-        magnetic = self.magnetometer is not None and block.magnetometer is not None
-        if sensed or magnetic:  # readings at their own instants, merged in time order
-            records = [(int(block.t_ns[i]), topic, data) for i in range(len(block))
-                       for topic, data in self.msgs.serialized(block, i, int(block.t_ns[i]))]
-            if sensed:
-                records += self.sensors.serialized(block.sensors)
-            if magnetic:
-                records += self.magnetometer.serialized(block.magnetometer)
-            if self.orbit is not None:
-                records += [(int(block.t_ns[i]), topic, data) for i in range(len(block))
-                            for topic, data in self.orbit.serialized(block, i,
-                                                                     int(block.t_ns[i]))]
-            for ns, topic, data in sorted(records, key=lambda r: r[0]):  # stable: time order
-                write(f'/{topic}', data, ns, ns)
-            return
-        for i in range(len(block)):
-            ns = int(block.t_ns[i])
-            for topic, data in self.msgs.serialized(block, i, ns):
-                write(f'/{topic}', data, ns, ns)
-            if self.orbit is not None:
-                for topic, data in self.orbit.serialized(block, i, ns):
-                    write(f'/{topic}', data, ns, ns)
-
-    def close(self):
-        self.writer.close()
-
-
-OUTPUTS = ('omega.png', 'invariants.png', 'poinsot.png', 'flips.png', 'precession.png',
-           'nutation.png', 'control.png', 'actuators.png', 'pointing.png')
-
-
-def _replace_previous(out: str) -> None:
-    """A run writes into ``out`` what the previous one there wrote (bag/ and the figures):
-    say so and remove them, so that no figure of the previous run stays beside this one's
-    (a poinsot.png this run does not draw). Other files in ``out`` are left alone."""
-    import shutil
-    bag = os.path.join(out, 'bag')
-    figures = [f for f in OUTPUTS if os.path.isfile(os.path.join(out, f))]
-    if not (os.path.isdir(bag) or figures):
-        return
-    print(f'note: replacing the previous run in {out} (its bag and figures); --out DIR '
-          'keeps runs apart', file=sys.stderr)
-    if os.path.isdir(bag):
-        shutil.rmtree(bag)
-    for f in figures:
-        os.remove(os.path.join(out, f))
-
-
-def run_record(scene: SceneFile, parameters: dict, extra: dict) -> dict:
-    """The run configuration stored in the bag: the scene (name, file, content hash) and
-    the effective parameters, enough to run it again (:func:`scene_from_record`)."""
-    try:
-        digest = content_sha256([scene.path])
-    except OSError:
-        digest = None  # an inline scene (tests, campaigns): no file
-    return {'scene': scene.name, 'scene_file': os.path.abspath(scene.path),
-            'scene_sha256': digest, 'mode': 'offline',
-            'simulator_parameters': parameters, 'controller_parameters': scene.controller,
-            **extra}
-
-
-def ran(result: 'RunResult') -> dict:
-    """What actually ran: the method, its step and auto's reason (or the scene's)."""
-    return {'integrator': result.integrator, 'step': result.step, 'reason': result.reason,
-            'steps': result.steps, 'duration': result.duration, 'samples': result.sample_count}
-
-
-def scene_from_record(config: dict) -> SceneFile:
-    """The scene a bag's run record describes, to run it again (its parameters as they
-    ran, CLI overrides included); SceneError if the record lacks them."""
-    from .engine import specs
-    from .param_spec import coerce_all
-    sim = config.get('simulator_parameters')
-    if not isinstance(sim, dict):
-        raise SceneError('the run record has no simulator_parameters (not an offline run\'s '
-                         'bag?)')
-    ctl = config.get('controller_parameters') or {}
-    try:
-        sim = coerce_all(specs.SIMULATOR, sim)
-        ctl = coerce_all(specs.CONTROLLER, ctl) if ctl else {}
-    except ValueError as exc:
-        raise SceneError(f'run record: {exc}') from None
-    return SceneFile(str(config.get('scene') or 'recorded'), '',
-                     config.get('scene_file') or 'recorded', sim, ctl)
-
-
-def add_arguments(parser):
-    from .cli import number
-    from .engine import specs
-    from .physics.integrators import BODY_ONLY
-    spec = {s.name: s for s in specs.SIMULATOR}
-    parser.add_argument('scene', help='built-in scene name (listed below) or a params file')
-    parser.add_argument('--duration', type=number(0.0, 1e12, low_open=True),
-                        help='simulated seconds, s (default: the scene\'s)')
-    parser.add_argument('--integrator', choices=('auto',) + BODY_ONLY,
-                        help='integrator (default: the scene\'s): %(choices)s')
-    parser.add_argument('--step', type=number(spec['step'].low, spec['step'].high),
-                        help='largest physics step, s')
-    parser.add_argument('--accuracy', type=number(spec['accuracy'].low, spec['accuracy'].high),
-                        help='attitude-error budget for auto, rad')
-    parser.add_argument('--out', help='output directory (default: out/<scene>)')
-    parser.add_argument('--json', action='store_true',
-                        help='print one JSON object with the results')
-    parser.add_argument('--no-bag', action='store_true', help='skip writing the bag')
-    parser.add_argument('--no-plots', action='store_true', help='skip the PNG plots')
-    add_set_argument(parser)
-    parser.add_argument('--namespace', default='/', metavar='NS',
-                        help='the nodes\' namespace, for params files whose sections name it '
-                             '(/NS/attitude_simulator), as -r __ns:=NS runs them')
-
-
-def add_set_argument(parser):
-    """--set, and an epilog listing the choices a newcomer needs (with their units)."""
-    parser.epilog = choices_epilog()
-    parser.add_argument('--set', action='append', default=[], metavar='KEY=VALUE',
-                        help='override a scene parameter after the file (repeatable), typed '
-                             'as in a params file: --set accuracy=1e-9 --set '
-                             'initial_angular_velocity=[0.1,2.0,0.0]')
-
-
-def choices_epilog() -> str:
-    from .physics import DISSIPATION_MODELS, INTEGRATORS
-    from .physics.integrators import BODY_ONLY
-    carried = ', '.join(n for n in INTEGRATORS if n not in BODY_ONLY)
-    from .scene import list_scenes
-    try:
-        scenes = ', '.join(name for name, _, _ in list_scenes())
-    except (OSError, SceneError):
-        scenes = '(config/ not found)'
-    return (f'scenes: {scenes}. integrators (--set integrator=NAME): auto, '
-            f'{", ".join(BODY_ONLY)} (with wheels or CMGs: {carried}). dissipation models '
-            f'(--set dissipation.model=NAME, '
-            f'dissipation.coefficient in s/(kg·m²) for double_bracket, N·m·s for viscous): '
-            f'{", ".join(DISSIPATION_MODELS)}. Units are SI: s, rad, rad/s, kg·m², N·m, J; '
-            'quaternions (x, y, z, w).')
-
-
-def run(args) -> int:
-    from .bag.errors import BagError
-    bag = None
-    try:
-        scene = load(args.scene, args.set, args.namespace)
-        out = args.out or os.path.join('out', scene.name)
-        # The kernels the run can use come from numba's disk cache before the clock
-        # starts: loaded lazily they landed in the first method's run or in auto's pilot
-        # (0.22 s of a 0.23 s "selection" on explorer1, whose pilot proper takes 1 ms).
-        from .engine.warm import load_kernels, start_numba, warm_selection
-        p = effective_parameters(scene, args.duration, args.integrator)
-        load0 = time.process_time()
-        start_numba()
-        warm_selection(p['integrator'], p['dissipation.model'])
-        kernel_load = time.process_time() - load0
-        # the checks (step, stability, predicted error) before anything is replaced: a
-        # refused run leaves the previous one in place
-        engine = engine_for(scene, args.duration, args.integrator, args.step, args.accuracy,
-                            check_stability=True)
-        load0 = time.process_time()
-        load_kernels(engine.config, warm_for(engine))
-        kernel_load += time.process_time() - load0
-        _replace_previous(out)
-        if not args.no_bag:
-            bag = BagSink(scene, os.path.join(out, 'bag'), {
-                'integrator_requested': args.integrator or scene.simulator['integrator'],
-                'command_line': {k: v for k, v in (
-                    ('duration', args.duration), ('integrator', args.integrator),
-                    ('step', args.step), ('accuracy', args.accuracy), ('set', args.set))
-                    if v}}, effective_parameters(scene, args.duration, args.integrator,
-                                                 args.step, args.accuracy))
-        try:
-            loaded = kernel_signatures()
-            # the same few periods again, now that the bag's set-up has run: it evicts the
-            # caches the run's code and kernels were warm in (a 0.25 ms run then cost
-            # 0.1-0.2 ms more in the clock); loads nothing the first warm_for did not
-            cache0 = time.process_time()
-            warm_for(engine)
-            kernel_load += time.process_time() - cache0
-            result = simulate(scene, progress=not args.json, sinks=[bag] if bag else [],
-                              keep='none' if args.no_plots else 'plot', engine=engine)
-            result.kernels_loaded_during_run = kernel_signatures() - loaded
-            if bag is not None:
-                bag.finish(result)
-        finally:
-            if bag is not None:
-                bag.close()
-        result.bag = bag.path if bag else None
-        result.kernel_load_cpu_seconds = kernel_load
-        if not args.no_plots:
-            from .plots import free_until, write_plots
-            s = result.samples
-            result.plots = [os.path.abspath(pth) for pth in write_plots(
-                s, result.body, out, scene.name, free_until(s.t, s.torque), scene)]
-            if result.actuators is not None:
-                from .plots import write_actuator_plot
-                result.plots.append(os.path.abspath(write_actuator_plot(
-                    s, result.actuators, out, scene.name)))
-            if scene.controlled and scene.controller['feedback'] == 'sensors':
-                from .sensors.plots import write_pointing_plot
-                result.plots.append(os.path.abspath(write_pointing_plot(s, scene, out)))
-    except (SceneError, ValueError, BagError, *_integration_error()) as exc:
-        print(f'error: {exc}', file=sys.stderr)
-        return 2
-    for note in result.actuators.notes if result.actuators is not None else ():
-        print(f'note: {note}', file=sys.stderr)
-    summary = result.summary()
-    if args.json:
-        print(json.dumps(summary))
-        return 0
-    f = summary['final']
-    print(f'{scene.name}: {result.integrator} (step {result.step:.3g} s), {result.steps} steps, '
-          f'{result.cpu_seconds:.3g} CPU s for {result.duration:g} simulated s '
-          f'(+ {result.selection_cpu_seconds:.3g} CPU s choosing the method, '
-          f'{result.kernel_load_cpu_seconds:.2g} s loading the compiled kernels'
-          + (f', {result.output_cpu_seconds:.3g} s writing the bag' if result.bag else '')
-          + ')')
-    print(f'  why: {result.reason}')
-    print(f'  final: T = {f["kinetic_energy"]:.9g} J, |L| = '
-          f'{np.linalg.norm(f["angular_momentum"]):.9g} kg·m²/s, '
-          f'ω = {np.round(f["angular_velocity"], 6).tolist()} rad/s')
-    if result.bag:
-        print(f'  bag: {result.bag}')
-    for pth in result.plots:
-        print(f'  plot: {pth}')
-    return 0
+# the command and the bag sink, split from this module: their names stay importable here
+__getattr__, __dir__ = lazy_exports(__name__.rpartition('.')[0], globals(), {
+    **dict.fromkeys(('BagSink', 'run_record', 'ran', 'scene_from_record'), 'bag_sink'),
+    **dict.fromkeys(('run', 'add_arguments', 'add_set_argument', 'choices_epilog', 'OUTPUTS',
+                     'kernel_signatures'), 'run_cli')})

@@ -90,7 +90,7 @@ def test_the_offline_modules_import_without_numba_or_the_bag_writer():
     scene file reaches first) loads neither numba, scipy, mcap nor the engine's core."""
     import sys
     proc = subprocess.run([sys.executable, '-c', (
-        'import sys; from rigid_body_sim import offline; '
+        'import sys; from rigid_body_sim import bag_sink, offline, run_cli; '
         'from rigid_body_sim.bag.errors import BagError; '
         'from rigid_body_sim.physics import rotation, body; '
         'print(sorted(m for m in ("numba", "scipy", "mcap", "rigid_body_sim.engine.core", '

@@ -243,3 +243,97 @@ def test_igrf_and_the_magnetometer_keep_the_event_path():
     for extra in (['environment.magnetic_field=igrf'], ['magnetometer.enabled=true']):
         engine, block = _held_dipole('rk4', MAGNETIC + extra)
         assert not engine._compiled_samples and len(block) == 121
+
+
+def _blocks(scene, block_size=None, **overrides):
+    """The run's blocks, each with a copy of its arrays taken as it was yielded."""
+    engine = engine_for(scene, **overrides)
+    if block_size is not None:
+        engine._builder = type(engine._builder)(engine.body, block_size)
+    out = []
+    for b in engine.run():
+        out.append((b, [getattr(b, k).copy() for k in ('t_ns', 'q', 'm', 'torque')]))
+    return out
+
+
+@pytest.mark.parametrize('name,overrides', [
+    ('tennis_racket', {'duration': 3.0}),  # exact: the grid written by _free_samples
+    ('explorer1', {'duration': 1.37, 'integrator': 'rk4', 'step': 1e-3}),  # compiled loop
+    ('slew', {'duration': 2.0})])  # the law in the loop
+def test_blocks_taken_without_copies_are_never_written_again(name, overrides):
+    """A block that takes the builder's arrays (BlockBuilder.block) keeps its samples
+    while the run goes on (the builder writes into fresh arrays); the run sized to its
+    samples gives the samples of the former fixed 16,384-sample block bit for bit, and of
+    any other cut into blocks bit for bit too (the compiled loop) or to round-off (exact:
+    each block's grid has its own anchors)."""
+    from rigid_body_sim.offline import OFFLINE_BLOCK
+    scene = load(name, ['publish_rate=100.0'])
+    runs = {size: _blocks(scene, size, **overrides) for size in (None, OFFLINE_BLOCK, 7, 64)}
+    one = runs[None]
+    assert len(one) == 1  # an offline engine's block holds the whole (short) run
+    for size, blocks in runs.items():
+        assert size in (None, OFFLINE_BLOCK) or len(blocks) > 2
+        for b, copies in blocks:
+            for k, c in zip(('t_ns', 'q', 'm', 'torque'), copies):
+                np.testing.assert_array_equal(getattr(b, k), c, err_msg=f'{size} {k}')
+        whole = SampleBlock.concatenate([b for b, _ in blocks])
+        exact = size in (None, OFFLINE_BLOCK) or name != 'tennis_racket'
+        for k in ('t_ns', 'q', 'm', 'torque'):
+            np.testing.assert_allclose(getattr(whole, k), getattr(one[0][0], k), rtol=0,
+                                       atol=0 if exact else 1e-13, err_msg=f'{size} {k}')
+
+
+def test_an_offline_run_keeps_its_samples_without_copying_them():
+    """``simulate(keep='all')`` of a run that fits one block returns that block's arrays,
+    which are the engine's own: copying every sample twice (the block, then the result)
+    cost ~30 ns a sample, as much as the exact solution's grid. A short block (a live
+    node's few samples) is copied, so that it does not hold the builder's capacity."""
+    from rigid_body_sim.engine.samples import BlockBuilder
+    from rigid_body_sim.offline import simulate
+    scene = load('tennis_racket', ['publish_rate=100.0'])
+    engine = engine_for(scene, duration=3.0)
+    seen = []
+    result = simulate(scene, engine=engine, sinks=[seen.append], keep='all')
+    assert len(seen) == 1 and result.sample_count == len(seen[0]) == 301
+    for k in ('t_ns', 'q', 'm', 'torque'):
+        assert np.shares_memory(getattr(result.samples, k), getattr(seen[0], k)), k
+    assert engine._builder.capacity == 301  # sized to the run: t = 0 .. 3 s
+    builder = BlockBuilder(engine.body, 1024)
+    builder.add(0, np.array([0.0, 0.0, 0.0, 1.0]), np.ones(3), None)
+    short = builder.block()
+    assert short.q.base is None and len(short) == 1
+
+
+_DOP853_CALLS = '''
+import json
+from rigid_body_sim.offline import engine_for
+from rigid_body_sim.physics.integrators import dop853_dense
+from rigid_body_sim.scene import load
+calls = [0]
+advance = dop853_dense.advance
+def counted(*args):
+    calls[0] += 1
+    return advance(*args)
+dop853_dense.advance = counted
+engine = engine_for(load('tennis_racket', ['publish_rate=100.0', 'dissipation.model=viscous',
+                                           'dissipation.coefficient=0.01']),
+                    duration=5.0, integrator='dop853')
+samples = sum(len(b) for b in engine.run())
+print(json.dumps({'samples': samples, 'calls': calls[0], 'steps': engine.steps}))
+'''
+
+
+def test_dop853_samples_inside_a_step_do_not_call_its_advance():
+    """A dop853 sample inside the step in progress is interpolated inside the compiled
+    loop (dop853_dense._interpolated, inlined): calling dop853_dense.advance for it cost
+    ~150 ns of the ~200 ns a sample cost (its arrays' reference counts). Counted as plain
+    Python (NUMBA_DISABLE_JIT=1), where the loop calls the module's function."""
+    import os
+    import subprocess
+    import sys
+    proc = subprocess.run([sys.executable, '-c', _DOP853_CALLS], capture_output=True,
+                          text=True, env=dict(os.environ, NUMBA_DISABLE_JIT='1'), timeout=600)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    out = json.loads(proc.stdout.strip().splitlines()[-1])
+    assert out['samples'] == 501
+    assert 0 < out['calls'] < 50, out  # ~1 s steps: the steps' calls, not the samples'

@@ -116,6 +116,9 @@ class SampleBlock:
         blocks = [b for b in blocks if len(b)]
         if not blocks:
             return empty_block()
+        if len(blocks) == 1:  # its arrays, not copies (SampleBlock's arrays are not written)
+            b = blocks[0]
+            return SampleBlock(b.t_ns, b.q, b.m, b.torque, b.body, b.actuators, dipole=b.dipole)
         extra, dipole = (None if getattr(blocks[0], k) is None else
                          np.concatenate([getattr(b, k) for b in blocks])
                          for k in ('actuators', 'dipole'))
@@ -160,24 +163,35 @@ def empty_block() -> SampleBlock:
 
 class BlockBuilder:
     """Collects principal-frame states (q, m) at sample instants; ``block()`` converts them
-    to the user's frames in one vectorised pass."""
+    to the user's frames in one vectorised pass.
+
+    A block at least half of ``capacity`` long takes the builder's arrays themselves (views
+    of its filled rows) instead of copies, and the builder allocates fresh ones when it is
+    written to again: an offline run sized to its samples (``capacity`` = their count)
+    then copies none, where two copies of every sample (the block's, then the result's
+    concatenation) cost ~30 ns a sample, as much as the exact solution's own. A short block
+    (a live node's one sample) is copied, so that it does not hold the whole capacity."""
 
     def __init__(self, body: RigidBody, capacity: int = 1024):
         self.body = body
         self.capacity = capacity
-        self._t = np.empty(capacity, np.int64)
-        self._q = np.empty((capacity, 4))
-        self._m = np.empty((capacity, 3))
-        self._tau = np.empty((capacity, 3))
+        self._t = None  # the arrays, allocated on the first write (_allocate)
         self._extra = None  # actuator rows, allocated on the first one
         self._dipole = None  # the rods' dipole per row, allocated on the first one
         self.n = 0
+
+    def _allocate(self):
+        c = self.capacity
+        self._t, self._q = np.empty(c, np.int64), np.empty((c, 4))
+        self._m, self._tau = np.empty((c, 3)), np.empty((c, 3))
 
     @property
     def full(self) -> bool:
         return self.n >= self.capacity
 
     def add(self, t_ns, q, m, torque_body, extra=None, dipole=None):
+        if self._t is None:
+            self._allocate()
         i = self.n
         self._t[i], self._q[i], self._m[i] = t_ns, q, m
         self._tau[i] = 0.0 if torque_body is None else torque_body
@@ -200,13 +214,21 @@ class BlockBuilder:
     def columns(self, cap: int):
         """(t ns, q, m, τ body) of rows [0, cap), views that a compiled loop fills from row
         ``n`` on (the caller then counts the rows it wrote into ``n``)."""
+        if self._t is None:
+            self._allocate()
         return self._t[:cap], self._q[:cap], self._m[:cap], self._tau[:cap]
 
     def block(self) -> SampleBlock:
         n = self.n
-        out = SampleBlock(self._t[:n].copy(), self._q[:n].copy(), self._m[:n].copy(),
-                          self._tau[:n].copy(), self.body,
-                          None if self._extra is None else self._extra[:n].copy(),
-                          dipole=None if self._dipole is None else self._dipole[:n].copy())
+        if self._t is None:
+            self._allocate()
+        handover = n > 0 and 2 * n >= self.capacity  # the arrays themselves (see the class)
+
+        def rows(a):
+            return None if a is None else a[:n] if handover else a[:n].copy()
+        out = SampleBlock(rows(self._t), rows(self._q), rows(self._m), rows(self._tau),
+                          self.body, rows(self._extra), dipole=rows(self._dipole))
+        if handover:
+            self._t = self._extra = self._dipole = None
         self.n = 0
         return out

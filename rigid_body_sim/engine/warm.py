@@ -52,15 +52,22 @@ def warm_for(engine: Engine) -> set:
     starts. Some loops are first called inside a run (the gyrostat loop of wheel scenes:
     60 ms of a 64 ms run). Returns the names of the methods it ran (:func:`load_kernels`)."""
     c = engine.config
-    span = 3 * c.sample_period_ns
-    if c.control is not None:
-        span += round(c.control.free_time * 1e9) + 3 * c.control.period_ns
+    span = warm_span(c)
     copy = Engine(c)
     methods = {copy.method}
     for _ in copy.run(min(copy.end_ns, copy.t_ns + span)):
         methods.add(copy.method)
     methods.add(copy.method)
     return methods
+
+
+def warm_span(config) -> int:
+    """The sim time (ns) a warm-up runs: three sample periods, and with a law, its free
+    phase and three of its periods."""
+    span = 3 * config.sample_period_ns
+    if config.control is not None:
+        span += round(config.control.free_time * 1e9) + 3 * config.control.period_ns
+    return span
 
 
 def load_kernels(config, methods) -> None:
