@@ -130,6 +130,16 @@ def test_a_changed_kernel_source_or_cpu_changes_the_key(tmp_path, monkeypatch):
     assert len(set(keys)) == 3
 
 
+def test_the_key_covers_the_engines_compiled_loop_and_how_events_are_timed():
+    """The calibration holds the cost of an event in the engine's compiled loop
+    (engine/event_cost.py): a change to that loop or to its timing makes it stale."""
+    import rigid_body_sim.engine.closed_loop as closed_loop
+    import rigid_body_sim.engine.event_cost as event_cost
+    files = calibration.kernel_files()
+    for module in (closed_loop, event_cost):
+        assert os.path.abspath(module.__file__) in files
+
+
 def test_a_stale_cache_is_not_used_and_ensure_recalibrates(cache, monkeypatch):
     calibration.save(record(key='kernels of another day'), str(cache))
     assert calibration.load() == (None, 'calibration stale (kernels or CPU changed)')

@@ -100,6 +100,12 @@ def kernel_files():
     from ..integrators import INTEGRATORS
     from ..orbit import kernel as orbit_kernel
     files = {jit.__file__, __file__, orbit_kernel.__file__}  # this file: how they are timed
+    # the engine's compiled loop and how an event is timed in it (``events``): by path, as
+    # physics does not import the engine
+    engine = os.path.join(os.path.dirname(os.path.dirname(os.path.dirname(
+        os.path.abspath(__file__)))), 'engine')
+    files.update(os.path.join(engine, f) for f in ('closed_loop.py', 'event_cost.py')
+                 if os.path.exists(os.path.join(engine, f)))
     for cls in INTEGRATORS.values():
         files.add(inspect.getsourcefile(cls))
         files.update(m.__file__ for m in cls.kernel_modules)
