@@ -27,13 +27,14 @@ def _executable(name):
 
 
 class Process:
-    """One node, its stdout and stderr in ``<log_dir>/<name>.log``."""
+    """One node, executable ``name``, its stdout and stderr in ``<log_dir>/<name>.log``;
+    a formation's controllers: ``controller_<craft>.log``, named ``controller <craft>``."""
 
-    def __init__(self, name, args, log_dir):
-        self.name = name
-        self.log_path = os.path.join(log_dir, f'{name}.log')
+    def __init__(self, name, args, log_dir, craft=''):
+        exe, self.name = name, f'{name} {craft}' if craft else name
+        self.log_path = os.path.join(log_dir, f'{name}_{craft}.log' if craft else f'{name}.log')
         self.log = open(self.log_path, 'wb')
-        self.proc = subprocess.Popen(_executable(name) + args, stdout=self.log,
+        self.proc = subprocess.Popen(_executable(exe) + args, stdout=self.log,
                                      stderr=subprocess.STDOUT, start_new_session=True)
         self.lost = None  # its exit code, when it exited before the demo stopped it
 
@@ -59,6 +60,29 @@ class Process:
         except OSError:
             return []
         return lines[-n:]
+
+
+def controllers_file(controllers, out) -> str:
+    """A params file of a formation's controllers' own values (``launch_plan.controllers``:
+    body frame, inertia), one section per spacecraft namespace: read after the scene's,
+    these sections win over its ``/**/attitude_controller`` (a ``-p`` value would not)."""
+    import yaml
+    path = os.path.join(out, 'controllers.yaml')
+    with open(path, 'w') as f:
+        yaml.safe_dump({f'/{c.namespace}/attitude_controller': {'ros__parameters': c.parameters}
+                        for c in controllers}, f)
+    return path
+
+
+def shown_spacecraft(scene, controllers) -> str:
+    """The spacecraft of a formation that the status line and the summary show ('' for a
+    scene of one): the first one with a controller that moves at t = 0, else the first."""
+    if not scene.spacecraft:
+        return ''
+    names = [c.namespace for c in controllers] or list(scene.spacecraft)
+    moving = [n for n in names if any(scene.spacecraft[n].get(
+        'initial_angular_velocity', scene.simulator['initial_angular_velocity']))]
+    return (moving or names)[0]
 
 
 def check_lost(procs, sim):
