@@ -17,12 +17,12 @@ import time
 
 import numpy as np
 
-from .demo_nodes import (CONTROLLER_ID, SIMULATOR_ID, Process, check_lost, controllers_file,
-                         judge_simulator, shown_spacecraft)
+from .demo_nodes import (CONTROLLER_ID, SIMULATOR_ID, STARTUP_TIMEOUT, Process, check_lost,
+                         controllers_file, judge_simulator, shown_spacecraft,
+                         wait_for_nodes)
 from .demo_summary import stamp_origin, summarize
 from .scene import SceneError, load, spacecraft_scene
 
-STARTUP_TIMEOUT = 60.0  # wall s for the first sample (imports, kernels from cache, discovery)
 
 
 class _Watcher:
@@ -146,20 +146,6 @@ def _ends_run(scene, args) -> bool:
         return False
     scene_duration = scene.simulator['duration']
     return not 0.0 < scene_duration <= args.duration
-
-
-def _wait_for_nodes(node, executor, names, procs):
-    """Until ``names`` (fully qualified) are in the graph with their subscriptions (or one
-    of ``procs`` has exited, or STARTUP_TIMEOUT): they then exist well before the
-    simulator starts."""
-    deadline = time.monotonic() + STARTUP_TIMEOUT
-    while time.monotonic() < deadline and all(p.proc.poll() is None for p in procs):
-        present = {ns.rstrip('/') + '/' + n: (n, ns)
-                   for n, ns in node.get_node_names_and_namespaces()}
-        if set(names) <= set(present) and all(
-                node.get_subscriber_names_and_types_by_node(*present[n]) for n in names):
-            return
-        executor.spin_once(timeout_sec=0.1)
 
 
 def _interrupt(signum, frame):
@@ -336,7 +322,7 @@ def run(args) -> int:
         for c in ctls:
             procs.append(Process('controller', params + (
                 ['-r', f'__ns:=/{c.namespace}'] if c.namespace else []), out, c.namespace))
-        _wait_for_nodes(node, executor, ['/mcap_recorder'] + [
+        wait_for_nodes(node, executor, ['/mcap_recorder'] + [
             (f'/{c.namespace}' if c.namespace else '') + CONTROLLER_ID for c in ctls], procs)
         procs.append(Process('simulator', params + ['-p', 'wait_for_subscribers:=1'] + (
             ['-p', 'wait_for_controller:=true'] if scene.controlled else []), out))

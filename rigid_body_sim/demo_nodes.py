@@ -10,6 +10,7 @@ import os
 import signal
 import subprocess
 import sys
+import time
 
 # The hardware_id of the demo's own nodes' statuses on /diagnostics (their fully qualified
 # names): /diagnostics is one topic for the whole ROS domain, and a simulator of another
@@ -17,6 +18,7 @@ import sys
 SIMULATOR_ID = '/attitude_simulator'
 CONTROLLER_ID = '/attitude_controller'
 TAIL_LINES = 5  # of a lost node's log, in the report
+STARTUP_TIMEOUT = 60.0  # wall s for the first sample (imports, kernels from cache, discovery)
 
 
 def _executable(name):
@@ -118,3 +120,17 @@ def report_lost(p, when=''):
           f'run (log: {p.log_path}); its last lines:', flush=True)
     for line in p.tail():
         print(f'    | {line}', flush=True)
+
+
+def wait_for_nodes(node, executor, names, procs):
+    """Until ``names`` (fully qualified) are in the graph with their subscriptions (or one
+    of ``procs`` has exited, or STARTUP_TIMEOUT): they then exist well before the
+    simulator starts."""
+    deadline = time.monotonic() + STARTUP_TIMEOUT
+    while time.monotonic() < deadline and all(p.proc.poll() is None for p in procs):
+        present = {ns.rstrip('/') + '/' + n: (n, ns)
+                   for n, ns in node.get_node_names_and_namespaces()}
+        if set(names) <= set(present) and all(
+                node.get_subscriber_names_and_types_by_node(*present[n]) for n in names):
+            return
+        executor.spin_once(timeout_sec=0.1)
