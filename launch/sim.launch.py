@@ -14,6 +14,9 @@ Arguments:
   lockstep    true/false: the simulator holds each control instant until the controller's
               command for it (default false; docs/live-nodes.md, Lockstep)
 
+A scene with several spacecraft (formation) gets one controller per spacecraft, in the
+spacecraft's namespace (launch_plan.controllers).
+
 The launch ends when the simulator exits (at the scene's ``duration``): every other node
 is then stopped with SIGINT, and the recorder finalises its bag. What starts is decided by
 ``rigid_body_sim.launch_plan`` (plain Python, tested without ROS).
@@ -37,9 +40,9 @@ def _nodes(context):
                             arg('viewer'), arg('viewer_port'), arg('lockstep'))
     actions = [LogInfo(msg=summary)]
     nodes = {}
-    for p in planned:
+    for p in planned:  # a formation's controllers: one per spacecraft, in its namespace
         nodes[p.executable] = Node(package='rigid_body_sim', executable=p.executable,
-                                   name=p.name, output='screen',
+                                   name=p.name, namespace=p.namespace or None, output='screen',
                                    parameters=[*p.params_files, *([p.parameters]
                                                                  if p.parameters else [])])
         actions.append(nodes[p.executable])

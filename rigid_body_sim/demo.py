@@ -17,23 +17,25 @@ import time
 
 import numpy as np
 
-from .demo_nodes import CONTROLLER_ID, SIMULATOR_ID, Process, check_lost, judge_simulator
+from .demo_nodes import (CONTROLLER_ID, SIMULATOR_ID, STARTUP_TIMEOUT, Process, check_lost,
+                         controllers_file, judge_simulator, shown_spacecraft,
+                         wait_for_nodes)
 from .demo_summary import stamp_origin, summarize
-from .scene import SceneError, load
+from .scene import SceneError, load, spacecraft_scene
 
-STARTUP_TIMEOUT = 60.0  # wall s for the first sample (imports, kernels from cache, discovery)
 
 
 class _Watcher:
     """Subscribes to the simulator's state and the controller's command; keeps what the
     summary needs."""
 
-    def __init__(self, node, target, time_scale=1.0):
+    def __init__(self, node, target, time_scale=1.0, ns='', controller_id=CONTROLLER_ID):
         from diagnostic_msgs.msg import DiagnosticArray
         from geometry_msgs.msg import QuaternionStamped, Vector3Stamped
         from std_msgs.msg import Float64
         from .nodes.common import qos_profile
         self.target = target
+        self.controller_id = controller_id  # the shown spacecraft's controller's status
         self.q = self.w = self.L = None
         self.T = None
         self.stamp = None  # of the last sample (s)
@@ -46,11 +48,12 @@ class _Watcher:
         self.torque_seen = False
         self.free = {'T': [], 'L': []}  # T and |L| while no torque has been commanded yet
         qos = qos_profile('reliable', 100)
-        node.create_subscription(QuaternionStamped, 'attitude', self._on_attitude, qos)
-        node.create_subscription(Vector3Stamped, 'angular_velocity', self._on_w, qos)
-        node.create_subscription(Vector3Stamped, 'angular_momentum', self._on_L, qos)
-        node.create_subscription(Float64, 'kinetic_energy', self._on_T, qos)
-        node.create_subscription(Vector3Stamped, 'torque_command', self._on_torque, qos)
+        # ns: a formation's spacecraft shown ('leader/'); '' for a scene of one
+        node.create_subscription(QuaternionStamped, ns + 'attitude', self._on_attitude, qos)
+        node.create_subscription(Vector3Stamped, ns + 'angular_velocity', self._on_w, qos)
+        node.create_subscription(Vector3Stamped, ns + 'angular_momentum', self._on_L, qos)
+        node.create_subscription(Float64, ns + 'kinetic_energy', self._on_T, qos)
+        node.create_subscription(Vector3Stamped, ns + 'torque_command', self._on_torque, qos)
         node.create_subscription(DiagnosticArray, '/diagnostics', self._on_diag, qos)
 
     def _on_attitude(self, msg):
@@ -90,7 +93,7 @@ class _Watcher:
 
     def _on_diag(self, msg):
         for status in msg.status:  # only this graph's nodes': /diagnostics is the domain's
-            if status.hardware_id == CONTROLLER_ID:
+            if status.hardware_id == self.controller_id:
                 for kv in status.values:
                     if kv.key == 'mission_phase' and kv.value != 'waiting':
                         self.phase = kv.value
@@ -143,19 +146,6 @@ def _ends_run(scene, args) -> bool:
         return False
     scene_duration = scene.simulator['duration']
     return not 0.0 < scene_duration <= args.duration
-
-
-def _wait_for_nodes(node, executor, names, procs):
-    """Until ``names`` are in the graph with their subscriptions (or one of ``procs`` has
-    exited, or STARTUP_TIMEOUT): they then exist well before the simulator starts."""
-    deadline = time.monotonic() + STARTUP_TIMEOUT
-    while time.monotonic() < deadline and all(p.proc.poll() is None for p in procs):
-        present = {n for n, _ in node.get_node_names_and_namespaces()}
-        if set(names) <= present and all(node.get_subscriber_names_and_types_by_node(n, ns)
-                                         for n, ns in node.get_node_names_and_namespaces()
-                                         if n in names):
-            return
-        executor.spin_once(timeout_sec=0.1)
 
 
 def _interrupt(signum, frame):
@@ -266,7 +256,8 @@ def run(args) -> int:
     if not args.duration > 0:
         print('error: --duration must be > 0 simulated seconds', file=sys.stderr)
         return 2
-    if getattr(args, 'lockstep', False):  # both nodes' parameters, as --set gives them
+    lockstep = getattr(args, 'lockstep', False)
+    if lockstep:  # both nodes' parameters, as --set gives them
         from .launch_plan import lockstep_parameters
         try:
             if not scene.controlled:
@@ -286,6 +277,12 @@ def run(args) -> int:
     bag = os.path.join(out, 'bag')
     shutil.rmtree(bag, ignore_errors=True)  # each demo replaces the previous one's bag
     os.makedirs(out, exist_ok=True)
+    # one controller, or a formation's: one per spacecraft, in its namespace (launch_plan)
+    from .launch_plan import controllers
+    ctls = controllers(scene, scene.path, lockstep=lockstep) if scene.controlled else []
+    shown = shown_spacecraft(scene, ctls)
+    view = spacecraft_scene(scene, shown, next(
+        (c.parameters for c in ctls if c.namespace == shown), None)) if shown else scene
     params = ['--ros-args', '--params-file', os.path.abspath(scene.path)]
     if args.set:  # a second params file: each value lands in the scene's entry (see overrides)
         try:
@@ -293,6 +290,8 @@ def run(args) -> int:
         except SceneError as exc:
             print(f'error: {exc}', file=sys.stderr)
             return 2
+    if any(c.namespace for c in ctls):  # each spacecraft's controller's own values, last
+        params += ['--params-file', controllers_file(ctls, out)]
     target = np.asarray(scene.controller.get('target_attitude', (0.0, 0.0, 0.0, 1.0)), float)
     print(f'demo: scene {scene.name} — {scene.description}')
     print(f'demo: logs and output in {out}; stopping after {args.duration:g} simulated s '
@@ -306,21 +305,25 @@ def run(args) -> int:
     procs, node, executor, watcher, interrupted = [], None, None, None, False
     try:
         procs.append(Process('recorder', ['--ros-args', '-p', f'output:={bag}',
-                                          '-p', f'scene:={scene.name}'], out))
+                                          '-p', f'scene:={scene.name}']
+                             # a formation's topics are each spacecraft's: record them all
+                             + (['-p', 'all:=true'] if scene.spacecraft else []), out))
         rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
         node = Node('demo_status')
         p = scene.simulator
         watcher = _Watcher(node, target, None if p['publish_clock'] else
-                           (p['real_time_factor'] or 1.0))
+                           (p['real_time_factor'] or 1.0), shown + '/' if shown else '',
+                           f'/{shown}{CONTROLLER_ID}' if shown else CONTROLLER_ID)
         executor = SingleThreadedExecutor()
         executor.add_node(node)
         # The recorder and the controller run before the simulator, which holds its t = 0
         # until they are matched on its topics: the bag and the controller's mission clock
         # start with the first sample.
-        if scene.controlled:
-            procs.append(Process('controller', params, out))
-        _wait_for_nodes(node, executor, ['mcap_recorder'] + (
-            ['attitude_controller'] if scene.controlled else []), procs)
+        for c in ctls:
+            procs.append(Process('controller', params + (
+                ['-r', f'__ns:=/{c.namespace}'] if c.namespace else []), out, c.namespace))
+        wait_for_nodes(node, executor, ['/mcap_recorder'] + [
+            (f'/{c.namespace}' if c.namespace else '') + CONTROLLER_ID for c in ctls], procs)
         procs.append(Process('simulator', params + ['-p', 'wait_for_subscribers:=1'] + (
             ['-p', 'wait_for_controller:=true'] if scene.controlled else []), out))
         sim = procs[-1]
@@ -385,8 +388,9 @@ def run(args) -> int:
     failed = {p.name: p.lost for p in procs if p.lost is not None}
     failed.update({n: c for n, c in codes.items()
                    if n not in failed and c not in (0, None, -signal.SIGINT)})
-    code = summarize(scene, bag, out, watcher, target, failed,
-                     {p.name: p.log_path for p in procs}, interrupted)
+    code = summarize(view, bag, out, watcher, target, failed,
+                     {p.name: p.log_path for p in procs}, interrupted,
+                     f'/{shown}' if shown else '', list(scene.spacecraft))
     return exit_code(code, interrupted, watcher.t0 is not None)
 
 

@@ -10,6 +10,7 @@ import os
 import signal
 import subprocess
 import sys
+import time
 
 # The hardware_id of the demo's own nodes' statuses on /diagnostics (their fully qualified
 # names): /diagnostics is one topic for the whole ROS domain, and a simulator of another
@@ -17,6 +18,7 @@ import sys
 SIMULATOR_ID = '/attitude_simulator'
 CONTROLLER_ID = '/attitude_controller'
 TAIL_LINES = 5  # of a lost node's log, in the report
+STARTUP_TIMEOUT = 60.0  # wall s for the first sample (imports, kernels from cache, discovery)
 
 
 def _executable(name):
@@ -27,13 +29,14 @@ def _executable(name):
 
 
 class Process:
-    """One node, its stdout and stderr in ``<log_dir>/<name>.log``."""
+    """One node, executable ``name``, its stdout and stderr in ``<log_dir>/<name>.log``;
+    a formation's controllers: ``controller_<craft>.log``, named ``controller <craft>``."""
 
-    def __init__(self, name, args, log_dir):
-        self.name = name
-        self.log_path = os.path.join(log_dir, f'{name}.log')
+    def __init__(self, name, args, log_dir, craft=''):
+        exe, self.name = name, f'{name} {craft}' if craft else name
+        self.log_path = os.path.join(log_dir, f'{name}_{craft}.log' if craft else f'{name}.log')
         self.log = open(self.log_path, 'wb')
-        self.proc = subprocess.Popen(_executable(name) + args, stdout=self.log,
+        self.proc = subprocess.Popen(_executable(exe) + args, stdout=self.log,
                                      stderr=subprocess.STDOUT, start_new_session=True)
         self.lost = None  # its exit code, when it exited before the demo stopped it
 
@@ -59,6 +62,29 @@ class Process:
         except OSError:
             return []
         return lines[-n:]
+
+
+def controllers_file(controllers, out) -> str:
+    """A params file of a formation's controllers' own values (``launch_plan.controllers``:
+    body frame, inertia), one section per spacecraft namespace: read after the scene's,
+    these sections win over its ``/**/attitude_controller`` (a ``-p`` value would not)."""
+    import yaml
+    path = os.path.join(out, 'controllers.yaml')
+    with open(path, 'w') as f:
+        yaml.safe_dump({f'/{c.namespace}/attitude_controller': {'ros__parameters': c.parameters}
+                        for c in controllers}, f)
+    return path
+
+
+def shown_spacecraft(scene, controllers) -> str:
+    """The spacecraft of a formation that the status line and the summary show ('' for a
+    scene of one): the first one with a controller that moves at t = 0, else the first."""
+    if not scene.spacecraft:
+        return ''
+    names = [c.namespace for c in controllers] or list(scene.spacecraft)
+    moving = [n for n in names if any(scene.spacecraft[n].get(
+        'initial_angular_velocity', scene.simulator['initial_angular_velocity']))]
+    return (moving or names)[0]
 
 
 def check_lost(procs, sim):
@@ -94,3 +120,17 @@ def report_lost(p, when=''):
           f'run (log: {p.log_path}); its last lines:', flush=True)
     for line in p.tail():
         print(f'    | {line}', flush=True)
+
+
+def wait_for_nodes(node, executor, names, procs):
+    """Until ``names`` (fully qualified) are in the graph with their subscriptions (or one
+    of ``procs`` has exited, or STARTUP_TIMEOUT): they then exist well before the
+    simulator starts."""
+    deadline = time.monotonic() + STARTUP_TIMEOUT
+    while time.monotonic() < deadline and all(p.proc.poll() is None for p in procs):
+        present = {ns.rstrip('/') + '/' + n: (n, ns)
+                   for n, ns in node.get_node_names_and_namespaces()}
+        if set(names) <= set(present) and all(
+                node.get_subscriber_names_and_types_by_node(*present[n]) for n in names):
+            return
+        executor.spin_once(timeout_sec=0.1)

@@ -40,13 +40,14 @@ def drift(values):
 
 
 
-def bag_samples(bag, scene):
+def bag_samples(bag, scene, prefix=''):
     """The recorded state as plot samples, and the end of the free phase (s), or None.
 
     Topics are joined by their header stamps (every topic of one sample carries the same
     stamp). Time is sim time from the simulator's t = 0: its diagnostics in the bag say
     which stamp that is (``stamp_origin``; with ``publish_clock`` stamps are sim time), so
-    a bag that missed the first samples still has the right times."""
+    a bag that missed the first samples still has the right times. ``prefix``: a
+    formation's spacecraft's namespace ('/leader'), for its topics."""
     from rclpy.serialization import deserialize_message
     from .bag.reader import iter_messages
     from .bag.schema import message_class
@@ -54,12 +55,14 @@ def bag_samples(bag, scene):
     p = scene.simulator
     rtf = 1.0 if p['publish_clock'] else (p['real_time_factor'] or 1.0)
     series = {'/attitude': {}, '/angular_velocity': {}, '/angular_momentum': {}}
+    names = {prefix + t: t for t in list(series) + ['/torque_command']}
     first_torque = None  # stamp of the first nonzero command: the end of the free phase
     commands = []  # (stamp, torque): held from its stamp on
     origin = 0 if p['publish_clock'] else None
-    for m in iter_messages(bag, topics=list(series) + ['/torque_command', '/diagnostics']):
+    for m in iter_messages(bag, topics=list(names) + ['/diagnostics']):
         msg = deserialize_message(m.data, message_class(m.type))
-        if m.topic == '/diagnostics':
+        topic = names.get(m.topic, m.topic)
+        if topic == '/diagnostics':
             for status in msg.status:
                 values = {kv.key: kv.value for kv in status.values}
                 # the demo's simulator's: the bag has every simulator's of the domain
@@ -68,17 +71,17 @@ def bag_samples(bag, scene):
                     origin = stamp_origin(msg.header.stamp, values['sim_time'], rtf)
             continue
         stamp = msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
-        if m.topic == '/torque_command':
+        if topic == '/torque_command':
             v = msg.vector
             if first_torque is None and (v.x or v.y or v.z):
                 first_torque = stamp
             commands.append((stamp, (v.x, v.y, v.z)))
-        elif m.topic == '/attitude':
+        elif topic == '/attitude':
             o = msg.quaternion
-            series[m.topic][stamp] = (o.x, o.y, o.z, o.w)
+            series[topic][stamp] = (o.x, o.y, o.z, o.w)
         else:
             v = msg.vector
-            series[m.topic][stamp] = (v.x, v.y, v.z)
+            series[topic][stamp] = (v.x, v.y, v.z)
     stamps = sorted(set.intersection(*(set(v) for v in series.values())))
     if len(stamps) < 2:
         return None, None
@@ -128,16 +131,32 @@ def last_line(path):
     return lines[-1] if lines else ''
 
 
-def summarize(scene, bag, out, watcher, target, failed, logs, interrupted) -> int:
+def spacecraft_lines(bag, crafts, prefix):
+    """A formation's spacecraft in the bag: each one's samples and commands (the shown
+    one's, at ``prefix``, are the plots')."""
+    from .bag.reader import iter_messages
+    counts = {(c, t): 0 for c in crafts for t in ('attitude', 'torque_command')}
+    for m in iter_messages(bag, topics=[f'/{c}/{t}' for c, t in counts]):
+        craft, _, topic = m.topic.strip('/').partition('/')
+        counts[craft, topic] += 1
+    return [f'  spacecraft {c}: {counts[c, "attitude"]} samples, {counts[c, "torque_command"]} '
+            'commands recorded' + (' (the plots\')' if f'/{c}' == prefix else '')
+            for c in crafts]
+
+
+def summarize(scene, bag, out, watcher, target, failed, logs, interrupted, prefix='',
+              crafts=()) -> int:
     """Print the demo's summary from the bag, on the simulator's time origin, and write
     the plots; 1 when the bag is unreadable or a node failed (``failed``: name → exit
-    code; ``logs``: name → log path), else 0."""
+    code; ``logs``: name → log path), else 0. A formation (``crafts``, their names):
+    ``scene`` is the shown spacecraft's (``scene.spacecraft_scene``), its topics under
+    ``prefix``, and a line per spacecraft says what the bag holds of it."""
     from .bag.errors import BagError
     from .bag.reader import read_info
     samples, free_end, bag_error = None, None, None
     try:
         info = read_info(bag)
-        samples, free_end = bag_samples(bag, scene)
+        samples, free_end = bag_samples(bag, scene, prefix)
     except BagError as exc:
         bag_error = exc
     from .plots.story import slew_begins
@@ -168,6 +187,8 @@ def summarize(scene, bag, out, watcher, target, failed, logs, interrupted) -> in
         return 1
     print(f'  messages recorded: {info.message_count} on {len(info.topics)} topics, '
           f'{info.duration_s:.2f} s — bag: {bag}')
+    for line in spacecraft_lines(bag, crafts, prefix) if crafts else ():
+        print(line)
     if samples is not None:
         from .plots import write_plots
         for path in write_plots(samples, body_of(scene), out, f'{scene.name} (live)', free_end,

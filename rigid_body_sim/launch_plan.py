@@ -15,17 +15,20 @@ CONTROLLER_CHOICES = ('auto', 'true', 'false')
 
 @dataclass(frozen=True)
 class PlannedNode:
-    """One node: executable of this package, node name, params files and values."""
+    """One node: executable of this package, node name, params files and values, and its
+    namespace under the launch's (a formation's spacecraft name; '' = the launch's own)."""
     executable: str
     name: str
     params_files: Tuple[str, ...] = ()
     parameters: Dict[str, object] = field(default_factory=dict)
+    namespace: str = ''
 
     def ros_arguments(self, namespace: str = '') -> List[str]:
-        """The node's ``--ros-args …`` as ``ros2 run`` would pass them (name, namespace,
-        params files, then parameters, which win)."""
+        """The node's ``--ros-args …`` as ``ros2 run`` would pass them (name, namespace
+        ``namespace`` + its own, params files, then parameters, which win)."""
         args = ['--ros-args', '-r', f'__node:={self.name}']
-        args += ['-r', f'__ns:={namespace}'] if namespace else []
+        ns = '/'.join(n.strip('/') for n in (namespace, self.namespace) if n.strip('/'))
+        args += ['-r', f'__ns:=/{ns}'] if ns else []
         for path in self.params_files:
             args += ['--params-file', path]
         for key, value in self.parameters.items():
@@ -53,6 +56,27 @@ def lockstep_parameters(loaded) -> Tuple[Dict[str, object], Dict[str, object]]:
     except ValueError as exc:
         raise ValueError(f'scene {loaded.name}: {exc}') from None
     return sim, {'lockstep': True}
+
+
+def controllers(loaded, path: str, extra=None, lockstep=False) -> List[PlannedNode]:
+    """The controllers of a loaded scene (in the params file ``path``), with the values
+    ``extra``: one in the launch's namespace, or for a scene with several spacecraft one
+    per spacecraft in its namespace (``<name>/attitude``, ``<name>/torque_command``), with
+    that spacecraft's body frame and inertia over the scene's controller values. In
+    ``lockstep`` a spacecraft out of the loop (``<name>.lockstep: false``) gets none: it
+    runs free, and nothing answers it. A spacecraft spawned later gets no controller."""
+    extra = dict(extra or {})
+    if not loaded.spacecraft:
+        return [PlannedNode('controller', 'attitude_controller', (path,), extra)]
+    out = []
+    for name, own in loaded.spacecraft.items():
+        if lockstep and not own.get('lockstep', True):
+            continue
+        body = {'child_frame_id': f'{name}/{loaded.simulator["child_frame_id"]}',
+                'inertia': list(own.get('inertia', loaded.simulator['inertia']))}
+        out.append(PlannedNode('controller', 'attitude_controller', (path,),
+                               {**body, **extra}, namespace=name))
+    return out
 
 
 def plan(scene: str = 'default', record: str = 'true', output: str = '',
@@ -85,7 +109,7 @@ def plan(scene: str = 'default', record: str = 'true', output: str = '',
                           **({'wait_for_controller': True} if with_controller else {}),
                           **sim_extra})]
     if with_controller:
-        nodes.append(PlannedNode('controller', 'attitude_controller', (path,), ctl_extra))
+        nodes += controllers(loaded, path, ctl_extra, lockstep=bool(sim_extra))
     if _flag(viewer, 'viewer') == 'true':
         try:
             port = int(viewer_port)
@@ -101,6 +125,7 @@ def plan(scene: str = 'default', record: str = 'true', output: str = '',
     duration = loaded.simulator['duration']
     ends = f'ends after {duration:g} s of sim time' if duration > 0 else \
         'runs until stopped (duration 0)'
-    summary = (f'scene {loaded.name}: ' + ', '.join(n.executable for n in nodes)
+    summary = (f'scene {loaded.name}: ' + ', '.join(
+        n.executable + (f' ({n.namespace})' if n.namespace else '') for n in nodes)
                + (' in lockstep' if sim_extra else '') + f'; {ends}, when the simulator exits')
     return nodes, summary

@@ -179,6 +179,44 @@ def test_demo_lockstep_answers_every_control_instant(tmp_path):
     assert commands == states[:len(commands)]
 
 
+def test_demo_lockstep_runs_a_formation_with_a_controller_per_spacecraft(tmp_path):
+    """`demo --lockstep` on the formation scene: one controller per spacecraft, each in its
+    namespace; the run reaches its end (2 s) with every spacecraft stepped: each one's
+    states at every sample from t = 0 to the end (10 Hz) and its commands stamped with
+    exactly those states' stamps, one per control instant. Before, the demo started one
+    controller in the root namespace, which answers no spacecraft of a formation."""
+    from rclpy.serialization import deserialize_message
+    from rigid_body_sim.bag.reader import iter_messages
+    from rigid_body_sim.bag.schema import message_class
+    cli = os.path.join(os.path.dirname(sys.executable), 'rigid-body-sim')
+    out = subprocess.run([cli, 'demo', '--scene', 'formation', '--duration', '2',
+                          '--no-viewer', '--lockstep', '--out', str(tmp_path)],
+                         capture_output=True, text=True, timeout=300)
+    assert out.returncode == 0, out.stdout[-3000:] + out.stderr[-3000:]
+    crafts = ('leader', 'wingman', 'tumbler')
+    for craft in crafts:  # each its own, with its spacecraft's inertia
+        log = (tmp_path / f'controller_{craft}.log').read_text()
+        inertia = '[10.0, 12.0, 14.0]' if craft == 'leader' else '[1.0, 2.0, 3.0]'
+        assert f'[{craft}.attitude_controller]: mode detumble, 10 Hz' in log and \
+            f'K_w {inertia}' in log and 'overridden' not in log, log[-2000:]
+    log = (tmp_path / 'simulator.log').read_text()
+    assert 'lockstep: 20 exchanges' in log and 'paused' not in log, log[-3000:]
+    topics = [f'/{c}/{t}' for c in crafts for t in ('attitude', 'torque_command')]
+    stamps = {t: [] for t in topics}
+    for m in iter_messages(str(tmp_path / 'bag'), topics=topics):
+        h = deserialize_message(m.data, message_class(m.type)).header.stamp
+        stamps[m.topic].append(h.sec * 10**9 + h.nanosec)
+    every = [k * 100_000_000 for k in range(21)]  # t = 0 ... 2 s at 10 Hz, sim time
+    for craft in crafts:
+        assert stamps[f'/{craft}/attitude'] == every, (craft, stamps)
+        # every instant answered; the end's state goes out after the last command
+        assert stamps[f'/{craft}/torque_command'] == every[:len(
+            stamps[f'/{craft}/torque_command'])] and \
+            len(stamps[f'/{craft}/torque_command']) >= 20, (craft, stamps)
+        assert re.search(rf'spacecraft {craft}: 21 samples, 2\d commands recorded',
+                         out.stdout), out.stdout[-3000:]
+
+
 def test_a_node_that_fails_at_start_has_its_last_log_line_in_the_summary(tmp_path):
     """`--set lockstep=true` without publish_clock: the scene check lets it through (only
     the simulator's start-up validates lockstep, engine/lockstep.py), the simulator exits

@@ -168,7 +168,13 @@ def test_repeated_lockstep_runs_render_their_median_and_spread(tmp_path):
                str(tmp_path), 'lockstep.json')
     text = report.render(str(tmp_path))
     assert '410 (380-520) µs per exchange (250 (240-300) µs of it in its own thread)' in text
-    assert 'median of 3 runs' in text
+    assert 'median of 3 runs' in text and 'Load average' not in text
+    # the machine's load beside the figures, when the run recorded it
+    write_json({'command': 'python -m rigid_body_sim.tools.lockstep --runs 3',
+                'rows': [{'control_rate_hz': 100.0, 'as_fast_as_possible': fast,
+                          'real_time': {'achieved_rate_hz': 99.9}}],
+                'load_average': [5.39, 7.0], 'cpus': 2}, str(tmp_path), 'lockstep.json')
+    assert 'Load average 5.39 before, 7 after, on 2 CPUs.' in report.render(str(tmp_path))
 
 
 def test_the_lockstep_floor_file_is_rendered(tmp_path):

@@ -20,7 +20,10 @@ def test_every_scene_plans_its_nodes(name):
     nodes, summary = plan(name)
     names = [n.executable for n in nodes]
     assert names[0] == 'simulator' and names[-1] == 'recorder'
-    assert ('controller' in names) == load(name).controlled
+    scene = load(name)
+    # one controller, or a formation's: one per spacecraft, in its namespace
+    controllers = [n.namespace for n in nodes if n.executable == 'controller']
+    assert controllers == ((list(scene.spacecraft) or ['']) if scene.controlled else [])
     assert all(os.path.isabs(f) and os.path.isfile(f) for n in nodes for f in n.params_files)
     assert 'when the simulator exits' in summary
     # recording: the simulator holds t = 0 until the recorder is matched (a full bag), and
@@ -29,7 +32,7 @@ def test_every_scene_plans_its_nodes(name):
                                    **({'wait_for_controller': True} if 'controller' in names
                                       else {})}
     forced = [n.executable for n in plan(name, controller='true', record='false')[0]]
-    assert forced == ['simulator', 'controller']
+    assert forced == ['simulator'] + ['controller'] * max(1, len(scene.spacecraft))
     viewed = plan(name, record='false', controller='false', viewer='true', viewer_port='9001')[0]
     assert [(n.executable, n.parameters) for n in viewed] == [
         ('simulator', {}), ('viewer', {'port': 9001})]
@@ -120,3 +123,42 @@ def test_lockstep_argument_runs_the_scene_in_lockstep(ros_process, namespace, tm
     assert 'paused' not in sim.output(), sim.output()[-3000:]
     assert procs['recorder'].stop() == 0
     assert gaps_from_t0(tmp_path / 'bag', 20_000_000, count=51) == []
+
+
+def test_a_formation_in_lockstep_gets_a_controller_per_spacecraft(ros_process, namespace,
+                                                                    tmp_path):
+    """lockstep:=true on the formation: one controller per spacecraft in the loop, in that
+    spacecraft's namespace, with its body frame and inertia (a spacecraft with
+    <name>.lockstep: false gets none). The planned nodes run for real, as fast as
+    possible: the simulator answers every instant of every spacecraft and ends. Before,
+    the plan started one controller in the launch's namespace, which answered none."""
+    nodes, summary = plan('formation', output=str(tmp_path / 'bag'), lockstep='true')
+    ctls = [n for n in nodes if n.executable == 'controller']
+    assert [(n.namespace, n.parameters) for n in ctls] == [
+        ('leader', {'child_frame_id': 'leader/base_link', 'inertia': [10.0, 12.0, 14.0],
+                    'lockstep': True}),
+        ('wingman', {'child_frame_id': 'wingman/base_link', 'inertia': [1.0, 2.0, 3.0],
+                     'lockstep': True}),
+        ('tumbler', {'child_frame_id': 'tumbler/base_link', 'inertia': [1.0, 2.0, 3.0],
+                     'lockstep': True})]
+    assert 'controller (leader), controller (wingman), controller (tumbler)' in summary
+    assert ['-r', f'__ns:={namespace}/wingman'] == ctls[1].ros_arguments(namespace)[3:5]
+    out_of_loop = tmp_path / 'out_of_loop.yaml'
+    out_of_loop.write_text(open(ctls[0].params_files[0]).read().replace(
+        '    tumbler:', '    tumbler:\n      lockstep: false'))
+    assert [n.namespace for n in plan(str(out_of_loop), lockstep='true')[0]
+            if n.executable == 'controller'] == ['leader', 'wingman']
+    procs = {}
+    for n in reversed(nodes):  # recorder first
+        cmd = [venv_exe(n.executable), *n.ros_arguments(namespace)]
+        if n.executable == 'simulator':
+            faster = tmp_path / 'faster.yaml'
+            faster.write_text('/**/attitude_simulator:\n  ros__parameters:\n'
+                              '    real_time_factor: 0.0\n    duration: 1.0\n')
+            cmd += ['--params-file', str(faster)]
+        procs[n.namespace or n.executable] = ros_process(*cmd, env={'PYTHONUNBUFFERED': '1'})
+    sim = procs['simulator']
+    assert sim.wait(240) == 0, sim.output()[-3000:]
+    # 10 Hz control, 1 s: the instants t = 0 ... 0.9 s held, each for all three
+    assert 'lockstep: 10 exchanges' in sim.output(), sim.output()[-3000:]
+    assert 'paused' not in sim.output(), sim.output()[-3000:]

@@ -142,6 +142,10 @@ def test_launch_file_ends_with_the_simulation_and_follows_the_plan():
     target = next(kw.value for kw in on_exit.keywords if kw.arg == 'target_action')
     assert ast.unparse(target) == "nodes['simulator']"
     assert "default_value='auto'" in text and "default_value='default'" in text
+    # a formation's controllers: each node in the namespace the plan gives it
+    node = calls['Node']
+    assert ast.unparse(next(kw.value for kw in node.keywords if kw.arg == 'namespace')) == \
+        'p.namespace or None'
     # every argument of the plan is a launch argument, passed in the plan's order
     import inspect
     from rigid_body_sim.launch_plan import plan

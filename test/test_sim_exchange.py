@@ -85,6 +85,46 @@ def test_a_held_instant_waits_for_its_command_in_the_same_turn(rclpy_node, simul
     assert sim.lockstep_held is not None  # the next instant, held in turn
 
 
+def test_the_held_instants_command_takes_the_short_way(rclpy_node, simulator):
+    """Lockstep as fast as possible, one spacecraft: the command stamped with the held
+    instant's stamp is applied and releases the instant without the general path
+    (``_route``: message objects, routing, every check; sim_lockstep.py says why), and the
+    next instant is held in turn. Every other command still goes the general way and is
+    counted there: a wrong frame, a NaN, a second answer to an instant (stale), one for an
+    instant not held (unexpected). Before, every command took the general path."""
+    from geometry_msgs.msg import Vector3Stamped
+    sim = simulator(lockstep=True, publish_clock=True, real_time_factor=0.0,
+                    publish_rate=50.0, control_rate=50.0, lockstep_timeout=30.0)
+    routed = []
+    route = sim._route
+    sim._route = lambda header, vector, source: (routed.append(header.frame_id),
+                                                 route(header, vector, source))
+
+    def command(stamp_ns, frame='base_link', z=0.01):
+        msg = Vector3Stamped()
+        msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(stamp_ns, NS)
+        msg.header.frame_id, msg.vector.z = frame, z
+        sim._on_torque_bytes(serialize_message(msg))
+    sim.run_once()
+    assert sim.lockstep_held is not None and sim.t_ns == 0
+    command(0, frame='other_frame')  # the held stamp, another frame: general, rejected
+    command(0, z=float('nan'))       # not finite: general, rejected
+    assert routed == ['other_frame', 'base_link'] and sim.lockstep_held is not None
+    command(0)                       # the held instant's command: the short way
+    assert routed == ['other_frame', 'base_link'] and sim.lockstep_held is None
+    assert sim._crafts[''].engine.command.torque.tolist() == [0.0, 0.0, 0.01]
+    sim.run_once()
+    assert sim.t_ns == 20_000_000 and sim.lockstep_held is not None
+    command(0)                       # answered already: general, stale
+    command(60_000_000)              # not held: general, unexpected
+    rejected = sim._crafts[''].commands.rejected
+    assert len(routed) == 4 and rejected['wrong_frame'] == 1 and \
+        rejected['non_finite'] == 1 and rejected['lockstep_stale'] == 1 and \
+        rejected['lockstep_unexpected'] == 1, rejected
+    command(20_000_000, frame='')    # an empty frame is the body's: the short way
+    assert len(routed) == 4 and sim.lockstep_held is None
+
+
 @pytest.mark.parametrize('frame, stamp, vector', [
     ('', (0, 0), (0.0, 0.0, 0.0)),
     ('base_link', (12, 340_000_000), (1e-3, -2.5e-7, 3.0)),

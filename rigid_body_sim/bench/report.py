@@ -309,7 +309,10 @@ def live_section(out):
             f'{_f(r["real_time"]["achieved_rate_hz"], ".4g")} exchanges/s at real time'
             for r, f in zip(step['rows'], fast)) + '.' + (
             f' Each figure is the median of {len(fast[0]["runs"])} runs (min-max in '
-            'brackets).' if 'runs' in fast[0] else ''))
+            'brackets).' if 'runs' in fast[0] else '') + (
+            f' Load average {_f(step["load_average"][0])} before, '
+            f'{_f(step["load_average"][1])} after, on {step["cpus"]} CPUs.'
+            if 'load_average' in step else ''))
     floor = _json(out, 'lockstep_floor.json')
     if floor:
         lines.append(f'- **Lockstep floor** (`{floor["command"]}`): a bare rclpy node that '

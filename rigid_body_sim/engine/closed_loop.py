@@ -335,7 +335,7 @@ def advance(engine, state: State, law, builder, until_ns: int, cap: int) -> Opti
          engine.dynamics.environment), law_arrays,
         builder.columns(cap), out)
     next_control, mode, free, steps, evals, failed, rows, t_end, next_sample, status, \
-        failed_ns = (int(v) for v in out)
+        failed_ns = out.tolist()  # Python ints, in one call (a lockstep exchange's CPU)
     error = None
     if failed == ADAPTIVE_FAILED:  # as DOP853._advance reports it, and starts afresh next
         integ.reset()

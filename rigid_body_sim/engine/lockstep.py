@@ -96,16 +96,16 @@ class RoundTrips:
         self.count = 0
         self.wall_total = self.wall_max = 0.0
         self.cpu_total = self.thread_total = 0.0
-        self._sent = None      # (wall, cpu) when the held instant's state went out
+        self._sent = None      # wall time when the held instant's state went out
         self._applied = None   # (wall, cpu, thread cpu) of the previous command applied
 
     def sent(self):
-        self._sent = (time.monotonic(), time.process_time())
+        self._sent = time.monotonic()  # (the CPU clocks are read once an exchange, below)
 
     def applied(self):
         wall, cpu, thread = time.monotonic(), time.process_time(), time.thread_time()
         if self._sent is not None:
-            rt = wall - self._sent[0]
+            rt = wall - self._sent
             self.count += 1
             self.wall_total += rt
             self.wall_max = max(self.wall_max, rt)

@@ -85,7 +85,28 @@ class _Fields:
         self.__dict__.update(fields)
 
 
-_ENDIAN = {b'\x00\x01': '<', b'\x00\x00': '>'}  # plain CDR: little-, big-endian
+# plain CDR, little- and big-endian: (stamp and frame id's length, the vector)
+_LAYOUTS = {b'\x00\x01': (struct.Struct('<iII'), struct.Struct('<3d')),
+            b'\x00\x00': (struct.Struct('>iII'), struct.Struct('>3d'))}
+
+
+def vector3_stamped_fields(data: bytes):
+    """(sec, nanosec, frame_id, x, y, z) of a geometry_msgs/Vector3Stamped's plain-CDR
+    bytes (a raw subscription's), or None for another encoding or bytes that are not one.
+    Plain tuples and precompiled structs: lockstep takes one command per exchange, and each
+    object or format parse there is CPU of every exchange (sim_lockstep.py)."""
+    layout = _LAYOUTS.get(data[:2])
+    if layout is None or len(data) < 16:
+        return None
+    sec, nanosec, size = layout[0].unpack_from(data, 4)
+    at = 4 + ((12 + size + 7) & ~7)  # the vector: 8-aligned after the frame id
+    if size < 1 or len(data) < at + 24 or data[15 + size] != 0:
+        return None
+    try:
+        frame_id = data[16:15 + size].decode()
+    except UnicodeDecodeError:
+        return None
+    return (sec, nanosec, frame_id) + layout[1].unpack_from(data, at)
 
 
 def vector3_stamped(data: bytes):
@@ -94,20 +115,12 @@ def vector3_stamped(data: bytes):
     to rclpy's, which raises for bad bytes as a subscription would. Why: rclpy building
     the message's Python objects cost ~45 µs of a lockstep exchange's ~600 (taking
     messages raw then decoding them here: a few µs)."""
-    order = _ENDIAN.get(data[:2])
-    if order is not None and len(data) >= 16:
-        sec, nanosec, size = struct.unpack_from(order + 'iII', data, 4)
-        at = 4 + ((12 + size + 7) & ~7)  # the vector: 8-aligned after the frame id
-        if size >= 1 and len(data) >= at + 24 and data[15 + size] == 0:
-            try:
-                frame_id = data[16:15 + size].decode()
-            except UnicodeDecodeError:
-                frame_id = None
-            if frame_id is not None:
-                x, y, z = struct.unpack_from(order + '3d', data, at)
-                return _Fields(header=_Fields(stamp=_Fields(sec=sec, nanosec=nanosec),
-                                              frame_id=frame_id),
-                               vector=_Fields(x=x, y=y, z=z))
+    fields = vector3_stamped_fields(data)
+    if fields is not None:
+        sec, nanosec, frame_id, x, y, z = fields
+        return _Fields(header=_Fields(stamp=_Fields(sec=sec, nanosec=nanosec),
+                                      frame_id=frame_id),
+                       vector=_Fields(x=x, y=y, z=z))
     from geometry_msgs.msg import Vector3Stamped
     from rclpy.serialization import deserialize_message
     return deserialize_message(data, Vector3Stamped)

@@ -24,6 +24,7 @@ class Holds:
             self._instant += self._lockstep
             return False
         self._held, self._held_since = self._instant, time.monotonic()
+        self._held_fields = divmod(self.stamp_ns(self._held), NS)  # sim_lockstep: why
         self._paused_reported = False
         self._round_trips.sent()
         return True
@@ -36,6 +37,7 @@ class Holds:
                            f'after {time.monotonic() - self._held_since:.3g} s; resuming')
             self._anchor()  # real time: pace on from here, not catching up on the pause
         self._held, self._instant = None, self._instant + self._lockstep
+        self._held_fields = None
 
     def _forget_lockstep(self, name):
         """Spacecraft ``name`` leaves: the held instant no longer waits for it."""

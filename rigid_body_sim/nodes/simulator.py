@@ -52,7 +52,7 @@ from ..engine import NS, fleet, lockstep, specs
 from ..engine.warm import warm_live
 from ..physics import IntegrationError, jit
 from ..scene import SceneError, params_files_record
-from .commands import CommandFilter, vector3_stamped
+from .commands import CommandFilter
 from .common import (check_overrides, declare_parameters,
                      overridden_warnings, qos_profile, validate_update)
 from .process import events_executor, run_node
@@ -63,6 +63,7 @@ from .sim_control import Control
 from .sim_fleet import Fleet, check_parameters
 from .sim_acks import DIAGNOSTICS_ACK_TIMEOUT, FINAL_ACK_TIMEOUT, Acknowledgements, paced_qos
 from .sim_holds import Holds
+from .sim_lockstep import Exchange
 from .sim_status import diagnostics, summary
 from .spacecraft import STATE_DEPTH
 
@@ -80,7 +81,7 @@ MAX_LAG_S = 1.0              # behind the wall-clock target by more: drop the ba
 PILOT_SLICE_S = 0.002        # least time for auto's pilot per loop turn (as fast as possible)
 
 
-class Simulator(Control, Fleet, Holds, Node):
+class Simulator(Control, Fleet, Holds, Exchange, Node):
     """The ``attitude_simulator`` node.
 
     Build, then call :meth:`run` (or drive :meth:`run_once`).
@@ -127,7 +128,7 @@ class Simulator(Control, Fleet, Holds, Node):
         # commands on the node's own topics: the unnamed spacecraft's, or routed by frame_id
         self._commands = CommandFilter(self, self._p)  # what reaches no spacecraft
         self._command_subs = [
-            # raw: decoded by vector3_stamped (commands.py: why)
+            # raw: decoded from the bytes (commands.py, sim_lockstep.py: why)
             self.create_subscription(Vector3Stamped, 'torque_command', self._on_torque_bytes,
                                      self._qos, raw=True),
             self.create_subscription(WrenchStamped, 'wrench_command', lambda m: self._route(
@@ -159,6 +160,7 @@ class Simulator(Control, Fleet, Holds, Node):
         # advance), when its hold began (wall), whether its pause was reported
         self._lockstep = lockstep.period_ns(self._p) if self._p['lockstep'] else 0
         self._instant, self._held, self._held_since, self._paused_reported = 0, None, 0.0, False
+        self._held_fields = None  # the held instant's stamp as (sec, nanosec): sim_lockstep
         self._awaiting = set()  # (spacecraft name, kind) the held instant still waits for
         self._lockstep_pauses = 0
         self._round_trips = lockstep.RoundTrips()
@@ -459,10 +461,6 @@ class Simulator(Control, Fleet, Holds, Node):
         self._catch_up()  # what was due before the arrival runs with the previous command
         apply = engine.apply_dipole_command if dipole else engine.apply_command
         apply((vector.x, vector.y, vector.z))
-
-    def _on_torque_bytes(self, data):
-        m = vector3_stamped(data)
-        self._route(m.header, m.vector, 'torque_command')
 
     def _actuators_ready(self, craft) -> bool:
         """Before a joint command: False if the run stopped, else what was due ran."""

@@ -124,6 +124,9 @@ def main(argv=None):
                         'the benchmarks page renders')
     args = parser.parse_args(argv)
     rows = []
+    # CPU figures grow with the machine's load (Fast DDS's sending thread spins while it
+    # waits, caches are shared): the 1-minute load average before and after goes with them
+    load = [os.getloadavg()[0]]
     for rate in args.rates:
         fast = repeated(args.runs, rate, 0.0, args.periods / rate)
         real = repeated(args.runs, rate, 1.0, args.seconds)
@@ -136,9 +139,12 @@ def main(argv=None):
               f'{fast["achieved_rate_hz"]:.0f} exchanges/s; at real time '
               f'{real["achieved_rate_hz"]:.1f} exchanges/s (target {rate:g}), simulator CPU '
               f'{real["sim_cpu_per_period_us"]:.0f} µs per period', flush=True)
+    load.append(os.getloadavg()[0])
+    print(f'load average {load[0]:.2f} before, {load[1]:.2f} after '
+          f'({os.cpu_count()} CPUs)', flush=True)
     if args.out:
-        report({'command': command_line(__spec__, argv), 'rows': rows}, args.out,
-               'lockstep.json')
+        report({'command': command_line(__spec__, argv), 'rows': rows,
+                'load_average': load, 'cpus': os.cpu_count()}, args.out, 'lockstep.json')
     return 0
 
 
