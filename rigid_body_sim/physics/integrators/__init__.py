@@ -7,6 +7,7 @@ the warm-up, the stability check and the engine's closed loop read the facts fro
 """
 from dataclasses import replace
 
+from ..choices import BODY_ONLY, CARRY_ACTUATORS, INTEGRATOR_NAMES
 from .base import KINDS, PRESERVES, Candidate, IntegrationError, Integrator
 from .explicit import Euler, RK4
 from .exact_flow import Exact
@@ -29,8 +30,13 @@ AUTO_CANDIDATES = tuple(replace(cls.auto, name=cls.name, stages=cls.stages,
                                 environment_evals=cls.environment_evaluations)
                         for cls in _METHODS if cls.auto is not None)
 
-# the methods a scene without actuators can run (the others carry wheels/CMGs)
-BODY_ONLY = tuple(name for name, cls in INTEGRATORS.items() if not cls.requires_actuators)
+# The names live in ..choices, which parsing and --help import without numba; a method
+# added here and not there (or the other way round) stops every import of the registry.
+if (tuple(INTEGRATORS) != INTEGRATOR_NAMES or CARRY_ACTUATORS != tuple(
+        name for name, cls in INTEGRATORS.items() if cls.requires_actuators)):
+    raise ImportError('physics/choices.py names other integrators than the registry: '
+                      f'{INTEGRATOR_NAMES} (carrying {CARRY_ACTUATORS}) there, '
+                      f'{tuple(INTEGRATORS)} here')
 
 
 def get_integrator(name: str):
