@@ -4,6 +4,7 @@ Adding a method: write its module (a subclass of Integrator that states its fact
 stages, stability function, closed-loop code, auto's costs, its compiled loops' modules),
 beside its compiled loop (``<method>_kernel.py``), and add it to ``_METHODS``. ``auto``,
 the warm-up, the stability check and the engine's closed loop read the facts from here.
+Its name goes in ``physics/choices.py`` too (parsing and --help read it there, without numba).
 """
 from dataclasses import replace
 
