@@ -28,9 +28,11 @@ INTERFACES  := $(wildcard interfaces/* interfaces/*/* interfaces/*/*/*)
 demo: venv
 	$(VENV)/bin/rigid-body-sim demo --duration $(DEMO_DURATION) --out $(DEMO_OUT)
 
-# -v names each test as it ends, with its worker. loadfile keeps a file on one worker, so
-# a module-scoped fixture (the benchmark's run, colcon's build, the viewer's graph) runs
-# once; xdist 3.8's loadgroup did not keep a module-level xdist_group together here.
+# -v names each test as it ends, with its worker. --no-loadscope-reorder keeps the order of
+# test/conftest.py (the files that took longest last time first, so that no minutes-long file
+# is left for the end). loadfile keeps a file on one worker, so a module-scoped fixture (the
+# benchmark's run, colcon's build, the viewer's graph) runs once; xdist 3.8's loadgroup did
+# not keep a module-level xdist_group together here.
 #
 # bytecode first: with PYTHONDONTWRITEBYTECODE set (as on these machines) no .pyc of the
 # package is ever written, and each of the suite's ~400 node and CLI processes compiled
@@ -43,7 +45,8 @@ bytecode:
 # assertion-rewritten test modules, so every worker parsed and rewrote all of test/ again
 # (1.8 CPU-s a worker; collection 5.9 -> 3.7 CPU-s with the cache).
 test: venv bytecode
-	PYTHONDONTWRITEBYTECODE= $(PY) -m pytest -v -n $(TEST_WORKERS) --dist loadfile $(PYTEST_ARGS)
+	PYTHONDONTWRITEBYTECODE= $(PY) -m pytest -v -n $(TEST_WORKERS) --dist loadfile \
+	  --no-loadscope-reorder $(PYTEST_ARGS)
 
 # Only the files that mark tests fast are collected (-m still picks the tests): collecting
 # the ROS files too cost each worker 4 CPU-s of imports for tests it deselects.

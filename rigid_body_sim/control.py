@@ -59,11 +59,9 @@ from typing import Optional
 
 import numpy as np
 
-from .control_kernel import MODE_CODES, control_torque
+from .control_params import CONFIG_PARAMETERS, MODES, PARAMETER_DEFAULTS
 from .physics import rotation
 from .physics.body import RigidBody
-
-MODES = ('detumble', 'slew', 'off', 'bdot')  # bdot: the rods, no torque (bdot.py)
 
 # A target quaternion whose norm is further than this from 1 is rejected, not normalised:
 # it is most likely not a rotation at all (a typo, a field order mix-up, Euler angles).
@@ -306,7 +304,9 @@ class AttitudeController:
         w = np.asarray(angular_velocity, dtype=float).reshape(3)
         q = np.asarray(attitude, dtype=float).reshape(4)
         tau, unsaturated = np.empty(3), np.empty(3)
-        # The law itself is a compiled kernel (control_kernel.py), the same in every front end.
+        # The law itself is a compiled kernel (control_kernel.py), the same in every front end;
+        # imported here, on the first use: a scene's checks build a ControlConfig without it.
+        from .control_kernel import MODE_CODES, control_torque
         saturated, rate_limited, angle, rate_norm = control_torque(
             MODE_CODES[self.mode], q, w, self.target, body.principal_axes,
             body.principal_moments, cfg.kp_principal, cfg.kd_principal,
@@ -318,29 +318,6 @@ class AttitudeController:
     def torque(self, attitude, angular_velocity) -> np.ndarray:
         """Shortcut for ``compute(...).torque``."""
         return self.compute(attitude, angular_velocity).torque
-
-
-# Defaults of the controller node's parameters that concern the law (the node's SPECS use
-# these; offline runs fill missing scene values from them).
-PARAMETER_DEFAULTS = {
-    'mode': 'detumble',
-    'inertia': [1.0, 2.0, 3.0],
-    'control_rate': 50.0,
-    'natural_frequency': 0.5,
-    'damping_ratio': 1.0,
-    'kp': [0.0, 0.0, 0.0],
-    'kd': [0.0, 0.0, 0.0],
-    'rate_gain': 0.0,
-    'gyroscopic_compensation': True,
-    # = the simulator's default (per-axis there; a norm here, so never clipped there)
-    'max_torque': 1.0,
-    'max_rate': 0.0,
-    'target_attitude': [0.0, 0.0, 0.0, 1.0],
-    'mission.free_time': 0.0,
-    'mission.detumble_exit_rate': 0.0,
-}
-CONFIG_PARAMETERS = ('inertia', 'natural_frequency', 'damping_ratio', 'kp', 'kd', 'rate_gain',
-                     'gyroscopic_compensation', 'max_torque', 'max_rate')
 
 
 def config_from_parameters(params) -> ControlConfig:

@@ -71,7 +71,7 @@ def _replace_previous(out: str) -> None:
 def add_arguments(parser):
     from .cli import number
     from .engine import specs
-    from .physics.integrators import BODY_ONLY
+    from .physics.choices import BODY_ONLY
     spec = {s.name: s for s in specs.SIMULATOR}
     parser.add_argument('scene', help='built-in scene name (listed below) or a params file')
     parser.add_argument('--duration', type=number(0.0, 1e12, low_open=True),
@@ -103,8 +103,7 @@ def add_set_argument(parser):
 
 
 def choices_epilog() -> str:
-    from .physics import DISSIPATION_MODELS, INTEGRATORS
-    from .physics.integrators import BODY_ONLY
+    from .physics.choices import BODY_ONLY, DISSIPATION_MODELS, INTEGRATOR_NAMES as INTEGRATORS
     carried = ', '.join(n for n in INTEGRATORS if n not in BODY_ONLY)
     from .scene import list_scenes
     try:

@@ -62,3 +62,35 @@ def rclpy_node(request):
     finally:
         node.destroy_node()
         rclpy.try_shutdown()
+
+
+# Longest files first. xdist's loadfile hands each worker whole files from a queue; by
+# default it queues the files with the most tests first, which put the few-test, minutes-long
+# ones (the bench's quick run, the demo, Dask, the 40-digit references) last: the suite then
+# waited minutes on one or two workers at the end. Each file's wall time is kept in pytest's
+# cache (.pytest_cache) and the next run starts with the longest (the Makefile passes
+# --no-loadscope-reorder so that xdist keeps this order; without a cache it is by name).
+_FILE_SECONDS = 'rigid_body_sim/file_seconds'
+_SPENT = {}
+
+
+def pytest_collection_modifyitems(config, items):
+    cache = getattr(config, 'cache', None)
+    seconds = cache.get(_FILE_SECONDS, {}) if cache is not None else {}
+    if seconds:  # a stable sort: each file's tests stay together and in their order
+        items.sort(key=lambda item: -seconds.get(item.nodeid.split('::')[0], 0.0))
+
+
+def pytest_runtest_logreport(report):
+    # under xdist the controller receives every worker's reports: it alone keeps the sum
+    path = report.nodeid.split('::')[0]
+    _SPENT[path] = _SPENT.get(path, 0.0) + report.duration
+
+
+def pytest_sessionfinish(session):
+    cache = getattr(session.config, 'cache', None)
+    option = session.config.option
+    if cache is None or hasattr(session.config, 'workerinput') or not _SPENT or \
+            option.markexpr or option.keyword:  # a selection's times are not its files'
+        return
+    cache.set(_FILE_SECONDS, dict(cache.get(_FILE_SECONDS, {}), **_SPENT))

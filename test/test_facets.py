@@ -271,6 +271,8 @@ def test_nrlmsis_reads_no_file_from_the_network_and_its_local_fit_holds(monkeypa
     assert len(block) == 21 and np.all(np.isfinite(block.m))
 
 
+# slow: compiles the gyrostat's loop with the facets' terms, 5 CPU-s
+@pytest.mark.slow
 def test_the_gyrostat_integrates_the_facets_torque_too():
     """Four reaction wheels (wheel_slew's body, no law): the drag on a large offset panel is
     the only external torque, so the total momentum H = Iω + h_wheels (inertial) changes

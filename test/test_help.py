@@ -199,12 +199,26 @@ def _readme_modules():
     return sorted(set(re.findall(r'python3? -m (rigid_body_sim(?:\.\w+)+)', text)))
 
 
+_HELP = {}
+
+
+def module_help(module, tmp_path_factory):
+    """(result, files it left) of ``python -m module --help`` run in an empty directory:
+    once per module, shared by the tests that check the README's modules and the tools
+    (loadfile keeps this file on one worker)."""
+    if module not in _HELP:
+        cwd = tmp_path_factory.mktemp('help')
+        res = run([sys.executable, '-m', module, '--help'], cwd, timeout=300)
+        _HELP[module] = res, os.listdir(cwd)
+    return _HELP[module]
+
+
 @pytest.mark.parametrize('module', _readme_modules())
-def test_every_module_the_readme_runs_answers_help_and_writes_nothing(tmp_path, module):
-    res = run([sys.executable, '-m', module, '--help'], tmp_path, timeout=300)
+def test_every_module_the_readme_runs_answers_help_and_writes_nothing(tmp_path_factory, module):
+    res, files = module_help(module, tmp_path_factory)
     assert res.returncode == 0, res.stderr[-2000:]
     assert res.stdout.startswith('usage:'), res.stdout[:500]
-    assert os.listdir(tmp_path) == []
+    assert files == []
     # runpy warns when the package imported the module before running it as __main__
     assert 'RuntimeWarning' not in res.stderr, res.stderr[-2000:]
 
@@ -217,17 +231,18 @@ def _tool_names():
 
 
 @pytest.mark.parametrize('name', _tool_names())
-def test_every_tool_has_a_one_line_docstring_and_help_that_writes_nothing(tmp_path, name):
+def test_every_tool_has_a_one_line_docstring_and_help_that_writes_nothing(tmp_path_factory,
+                                                                          name):
     import importlib
     module = f'rigid_body_sim.tools.{name}'
     doc = importlib.import_module(module).__doc__
     summary, rest = (doc.split('\n', 1) + [''])[:2]
     assert summary.endswith('.') and rest.startswith('\n'), f'{module}: {summary!r}'
-    res = run([sys.executable, '-m', module, '--help'], tmp_path, timeout=300)
+    res, files = module_help(module, tmp_path_factory)
     assert res.returncode == 0, res.stderr[-2000:]
     assert res.stdout.startswith(f'usage: python -m {module} '), res.stdout[:500]
     assert ' '.join(summary.split()) in ' '.join(res.stdout.split())
-    assert os.listdir(tmp_path) == []
+    assert files == []
 
 
 def test_bench_holds_the_suite_and_the_tools_are_apart():

@@ -20,6 +20,8 @@ def _always_pays(q, t0, env):
     return x + orbit_kernel.eccentric_anomaly(t0, 0.1)
 
 
+# slow: compiles each free-body loop twice (with and without the term), 5 CPU-s
+@pytest.mark.slow
 def test_the_free_bodys_loops_name_none_of_the_term():
     found = term_off.inspect_code()
     assert set(found) == {'splitting_run', 'rk4_run', 'rk4_steps', 'euler_run', 'euler_steps'}

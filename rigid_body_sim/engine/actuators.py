@@ -1,8 +1,8 @@
 """Momentum-exchange actuators: reaction wheels and single-gimbal CMGs (no ROS).
 
-:class:`ActuatorConfig` is built from the ``actuators.*`` parameters (validated, with
-notes such as a normalised axis); :class:`Actuators` holds their state and commands and
-advances body + actuators by the compiled gyrostat kernel
+:class:`ActuatorConfig` (``actuator_specs``) is built from the ``actuators.*`` parameters
+(validated, with notes such as a normalised axis); :class:`Actuators` holds their state and
+commands and advances body + actuators by the compiled gyrostat kernel
 (``physics.integrators.gyrostat_kernel``) for the registered method that carries them
 (``physics.integrators.gyrostat.GyrostatStrang``). Frames: axes and torques in the body
 frame at this interface; the kernel works in the principal frame.
@@ -12,153 +12,11 @@ Body torque → actuators (``actuators.command`` = torque): CMGs if the scene ha
 the axis matrix). Forward commands (= forward): wheel motor torques (N·m) then gimbal
 rates (rad/s), held until the next valid one.
 """
-from dataclasses import dataclass
-import math
-from typing import Optional, Tuple
-
 import numpy as np
 
 from ..physics.integrators import gyrostat_kernel as gk
-from .actuator_specs import PYRAMID_SKEW
-
-SPAN_TOL = 1e-6  # smallest singular value of the gimbal-axis matrix that counts as spanning
-
-
-def pyramid(skew: float = PYRAMID_SKEW) -> Tuple[np.ndarray, np.ndarray]:
-    """(gimbal axes, spin axes at δ = 0), body frame, of the classic four-CMG pyramid:
-    gimbal axes tilted ``skew`` (rad) from +z toward ±x, ±y; zero momentum at δ = 0."""
-    sb, cb = math.sin(skew), math.cos(skew)
-    g = np.array([[sb, 0, cb], [0, sb, cb], [-sb, 0, cb], [0, -sb, cb]], float)
-    s0 = np.array([[0, 1, 0], [-1, 0, 0], [0, -1, 0], [1, 0, 0]], float)
-    return g, s0
-
-
-def _per(values, n, name):
-    v = np.asarray(values, float)
-    if v.size == 1:
-        return np.full(n, float(v[0]))
-    if v.size != n:
-        raise ValueError(f'{name} needs 1 or {n} values (one per actuator), got {v.size}')
-    return v.copy()
-
-
-def _axes(flat, name, labels, notes):
-    v = np.asarray(flat, float)
-    if v.size % 3:
-        raise ValueError(f'{name} needs 3 values per axis, got {v.size}')
-    a = v.reshape(-1, 3).copy()
-    for i, row in enumerate(a):
-        n = float(np.linalg.norm(row))
-        if not (np.all(np.isfinite(row)) and n > 0.0):
-            raise ValueError(f'{name}: axis of {labels[i]} is zero or not finite: '
-                             f'{row.tolist()}')
-        if abs(n - 1.0) > 1e-12:
-            notes.append(f'{name}: axis of {labels[i]} {row.tolist()} normalised '
-                         f'(norm {n:.6g})')
-            a[i] = row / n
-    return a
-
-
-def _names(text, count, prefix, name):
-    if not text.strip():
-        return tuple(f'{prefix}_{i + 1}' for i in range(count))
-    names = tuple(s.strip() for s in text.split(','))
-    if len(names) != count or not all(names) or len(set(names)) != count:
-        raise ValueError(f'{name} needs {count} distinct non-empty names, got {text!r}')
-    return names
-
-
-@dataclass(frozen=True, eq=False)
-class ActuatorConfig:
-    """Validated actuators. Wheels: axes (N, 3) unit, body frame; inertia (kg·m²), limits
-    max_torque (N·m), max_speed (rad/s), friction (N·m·s), initial_speed (rad/s, relative).
-    CMGs: gimbal (K, 3) and spin0 (K, 3) unit and perpendicular, body frame; momentum h0
-    (N·m·s), max_rate (rad/s), angle_limit (rad, 0 none), initial_angles (rad)."""
-    command: str
-    wheel_names: tuple
-    axes: np.ndarray
-    inertia: np.ndarray
-    max_torque: np.ndarray
-    max_speed: np.ndarray
-    friction: np.ndarray
-    initial_speed: np.ndarray
-    cmg_names: tuple
-    gimbal: np.ndarray
-    spin0: np.ndarray
-    momentum: np.ndarray
-    max_rate: np.ndarray
-    angle_limit: np.ndarray
-    initial_angles: np.ndarray
-    sr_gain: float = 0.01
-    sr_scale: float = 10.0
-    notes: tuple = ()
-
-    @property
-    def wheels(self) -> int:
-        return len(self.axes)
-
-    @property
-    def cmgs(self) -> int:
-        return len(self.gimbal)
-
-    @property
-    def joint_names(self) -> tuple:
-        return self.wheel_names + self.cmg_names
-
-    @classmethod
-    def from_parameters(cls, p) -> Optional['ActuatorConfig']:
-        """From coerced simulator parameters; None when the scene has no actuators.
-        ValueError naming the parameter and the wheel or gimbal."""
-        notes = []
-        flat = p['actuators.wheels.axes']
-        nw = len(flat) // 3
-        wnames = _names(p['actuators.wheels.names'], nw, 'wheel', 'actuators.wheels.names')
-        axes = _axes(flat, 'actuators.wheels.axes', wnames, notes) if flat else np.zeros((0, 3))
-        w = {k: _per(p[f'actuators.wheels.{k}'], nw, f'actuators.wheels.{k}')
-             for k in ('inertia', 'max_torque', 'max_speed', 'friction', 'initial_speed')}
-        cluster = p['actuators.cmgs.cluster']
-        if cluster == 'pyramid':
-            g, s0 = pyramid(p['actuators.cmgs.skew'])
-        elif cluster == 'custom':
-            gf, sf = p['actuators.cmgs.gimbal_axes'], p['actuators.cmgs.spin_axes']
-            if not gf or len(gf) != len(sf):
-                raise ValueError('actuators.cmgs: a custom cluster needs gimbal_axes and '
-                                 f'spin_axes of equal length (3 per CMG), got {len(gf)} and '
-                                 f'{len(sf)} values')
-            labels = _names(p['actuators.cmgs.names'], len(gf) // 3, 'gimbal',
-                            'actuators.cmgs.names') if len(gf) % 3 == 0 else ()
-            g = _axes(gf, 'actuators.cmgs.gimbal_axes', labels, notes)
-            s0 = _axes(sf, 'actuators.cmgs.spin_axes', labels, notes)
-            for j in range(len(g)):
-                s = s0[j] - np.dot(s0[j], g[j]) * g[j]
-                n = float(np.linalg.norm(s))
-                if n < 1e-6:
-                    raise ValueError(f'actuators.cmgs.spin_axes: spin axis of {labels[j]} is '
-                                     'parallel to its gimbal axis')
-                if abs(n - 1.0) > 1e-12:
-                    notes.append(f'actuators.cmgs.spin_axes: spin axis of {labels[j]} made '
-                                 'perpendicular to its gimbal axis')
-                s0[j] = s / n
-        else:
-            g = s0 = np.zeros((0, 3))
-        k = len(g)
-        if k and (k < 3 or np.linalg.svd(g, compute_uv=False)[-1] < SPAN_TOL):
-            raise ValueError(f'actuators.cmgs: the {k} gimbal axes do not span 3-D, so the '
-                             'cluster cannot give torque about every axis')
-        cnames = _names(p['actuators.cmgs.names'], k, 'gimbal', 'actuators.cmgs.names')
-        c = {key: _per(p[f'actuators.cmgs.{key}'], k, f'actuators.cmgs.{key}')
-             for key in ('momentum', 'max_rate', 'angle_limit', 'initial_angles')}
-        for j in range(k):
-            lim, d0 = c['angle_limit'][j], c['initial_angles'][j]
-            if lim > 0 and abs(d0) > lim:
-                raise ValueError(f'actuators.cmgs.initial_angles: {cnames[j]} starts at '
-                                 f'{d0:g} rad, beyond its angle limit {lim:g} rad')
-        if nw == 0 and k == 0:
-            return None
-        return cls(p['actuators.command'], wnames, axes, w['inertia'], w['max_torque'],
-                   w['max_speed'], w['friction'], w['initial_speed'], cnames, g, s0,
-                   c['momentum'], c['max_rate'], c['angle_limit'], c['initial_angles'],
-                   p['actuators.cmgs.sr_gain'], p['actuators.cmgs.sr_scale'], tuple(notes))
+# the configuration lives beside its parameters, free of numba (a scene's checks build it)
+from .actuator_specs import ActuatorConfig, pyramid  # noqa: F401 (engine.actuators.pyramid)
 
 
 class Actuators:

@@ -11,10 +11,10 @@ from typing import Mapping, Optional
 import numpy as np
 
 from .. import bdot, control
-from ..physics import Dissipation, RigidBody, get_integrator, rotation
+from ..physics import Dissipation, RigidBody, rotation
 from ..sensors.specs import SensorSettings, check_feedback
 from . import specs
-from .actuators import ActuatorConfig
+from .actuator_specs import ActuatorConfig
 from .environment_specs import (EnvironmentSettings, environment_from_parameters,
                                 initial_state_in_world)
 from ..param_spec import coerce_all
@@ -178,6 +178,8 @@ class EngineConfig:
         environment = environment_from_parameters(p)
         q, w = initial_state_in_world(environment, p['initial_attitude_frame'], q, w)
         if environment is not None and environment.terms:
+            # the registry loads every method's kernels (numba): only for this question
+            from ..physics.integrators import get_integrator
             if p['integrator'] != specs.AUTO and \
                     not get_integrator(p['integrator']).environment:
                 keys = ' and '.join(k for k, on in (

@@ -13,7 +13,7 @@ import numpy as np
 from ..param_spec import ParamSpec
 from ..physics import orbit as orbit_models
 from ..physics import rotation
-from ..physics.orbit import frames, kernel as orbit_kernel
+from ..physics.orbit import frames, layout as orbit_layout
 from .magnetic_specs import MAGNETIC, MagneticSettings, magnetic_from_parameters
 from .sunlight_specs import SUNLIGHT, Sunlight, sunlight_from_parameters
 
@@ -58,7 +58,7 @@ ENVIRONMENT = (
 class EnvironmentSettings:
     """The orbit (None: none) and which environment torques act (``sunlight``: SRP and
     drag on the facets, None if neither)."""
-    orbit: Optional[orbit_models.Orbit] = None
+    orbit: Optional['orbit_models.Orbit'] = None
     gravity_gradient: bool = False
     epoch: Optional[datetime] = None
     magnetic: Optional[MagneticSettings] = None  # the field, rods, magnetometer (or None)
@@ -90,7 +90,7 @@ class EnvironmentSettings:
         if not self.terms:
             return None
         elements = self.orbit.elements(t)
-        elements[orbit_kernel.ON] = 1.0 if self.gravity_gradient else 0.0
+        elements[orbit_layout.ON] = 1.0 if self.gravity_gradient else 0.0
         if self.magnetorquers:
             self.magnetic.field.fill(elements, t, t)
         if self.sunlight is not None:  # may append the facets: after the fixed slots

@@ -5,9 +5,10 @@ here; the node declares it from this line and the engine reads it from the typed
 """
 from typing import Optional
 
-from .. import control
-from ..physics import DISSIPATION_MODELS
-from ..physics.integrators import BODY_ONLY
+# numba-free modules only (test_imports): scene files, --help and the nodes' parameter
+# checks read these specs, and must not wait for the compiled kernels' imports
+from .. import control_params as control
+from ..physics.choices import BODY_ONLY, DISSIPATION_MODELS
 from .actuator_specs import ACTUATORS
 from .environment_specs import ENVIRONMENT
 from ..sensors import specs as sensor_specs

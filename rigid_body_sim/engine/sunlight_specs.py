@@ -10,7 +10,7 @@ import numpy as np
 
 from ..param_spec import ParamSpec
 from ..physics.environment import earth, facets as facet_model, sunlight
-from ..physics.orbit import MU, kernel as orbit_kernel
+from ..physics.orbit import MU, layout as orbit_layout
 
 DRAG_MODELS = ('none', 'exponential', 'nrlmsis')
 SHADOW_CODES = {'cylindrical': 0.0, 'conical': 1.0}
@@ -107,19 +107,19 @@ class Sunlight:
     def fill(self, env: np.ndarray, orbit, t: float, to_frame=None) -> np.ndarray:
         """``env`` (the orbit's elements near t) with the terms' slots set and the facets
         appended (in the loops' frame by ``to_frame``)."""
-        env[orbit_kernel.SRP_ON] = 1.0 if self.srp else 0.0
-        env[orbit_kernel.DRAG_ON] = 1.0 if self.drag != 'none' else 0.0
-        env[orbit_kernel.SHADOW] = SHADOW_CODES[self.shadow]
-        env[orbit_kernel.SUN_L0], env[orbit_kernel.SUN_G0], env[orbit_kernel.SUN_EPS] = \
+        env[orbit_layout.SRP_ON] = 1.0 if self.srp else 0.0
+        env[orbit_layout.DRAG_ON] = 1.0 if self.drag != 'none' else 0.0
+        env[orbit_layout.SHADOW] = SHADOW_CODES[self.shadow]
+        env[orbit_layout.SUN_L0], env[orbit_layout.SUN_G0], env[orbit_layout.SUN_EPS] = \
             sun_angles(self.epoch)
-        env[orbit_kernel.N_FACETS] = len(self.facets)
+        env[orbit_layout.N_FACETS] = len(self.facets)
         if self.drag == 'exponential':
-            env[orbit_kernel.DENSITY] = 1.0
+            env[orbit_layout.DENSITY] = 1.0
         elif self.drag == 'nrlmsis':
-            env[orbit_kernel.DENSITY] = 2.0
+            env[orbit_layout.DENSITY] = 2.0
             r, _ = orbit.state(t)
-            env[orbit_kernel.RHO_REF], env[orbit_kernel.H_REF], \
-                env[orbit_kernel.SCALE_HEIGHT] = self.msis_fit(r, t)
+            env[orbit_layout.RHO_REF], env[orbit_layout.H_REF], \
+                env[orbit_layout.SCALE_HEIGHT] = self.msis_fit(r, t)
         return np.concatenate([env, self.facets.packed(to_frame)])
 
     def msis_fit(self, r, t: float):

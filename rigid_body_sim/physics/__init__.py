@@ -15,8 +15,8 @@ from ..lazy_exports import lazy_exports
 # The names below are imported on first use (module ``__getattr__``): a module that needs
 # only ``rotation`` or ``body`` (the engine's specs and samples, a scene's checks) then does
 # not load the integrators' kernels and numba, which --help and a refused input never run.
-_HOME = {'RigidBody': 'body', 'Dissipation': 'dynamics', 'Dynamics': 'dynamics',
-         'DISSIPATION_MODELS': 'dynamics', 'INTEGRATORS': 'integrators',
+_HOME = {'RigidBody': 'body', 'Dissipation': 'dissipation', 'Dynamics': 'dynamics',
+         'DISSIPATION_MODELS': 'choices', 'INTEGRATORS': 'integrators',
          'Integrator': 'integrators', 'IntegrationError': 'integrators',
          'create': 'integrators', 'get_integrator': 'integrators', 'Propagator': 'propagator',
          'State': 'propagator', 'poinsot': 'propagator'}

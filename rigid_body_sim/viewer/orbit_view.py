@@ -18,7 +18,7 @@ import math
 import numpy as np
 
 from ..physics.environment import earth, magnetic_field, sunlight
-from ..physics.orbit import MU, frames, kernel, osculating_elements
+from ..physics.orbit import MU, frames
 
 PATH_POINTS = 180          # segments of the drawn conic
 # the epoch of a scene that gives none (the orbit alone needs none; the Sun and the field
@@ -31,6 +31,9 @@ DIPOLE_REFRESH_S = 3600.0  # sim time over which the dipole's moment is kept (se
 def conic_path(r, v, mu: float = MU, points: int = PATH_POINTS) -> np.ndarray:
     """Positions (points + 1, 3; m, inertial) of the two-body conic through (r, v) over one
     period, starting at r and closing on it. ValueError for a state on no closed orbit."""
+    # here, not at the top: the orbit's kernel loads numba (~0.35 CPU-s), and a viewer of a
+    # scene without an orbit never draws one
+    from ..physics.orbit import kernel, osculating_elements
     env = osculating_elements(r, v, mu, 0.0)
     period = 2.0 * math.pi / env[kernel.M_RATE]
     out = np.zeros(6)

@@ -4,9 +4,11 @@ Adding a method: write its module (a subclass of Integrator that states its fact
 stages, stability function, closed-loop code, auto's costs, its compiled loops' modules),
 beside its compiled loop (``<method>_kernel.py``), and add it to ``_METHODS``. ``auto``,
 the warm-up, the stability check and the engine's closed loop read the facts from here.
+Its name goes in ``physics/choices.py`` too (parsing and --help read it there, without numba).
 """
 from dataclasses import replace
 
+from ..choices import BODY_ONLY, CARRY_ACTUATORS, INTEGRATOR_NAMES
 from .base import KINDS, PRESERVES, Candidate, IntegrationError, Integrator
 from .explicit import Euler, RK4
 from .exact_flow import Exact
@@ -29,8 +31,13 @@ AUTO_CANDIDATES = tuple(replace(cls.auto, name=cls.name, stages=cls.stages,
                                 environment_evals=cls.environment_evaluations)
                         for cls in _METHODS if cls.auto is not None)
 
-# the methods a scene without actuators can run (the others carry wheels/CMGs)
-BODY_ONLY = tuple(name for name, cls in INTEGRATORS.items() if not cls.requires_actuators)
+# The names live in ..choices, which parsing and --help import without numba; a method
+# added here and not there (or the other way round) stops every import of the registry.
+if (tuple(INTEGRATORS) != INTEGRATOR_NAMES or CARRY_ACTUATORS != tuple(
+        name for name, cls in INTEGRATORS.items() if cls.requires_actuators)):
+    raise ImportError('physics/choices.py names other integrators than the registry: '
+                      f'{INTEGRATOR_NAMES} (carrying {CARRY_ACTUATORS}) there, '
+                      f'{tuple(INTEGRATORS)} here')
 
 
 def get_integrator(name: str):

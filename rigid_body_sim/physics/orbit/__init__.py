@@ -1,8 +1,14 @@
 """The orbit, a function of time (no ROS): two-body, J2 secular drift, SGP4 from a TLE,
 and the kernels' view of it (``kernel``: the element array, the gravity-gradient torque).
 """
+from ...lazy_exports import lazy_exports
 from .constants import J2, MU, RADIUS, ROTATION_RATE
-from .orbit import J2Orbit, KeplerOrbit, Orbit, OrbitError, osculating_elements
+
+# The orbits are imported on first use: they evaluate through the compiled kernel (numba),
+# which the specs that check a scene's orbit keys and --help never run.
+_HOME = {name: 'orbit' for name in ('J2Orbit', 'KeplerOrbit', 'Orbit', 'OrbitError',
+                                    'osculating_elements')}
+__getattr__, __dir__ = lazy_exports(__name__, globals(), _HOME)
 
 MODELS = ('none', 'kepler', 'j2', 'sgp4')
 

@@ -28,22 +28,11 @@ import numpy as np
 
 from ..jit import inline, jit
 
-ON, MU, A, E, INC, RAAN, ARGP, M0, T0, RAAN_RATE, ARGP_RATE, M_RATE = range(12)
-# magnetic (magnetic_kernel): [MAG_MODEL] 0 no magnetorquer torque, 1 the tilted dipole in
-# closed form, 2 the field as a line B0 + Ḃ·(t − MAG_T0) re-anchored per interval (IGRF);
-# the Earth's dipole (A·m², ECEF), the rotation angle at t = 0 and the spin rate; the
-# line's B0 and Ḃ (T, T/s, inertial) and its anchor; the rods' dipole (A·m², principal)
-MAG_MODEL = M_RATE + 1
-MAG_MOMENT = MAG_MODEL + 1                      # 3 slots
-MAG_ANGLE0, MAG_SPIN = MAG_MOMENT + 3, MAG_MOMENT + 4
-MAG_B0 = MAG_SPIN + 1                           # 3 slots
-MAG_B_RATE = MAG_B0 + 3                         # 3 slots
-MAG_T0 = MAG_B_RATE + 3
-MAG_DIPOLE = MAG_T0 + 1                         # 3 slots
-MAG_END = MAG_DIPOLE + 3
-# sunlight, drag
-(SRP_ON, DRAG_ON, SHADOW, SUN_L0, SUN_G0, SUN_EPS, DENSITY, RHO_REF, H_REF, SCALE_HEIGHT,
- N_FACETS, SIZE) = range(MAG_END, MAG_END + 12)
+# The slots live in layout.py (numba-free, for the specs); the other kernels read them
+# here as kernel.X, so all of them are re-exported.
+from .layout import *  # noqa: F403
+from .layout import A, ARGP, ARGP_RATE, E, INC, M0, M_RATE, MU, ON, RAAN, RAAN_RATE, SIZE, T0
+
 KEPLER_TOL = 1e-15   # |ΔE| (rad) that ends Newton's iteration
 KEPLER_MAX_ITER = 50
 TWO_PI = 2.0 * math.pi

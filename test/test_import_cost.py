@@ -1,0 +1,73 @@
+"""--help, parsing a scene file and checking parameters never import numba (issue 32).
+
+numba's start-up (~0.35 CPU-s, with the scipy.linalg it imports) was paid by every --help
+and every refused input: the specs took constants from the kernels' modules. Those now
+live in numba-free modules (physics/choices.py, physics/orbit/layout.py, control_params.py,
+engine/actuator_specs.py); this keeps them there. One fresh interpreter runs the steps in
+order and names the first that loaded numba.
+"""
+import json
+import subprocess
+import sys
+
+import pytest
+
+pytestmark = pytest.mark.fast
+
+_STEPS = r'''
+import contextlib, io, json, sys
+steps = []
+
+def step(name, fn):
+    with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()):
+        try:
+            fn()
+        except SystemExit:
+            pass
+    steps.append([name, 'numba' in sys.modules])
+
+def cli(*argv):
+    from rigid_body_sim import cli
+    return lambda: cli.main(list(argv))
+
+def node_help(name):
+    def answer():
+        from rigid_body_sim.nodes import usage
+        assert usage.answer(name, [name, '--help']) == 0
+    return answer
+
+def load(name):
+    def parse():
+        from rigid_body_sim.scene import load
+        load(name, ['integrator=rk4', 'dissipation.model=viscous'], '/')
+    return parse
+
+def refused():
+    from rigid_body_sim.scene import SceneError, load
+    try:
+        load('tennis_racket', ['dissipation.model=sticky'], '/')
+    except SceneError:
+        return
+    raise AssertionError('an unknown dissipation model was accepted')
+
+step('rigid-body-sim --help', cli('--help'))
+for sub in ('run', 'campaign', 'demo'):
+    step(f'rigid-body-sim {sub} --help', cli(sub, '--help'))
+for name in ('simulator', 'controller', 'recorder', 'viewer', 'replay'):
+    step(f'{name} --help', node_help(name))
+step('import the viewer node', lambda: __import__('rigid_body_sim.nodes.viewer'))
+for scene in ('tennis_racket', 'wheel_slew', 'cmg_slew', 'slew'):
+    step(f'parse the scene file {scene}', load(scene))
+step('a refused scene value', refused)
+print(json.dumps(steps))
+'''
+
+
+def test_help_and_scene_parsing_do_not_import_numba():
+    out = subprocess.run([sys.executable, '-c', _STEPS], capture_output=True, text=True,
+                         timeout=120)
+    assert out.returncode == 0, out.stderr
+    steps = json.loads(out.stdout.strip().splitlines()[-1])
+    assert len(steps) == 15, steps
+    first = next((name for name, loaded in steps if loaded), None)
+    assert first is None, f'{first} imported numba'
