@@ -153,7 +153,12 @@ def targets_from(live_res):
         val = sim.get(key)
         if isinstance(val, (int, float)):
             ok = val >= req if better == 'ge' else val <= req
-            rows.append(targets.simple(f'live simulator {key}', float(val), req, ok))
+            runs = sim.get(f'{key}_runs')
+            note = f'worst of {len(runs)} runs: ' + ', '.join(f'{v:.3g}' for v in runs) \
+                if runs else ''
+            if key == 'real_time_factor' and sim.get('subscriber'):  # what it delivered to
+                note += f'; every state topic taken by {sim["subscriber"]}'
+            rows.append(targets.simple(f'live simulator {key}', float(val), req, ok, note))
         else:
             rows.append(targets.simple(f'live simulator {key}', math.nan, req, None,
                                        sim['status']))
