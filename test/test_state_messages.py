@@ -128,3 +128,28 @@ def test_imu_state_reads_what_rclpy_reads_whatever_the_frame_id():
         assert imu_state(msgs.encoded(block, 1, 1_700_000_000_987_654_321)['imu']) == got
     with pytest.raises(Exception):
         imu_state(b'\x00\x01\x00\x00\x01\x02')
+
+
+def test_a_block_of_samples_is_published_topic_by_topic():
+    """Spacecraft.publish_states sends every sample of a block on one topic before the next
+    topic (Fast DDS then sends a writer's messages together), each topic in sample order;
+    a refused publish is reported with its topic and the rest still go out."""
+    from types import SimpleNamespace
+    from rclpy._rclpy_pybind11 import RCLError
+    from rigid_body_sim.nodes.spacecraft import Spacecraft
+    sent, refused = [], []
+
+    def sender(topic, fail_on=None):
+        def send(data):
+            if data == fail_on:
+                raise RCLError('history full')
+            sent.append((topic, data))
+        return send
+    craft = SimpleNamespace(active_raw=[
+        (sender('attitude'), SimpleNamespace(topic_name='/attitude'), 'attitude'),
+        (sender('pose', fail_on='p1'), SimpleNamespace(topic_name='/pose'), 'pose')])
+    samples = [{'attitude': f'a{i}', 'pose': f'p{i}'} for i in range(3)]
+    Spacecraft.publish_states(craft, samples, lambda topic, exc: refused.append(topic))
+    assert sent == [('attitude', 'a0'), ('attitude', 'a1'), ('attitude', 'a2'),
+                    ('pose', 'p0'), ('pose', 'p2')]
+    assert refused == ['/pose']

@@ -295,16 +295,19 @@ class Simulator(Control, Fleet, Holds, Node):
         count = self._paced
         if count and sensors:  # readings on the busiest sensor topic, before the samples'
             self._acks.published(sensors)
+        # several samples: topic by topic (Spacecraft.publish_states: why); not in lockstep
+        # or to a /clock subscriber, which see each sample's topics before the next one's
+        by_topic = active and len(block) > 1 and not (self._lockstep or self._clock_subscribed)
+        if by_topic:
+            craft.publish_states([msgs.encoded(block, i, self.stamp_ns(int(t)),
+                                               craft.active_names)
+                                  for i, t in enumerate(block.t_ns)], self._acks.refused)
         for i in range(len(block)):
             t_ns = int(block.t_ns[i])
-            data = msgs.encoded(block, i, self.stamp_ns(t_ns), craft.active_names) \
-                if active else None
             new = self._tick_clock(t_ns)  # the first spacecraft at this sample instant
-            for send, publisher, name in craft.active_raw:
-                try:
-                    send(data[name])
-                except RCLError as exc:  # a paced reader's history is full (sim_acks)
-                    self._acks.refused(publisher.topic_name, exc)
+            if active and not by_topic:
+                craft.publish_states([msgs.encoded(block, i, self.stamp_ns(t_ns),
+                                                   craft.active_names)], self._acks.refused)
             if craft.orbit is not None:
                 try:
                     craft.orbit.publish(block, i, self.stamp_ns(t_ns))
