@@ -4,9 +4,10 @@
 
 The simulator as fast as possible (``tools.live_simulator --subscribe``) with everything
 of ours taken out: a bare rclpy process publishes the nine state topics of one sample as
-CDR bytes made once (no physics, no message building, no /clock), with the node's QoS and
+CDR bytes made once (no physics, no message building, no /clock), with the node's QoS,
 acknowledgement cadence (``sim_acks``: keep-all, a wait every KEEP_ALL_WINDOW messages a
-topic), as fast as it can. The same subscriber as the live bench's takes every message
+topic) and order (blocks of LIVE_BLOCK samples, topic by topic), as fast as it can. The
+same subscriber as the live bench's takes every message
 (``live_simulator.SUBSCRIBERS['raw']``). What it takes a second, divided by the node's
 100 Hz, is the real-time factor no node publishing these topics this way can pass on this
 machine under its present load. Prints one JSON line per run, then a summary line.
@@ -29,6 +30,7 @@ def publish(ns: str) -> None:
     from rclpy.node import Node
     from ..engine import SampleBlock
     from ..nodes.process import prefer_asynchronous_publication
+    from ..nodes.simulator import LIVE_BLOCK
     from ..nodes.sim_acks import Acknowledgements, paced_qos
     from ..nodes.state_messages import StateMessages
     from ..physics.body import RigidBody
@@ -50,9 +52,10 @@ def publish(ns: str) -> None:
             if any(p.get_subscription_count() == 0 for p, _ in pubs):
                 time.sleep(0.05)  # the node publishes only what is subscribed
                 continue
-            for _ in range(100):
-                for send, d in sends:
+            for send, d in sends:  # a block topic by topic, as the node sends it
+                for _ in range(LIVE_BLOCK):
                     send(d)
+            for _ in range(LIVE_BLOCK):
                 acks.published()
     except KeyboardInterrupt:
         pass
