@@ -249,9 +249,30 @@ def test_live_figures_are_the_worst_of_five_runs(monkeypatch):
                  for r, c, f in ((80.0, 0.04, 0.9), (60.0, 0.05, 1.2), (95.0, 0.03, 0.8),
                                  (70.0, 0.06, 1.0))] + [{'status': 'exit code 1'}])
     monkeypatch.setattr(live, '_simulator_once', lambda mod: next(runs))
+    floors = iter([40.0, None, 42.0, 41.0, 39.0])  # one failed: left out
+    monkeypatch.setattr(live, '_floor_once', lambda: next(floors))
     monkeypatch.setattr(live, '_module_missing', lambda name: False)
     out = live.simulator(False)
+    assert out['floor_real_time_factor_runs'] == [40.0, 42.0, 41.0, 39.0]
     assert out['real_time_factor'] == 60.0 and out['real_time_factor_runs'] == [
         80.0, 60.0, 95.0, 70.0]
     assert out['cpu_share_at_real_time'] == 0.06 and out['first_message_s'] == 1.2
     assert out['status'] == '1 of 5 runs failed: exit code 1'
+
+
+def test_live_rows_name_their_runs_and_the_subscriber_measured_with():
+    """The real-time factor's row says which runs it is the worst of, what subscriber
+    took every state topic (docs/benchmarks.md: the figure is only honest with it) and
+    what a bare rclpy publisher of the same topics reached beside them."""
+    from rigid_body_sim.bench import live
+    sim = {'status': 'ok', 'real_time_factor': 91.0, 'real_time_factor_runs': [95.0, 91.0],
+           'cpu_share_at_real_time': 0.04, 'first_message_s': 1.0,
+           'subscriber': 'one raw subscription a topic',
+           'floor_real_time_factor_runs': [97.0, 93.5]}
+    rows = {r['target']: r for r in live.targets_from(
+        {'simulator': sim, 'recorder': {'status': 'not measured (x)'},
+         'viewer': {'status': 'not measured (x)'}})}
+    note = rows['live simulator real_time_factor']['note']
+    assert 'worst of 2 runs: 95, 91' in note and 'one raw subscription a topic' in note
+    assert 'bare rclpy publisher' in note and '97, 93.5' in note
+    assert rows['live simulator real_time_factor']['verdict'] == 'MISS'

@@ -76,3 +76,80 @@ def test_joint_states_are_exact_size_cdr_that_rosbags_reads():
         assert list(got.name) == names and got.velocity.tolist() == velocity
         assert got.position.tolist() == position and got.header.frame_id == 'base_link'
         assert deserialize_message(data, JointState) == msg
+
+
+def test_encoded_subsets_hold_only_their_topics_and_decode_right():
+    """The live node builds only the subscribed topics (``only``); each subset, alternated
+    with others as subscribers come and go, gives exactly its topics, each decoding to
+    the sample's message."""
+    encoder = StateMessages('map', 'body')
+    reference = StateMessages('map', 'body')
+    block = _block(4, seed=3)
+    subsets = [frozenset({'attitude'}), frozenset({'odometry', 'kinetic_energy', 'imu'}),
+               None, frozenset({'attitude'}), frozenset()]
+    for i, only in enumerate(subsets):
+        stamp = 1_000_000_007 * (i + 1)
+        data = encoder.encoded(block, i % len(block), stamp, only)
+        reference.fill(block, i % len(block), stamp)
+        topics = dict(reference.topics())
+        assert set(data) == (set(topics) if only is None else set(only))
+        for name, raw in data.items():
+            assert deserialize_message(raw, type(topics[name])) == topics[name], (only, name)
+    assert encoder.built()['attitude'] == 3 and encoder.built()['pose'] == 1
+
+
+def test_a_sample_of_the_wrong_length_is_refused():
+    """A row that is not SampleBlock.values' 17 numbers is a clear error, not bytes with
+    the template's constants shifted."""
+    import pytest
+    from rigid_body_sim.nodes.state_messages import N_VALUES
+    msgs = StateMessages()
+    msgs.prepare()
+    with pytest.raises(ValueError, match=f'{N_VALUES} values'):
+        msgs._templates.encode([0.0] * (N_VALUES - 1), 0, 0)
+
+
+def test_imu_state_reads_what_rclpy_reads_whatever_the_frame_id():
+    """The viewer takes the simulator's imu raw: the stamp, q and ω read from the bytes
+    are rclpy's, for frame ids of every alignment; bytes that are no Imu raise as a
+    subscription's deserialiser does."""
+    import pytest
+    from rigid_body_sim.nodes.state_messages import imu_state
+    from rclpy.serialization import serialize_message
+    block = _block(2, seed=5)
+    for child in ('b', 'ab', 'abc', 'base_link', 'a_body_frame_of_odd_length'):
+        msgs = StateMessages('world', child)
+        msgs.fill(block, 1, 1_700_000_000_987_654_321)
+        got = imu_state(serialize_message(msgs.imu))
+        m = msgs.imu
+        assert got == (1_700_000_000_987_654_321,
+                       (m.orientation.x, m.orientation.y, m.orientation.z, m.orientation.w),
+                       (m.angular_velocity.x, m.angular_velocity.y, m.angular_velocity.z))
+        assert imu_state(msgs.encoded(block, 1, 1_700_000_000_987_654_321)['imu']) == got
+    with pytest.raises(Exception):
+        imu_state(b'\x00\x01\x00\x00\x01\x02')
+
+
+def test_a_block_of_samples_is_published_topic_by_topic():
+    """Spacecraft.publish_states sends every sample of a block on one topic before the next
+    topic (Fast DDS then sends a writer's messages together), each topic in sample order;
+    a refused publish is reported with its topic and the rest still go out."""
+    from types import SimpleNamespace
+    from rclpy._rclpy_pybind11 import RCLError
+    from rigid_body_sim.nodes.spacecraft import Spacecraft
+    sent, refused = [], []
+
+    def sender(topic, fail_on=None):
+        def send(data):
+            if data == fail_on:
+                raise RCLError('history full')
+            sent.append((topic, data))
+        return send
+    craft = SimpleNamespace(active_raw=[
+        (sender('attitude'), SimpleNamespace(topic_name='/attitude'), 'attitude'),
+        (sender('pose', fail_on='p1'), SimpleNamespace(topic_name='/pose'), 'pose')])
+    samples = [{'attitude': f'a{i}', 'pose': f'p{i}'} for i in range(3)]
+    Spacecraft.publish_states(craft, samples, lambda topic, exc: refused.append(topic))
+    assert sent == [('attitude', 'a0'), ('attitude', 'a1'), ('attitude', 'a2'),
+                    ('pose', 'p0'), ('pose', 'p2')]
+    assert refused == ['/pose']

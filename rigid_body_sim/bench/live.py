@@ -1,7 +1,9 @@
 """Live figures, measured by scripts other modules own (run as subprocesses).
 
 * simulator: ``rigid_body_sim.tools.live_simulator`` (real-time factor as fast as possible
-  at 1 kHz physics / 100 Hz publishing, CPU share at real time);
+  at 1 kHz physics / 100 Hz publishing, CPU share at real time), each run beside one of
+  ``rigid_body_sim.tools.live_floor`` (what a bare rclpy publisher of the same topics
+  reaches: the middleware's floor under the same load);
 * recorder: ``rigid_body_sim.tools.recorder_load`` (messages/s through a real recorder, loss);
 * viewer: ``rigid_body_sim.tools.viewer`` (the Foxglove viewer's CPU beside a 50 Hz simulator).
 Absent modules or failures are reported as 'not measured (<reason>)', never as errors.
@@ -57,11 +59,17 @@ def simulator(quick, log=print, runs=RUNS):
     skipped = _not_measured(mod, quick)
     if skipped:
         return skipped
-    each = [_simulator_once(mod) for _ in range(runs)]
+    each, floors = [], []
+    for _ in range(runs):  # each beside a floor run, under the same load
+        each.append(_simulator_once(mod))
+        floors.append(_floor_once())
     ok = [r for r in each if r['status'] == 'ok']
     if not ok:
         return each[-1]
     out = dict(ok[-1])
+    floors = [f for f in floors if isinstance(f, (int, float))]
+    if floors:
+        out['floor_real_time_factor_runs'] = floors
     for key, worst in (('real_time_factor', min), ('cpu_share_at_real_time', max),
                        ('first_message_s', max)):
         values = [r[key] for r in ok if isinstance(r.get(key), (int, float))]
@@ -72,6 +80,19 @@ def simulator(quick, log=print, runs=RUNS):
         out['status'] = f'{len(each) - len(ok)} of {len(each)} runs failed: ' + \
             '; '.join(r['status'] for r in each if r['status'] != 'ok')
     return out
+
+
+def _floor_once():
+    """One run of ``tools.live_floor``: the real-time factor a bare rclpy publisher of the
+    same topics reaches with the same subscriber (None if it failed)."""
+    try:
+        proc = subprocess.run([sys.executable, '-m', 'rigid_body_sim.tools.live_floor',
+                               '--runs', '1'], capture_output=True, text=True, timeout=300)
+    except subprocess.TimeoutExpired:
+        return None
+    runs = _last_json(proc.stdout, 'floor_real_time_factor_runs').get(
+        'floor_real_time_factor_runs')
+    return runs[0] if runs else None
 
 
 def _simulator_once(mod):
@@ -153,7 +174,17 @@ def targets_from(live_res):
         val = sim.get(key)
         if isinstance(val, (int, float)):
             ok = val >= req if better == 'ge' else val <= req
-            rows.append(targets.simple(f'live simulator {key}', float(val), req, ok))
+            runs = sim.get(f'{key}_runs')
+            note = f'worst of {len(runs)} runs: ' + ', '.join(f'{v:.3g}' for v in runs) \
+                if runs else ''
+            if key == 'real_time_factor' and sim.get('subscriber'):  # what it delivered to
+                note += f'; every state topic taken by {sim["subscriber"]}'
+            floors = sim.get('floor_real_time_factor_runs')
+            if key == 'real_time_factor' and floors:
+                note += ('; a bare rclpy publisher of the same topics with the same QoS and '
+                         'subscriber (tools.live_floor), beside each run: '
+                         + ', '.join(f'{v:.3g}' for v in floors))
+            rows.append(targets.simple(f'live simulator {key}', float(val), req, ok, note))
         else:
             rows.append(targets.simple(f'live simulator {key}', math.nan, req, None,
                                        sim['status']))

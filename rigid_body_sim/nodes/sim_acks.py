@@ -11,7 +11,12 @@ subscriber sees lags the simulation by at most a window) and let Fast DDS send i
 runs, 77-150 but one; waiting every 50 samples 97-152 µs; keep-all never waiting 128-190).
 
 What bounds the rate then is delivery: nine messages a sample to another process cost
-Fast DDS's sending thread ~43 µs a sample and the bench's Python subscriber ~135 µs. The
+Fast DDS's sending thread ~43 µs a sample sent sample by sample (a block is now sent topic
+by topic: ``Spacecraft.publish_states``) and a Python subscriber taking every message raw
+~70 µs (one deserializing them, ~135). ``tools.live_floor`` measures what a bare rclpy
+publisher reaches this way: each wait after 500 samples then takes ~55 ms (the sending
+thread and the reader draining), and 2,000 samples between waits did little better, 4,000
+worse (a reader's shared-memory queue overflows). The
 102-142x of earlier sessions came from keep-last without waits, which loses what it
 has not sent yet: to a keep-all subscriber it delivered 1,060 of 4,000 samples.
 

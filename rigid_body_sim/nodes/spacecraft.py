@@ -14,6 +14,7 @@ under ``<name>/`` and takes commands there. /tf and /clock are the node's, share
 import time
 
 from geometry_msgs.msg import Vector3Stamped, WrenchStamped
+from rclpy._rclpy_pybind11 import RCLError
 from sensor_msgs.msg import MagneticField
 from std_msgs.msg import Float64MultiArray
 
@@ -134,6 +135,22 @@ class Spacecraft:
         self.active_raw = [(p.handle.publish_raw, p, name) for p, name in self.active]
         if self.orbit is not None:
             self.orbit.refresh()
+
+    def publish_states(self, samples, refused):
+        """The state messages of consecutive samples (``samples``: one {topic: CDR bytes}
+        each, StateMessages.encoded) on the subscribed topics, topic by topic: Fast DDS's
+        sending thread puts a writer's consecutive messages into one datagram, one
+        shared-memory push and one wake-up of the reader, so a block sent topic by topic
+        cost its publisher 34-41 µs of CPU a sample against 82 sample by sample (nine raw
+        topics, keep-all, one reader in another process). Each topic keeps its order.
+        ``refused(topic, exc)``: a publish refused because a paced reader's history is
+        full (sim_acks)."""
+        for send, publisher, name in self.active_raw:
+            for data in samples:
+                try:
+                    send(data[name])
+                except RCLError as exc:
+                    refused(publisher.topic_name, exc)
 
     def set_values(self, values):
         """New simulator values (a parameter change): the engine reconfigures at once."""

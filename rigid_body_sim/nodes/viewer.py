@@ -45,6 +45,7 @@ from ..viewer import geometry, orbit_view, view as fox
 from ..viewer.specs import LOOPBACK, VIEWER
 from .common import declare_parameters, diagnostic_status, qos_profile
 from .process import events_executor, run_node
+from .state_messages import imu_state
 
 NODE_NAME = 'attitude_viewer'
 DIAGNOSTICS_PERIOD_S = 1.0   # wall clock
@@ -134,10 +135,12 @@ class Viewer(Node):
             return
         self.view.add_craft(name)
         prefix = f'{name}/' if name else ''
-        # one topic carries q and ω of a sample (one stamp, no joining): the cheapest to take
+        # one topic carries q and ω of a sample (one stamp, no joining): the cheapest to take,
+        # raw and decoded by imu_state (state_messages: why)
         self._subs[name] = [
             self.create_subscription(Imu, prefix + 'imu',
-                                     lambda m, n=name: self._on_imu(m, n), self._qos),
+                                     lambda m, n=name: self._on_imu(m, n), self._qos,
+                                     raw=True),
             self.create_subscription(Odometry, prefix + 'orbit',
                                      lambda m, n=name: self._on_orbit(m, n), self._qos)]
 
@@ -148,20 +151,15 @@ class Viewer(Node):
         self._next_orbit.pop(name, None)
         self.view.remove_craft(name, self.last_stamp_ns or time.time_ns())
 
-    def _on_imu(self, msg, name=''):
-        s = msg.header.stamp
-        stamp = s.sec * 1_000_000_000 + s.nanosec
-        o = msg.orientation
-        q = (o.x, o.y, o.z, o.w)
+    def _on_imu(self, data, name=''):
+        stamp, q, w = imu_state(data)
         self.view.transform(stamp, q, name)
         self.transforms += 1
         self.last_stamp_ns = stamp
         craft = self.view.crafts.get(name)
         if craft is not None and craft.body is not None:
-            w = msg.angular_velocity
             self.samples += 1
-            self.view.sample(stamp, q, (w.x, w.y, w.z), self.target if not name else None,
-                             name)
+            self.view.sample(stamp, q, w, self.target if not name else None, name)
 
     def _on_orbit(self, msg, name=''):
         """The orbit's state: drawn at the scene's rate (the path and the field cost more

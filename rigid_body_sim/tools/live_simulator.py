@@ -1,13 +1,16 @@
 """Benchmark of the ``attitude_simulator`` node (real process, real DDS).
 
-``python -m rigid_body_sim.tools.live_simulator [--integrator auto] [--subscribe] [--seconds 6]``
+``python -m rigid_body_sim.tools.live_simulator [--integrator auto] [--subscribe]
+[--subscriber raw|messages] [--seconds 6]``
 
 Prints, for 1 kHz physics (step 1 ms) and 100 Hz publishing:
 * µs per physics step of ``Propagator.step`` in-process (no ROS), torque-free and torqued;
 * achieved real-time factor with ``real_time_factor: 0`` (from the node's diagnostics);
 * CPU use of the node process at ``real_time_factor: 1`` in % of one core (/proc utime+stime).
 ``--subscribe`` adds a subscriber on every state topic (otherwise unobserved topics are
-skipped by the node, as in a deployment where nobody listens to them).
+skipped by the node, as in a deployment where nobody listens to them); ``--subscriber``
+says how it takes them (``SUBSCRIBERS``; by default serialized, as rosbag2 and the
+recorder do), and the figures report the samples a second it took and its CPU.
 ``run(...)`` returns the figures as a dict for the bench command.
 """
 from . import argument_parser, stop
@@ -61,10 +64,43 @@ def _cpu_seconds(pid):
     return (int(fields[11]) + int(fields[12])) / os.sysconf('SC_CLK_TCK')
 
 
-def run(integrator='auto', subscribe=False, seconds=6.0) -> dict:
+STATE_TOPICS = ('attitude', 'pose', 'imu', 'transform', 'odometry', 'angular_velocity',
+                'angular_momentum', 'angular_momentum_body', 'kinetic_energy')
+SUBSCRIBERS = {
+    # what the figures were measured with (docs/benchmarks.md says which)
+    'raw': 'one reliable keep-all subscription a topic taking the serialized messages (as '
+           'rosbag2 and our recorder do), on rclpy\'s events executor',
+    'messages': 'one reliable depth-10 subscription a topic taking deserialized Python '
+                'messages, on rclpy\'s events executor'}
+
+
+def _subscribe_all(probe, ns, counts, subscriber, first):
+    """A subscription on every state topic of the simulator in ``ns``, each counting the
+    messages it takes into ``counts[topic]``; the first message's wall time into ``first``."""
+    from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
+    from ..nodes.state_messages import StateMessages
+    raw = subscriber == 'raw'
+    qos = QoSProfile(history=HistoryPolicy.KEEP_ALL, reliability=ReliabilityPolicy.RELIABLE) \
+        if raw else QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
+    types = {name: type(msg) for name, msg in StateMessages().topics()}
+    subs = []
+    for topic in STATE_TOPICS:
+        counts[topic] = 0
+
+        def take(_, topic=topic):
+            counts[topic] += 1
+            if not first:
+                first.append(time.monotonic())
+        subs.append(probe.create_subscription(types[topic], f'{ns}/{topic}', take, qos,
+                                              raw=raw))
+    return subs
+
+
+def run(integrator='auto', subscribe=False, seconds=6.0, subscriber='raw') -> dict:
     import rclpy
     from rclpy.node import Node
     from diagnostic_msgs.msg import DiagnosticArray
+    from ..nodes.process import events_executor
     from ..nodes.simulator import NODE_NAME
     os.environ.setdefault('ROS_DOMAIN_ID', str(random.randint(101, 200)))
     # Discovery as the environment has it (default SUBNET, multicast), as a user's graph
@@ -73,7 +109,9 @@ def run(integrator='auto', subscribe=False, seconds=6.0) -> dict:
     # after 0.7 s (0.66-0.74 s in 8 of 8 starts with SUBNET).
     result = {'integrator': integrator, 'step_s': STEP, 'publish_rate_hz': PUBLISH_RATE,
               'discovery_range': os.environ.get('ROS_AUTOMATIC_DISCOVERY_RANGE', 'SUBNET'),
-              'subscribers_on_all_topics': subscribe, 'step_cost_us': {}}
+              'subscribers_on_all_topics': subscribe,
+              'subscriber': SUBSCRIBERS[subscriber] if subscribe else None,
+              'step_cost_us': {}}
     rclpy.init()
     probe = Node('simulator_bench')
     try:
@@ -85,39 +123,32 @@ def run(integrator='auto', subscribe=False, seconds=6.0) -> dict:
                 lambda a: diags.extend(s for s in a.status
                                        if s.hardware_id == f'{ns}/{NODE_NAME}'),
                 10)
-            subs, first = [], []
-            from geometry_msgs.msg import QuaternionStamped as _Q
-            subs.append(probe.create_subscription(
-                _Q, f'{ns}/attitude', lambda m: first or first.append(time.monotonic()), 10))
+            subs, first, counts = [], [], {}
             if subscribe:
-                from geometry_msgs.msg import (PoseStamped, QuaternionStamped, TransformStamped,
-                                               Vector3Stamped)
-                from nav_msgs.msg import Odometry
-                from sensor_msgs.msg import Imu
-                from std_msgs.msg import Float64
-                for topic, t in (('attitude', QuaternionStamped), ('pose', PoseStamped),
-                                 ('imu', Imu),
-                                 ('transform', TransformStamped), ('odometry', Odometry),
-                                 ('angular_velocity', Vector3Stamped),
-                                 ('angular_momentum', Vector3Stamped),
-                                 ('angular_momentum_body', Vector3Stamped),
-                                 ('kinetic_energy', Float64)):
-                    subs.append(probe.create_subscription(t, f'{ns}/{topic}', lambda m: None, 10))
+                subs += _subscribe_all(probe, ns, counts, subscriber, first)
+            else:  # only the first message's time
+                from geometry_msgs.msg import QuaternionStamped
+                subs.append(probe.create_subscription(
+                    QuaternionStamped, f'{ns}/attitude',
+                    lambda m: first or first.append(time.monotonic()), 10))
             started = time.monotonic()
             proc = _start(ns, integrator, rtf)
             try:
-                deadline = time.monotonic() + 20
-                while not diags and time.monotonic() < deadline:
-                    rclpy.spin_once(probe, timeout_sec=0.05)
-                end = time.monotonic() + 2.0  # warm-up: discovery, integrator selection
-                while time.monotonic() < end:
-                    rclpy.spin_once(probe, timeout_sec=0.05)
-                diags.clear()
-                cpu0, wall0 = _cpu_seconds(proc.pid), time.monotonic()
-                end = wall0 + seconds
-                while time.monotonic() < end:
-                    rclpy.spin_once(probe, timeout_sec=0.05)
-                cpu = (_cpu_seconds(proc.pid) - cpu0) / (time.monotonic() - wall0)
+                with events_executor(probe) as executor:
+                    def spin(until, done=lambda: False):
+                        while time.monotonic() < until and not done():
+                            executor.spin_once(timeout_sec=0.05)
+                    spin(time.monotonic() + 20, lambda: bool(diags))
+                    spin(time.monotonic() + 2.0)  # warm-up: discovery, integrator selection
+                    diags.clear()
+                    taken0 = dict(counts)
+                    cpu0, wall0 = _cpu_seconds(proc.pid), time.monotonic()
+                    own0 = _cpu_seconds(os.getpid())
+                    spin(wall0 + seconds)
+                    wall = time.monotonic() - wall0
+                    own = (_cpu_seconds(os.getpid()) - own0) / wall
+                    cpu = (_cpu_seconds(proc.pid) - cpu0) / wall
+                    taken = {k: counts[k] - taken0[k] for k in counts}
                 values = [{kv.key: kv.value for kv in s.values} for s in diags]
                 achieved = [float(v['real_time_factor_achieved']) for v in values]
                 key = 'rtf0' if rtf == 0 else 'rtf1'
@@ -137,6 +168,10 @@ def run(integrator='auto', subscribe=False, seconds=6.0) -> dict:
                     'step_used_s': float(values[-1]['step']) if values else None,
                     'missed_deadlines': int(values[-1]['missed_deadlines']) if values else None,
                     'first_message_s': first[0] - started if first else None,
+                    # the bench's subscriber: its process's CPU, and the samples a second it
+                    # took on its slowest topic (all delivered: the node's rate)
+                    'subscriber_cpu_percent_of_one_core': 100.0 * own,
+                    'subscriber_samples_per_s': min(taken.values()) / wall if taken else None,
                     'rss_mb': _rss_mb(proc.pid)}
                 if values:
                     result['step_cost_us'].setdefault(values[-1]['integrator'], None)
@@ -157,12 +192,15 @@ def main(argv=None):
     parser = argument_parser(__spec__, __doc__)
     parser.add_argument('--integrator', default='auto')
     parser.add_argument('--subscribe', action='store_true', help='subscribe to every state topic')
+    parser.add_argument('--subscriber', choices=sorted(SUBSCRIBERS), default='raw',
+                        help='with --subscribe, how each topic is taken: ' + '; '.join(
+                            f'{k}: {v}' for k, v in sorted(SUBSCRIBERS.items())))
     parser.add_argument('--seconds', type=float, default=6.0)
     args = parser.parse_args(argv)
-    r = run(args.integrator, args.subscribe, args.seconds)
+    r = run(args.integrator, args.subscribe, args.seconds, args.subscriber)
     print(f'simulator benchmark: integrator {args.integrator}, step {STEP * 1e3:g} ms, '
           f'publish {PUBLISH_RATE:g} Hz, '
-          f'subscribers on all topics: {args.subscribe}')
+          f'subscribers on all topics: {r["subscriber"] if args.subscribe else "none"}')
     for key, label in (('rtf0', 'real_time_factor 0 (as fast as possible)'),
                        ('rtf1', 'real_time_factor 1')):
         v = r.get(key, {})
@@ -172,7 +210,10 @@ def main(argv=None):
               f'({v.get("cpu_us_per_sample") or float("nan"):.0f} us a sample), '
               f'waiting for acks {100 * (v.get("ack_wait_share") or 0.0):.0f} % of the time, '
               f'integrator {v.get("integrator_used")} step {v.get("step_used_s")}, '
-              f'missed deadlines {v.get("missed_deadlines")}')
+              f'missed deadlines {v.get("missed_deadlines")}; the subscriber took '
+              f'{v.get("subscriber_samples_per_s") or 0:.0f} samples/s on its slowest topic '
+              f'with {v.get("subscriber_cpu_percent_of_one_core", float("nan")):.1f} % of a '
+              'core')
     for name, cost in r['step_cost_us'].items():
         print(f'  Propagator.step {name}: {cost["free"]:.1f} us torque-free, '
               f'{cost["torque"]:.1f} us with torque')
@@ -183,7 +224,12 @@ def main(argv=None):
                       'cpu_us_per_sample': fast.get('cpu_us_per_sample'),
                       'cpu_share_at_real_time': None if cpu is None else cpu / 100.0,
                       'first_message_s': real.get('first_message_s'),
-                      'rss_mb': real.get('rss_mb'), 'subscribed': args.subscribe}))
+                      'rss_mb': real.get('rss_mb'), 'subscribed': args.subscribe,
+                      'subscriber': r['subscriber'],
+                      'subscriber_samples_per_s': fast.get('subscriber_samples_per_s'),
+                      'subscriber_cpu_share': None if fast.get(
+                          'subscriber_cpu_percent_of_one_core') is None else
+                      fast['subscriber_cpu_percent_of_one_core'] / 100.0}))
     return 0
 
 
