@@ -213,3 +213,24 @@ def test_without_a_calibration_auto_says_it_uses_the_class_constants(cache, monk
     calibration.current.cache_clear()
     assert 'RIGID_BODY_SIM_AUTO_COSTS=constants' in calibration.current().source
 
+
+
+def test_the_setup_and_the_benchmarks_calibrate_with_the_cost_of_an_event(monkeypatch):
+    """What `python -m rigid_body_sim.compiled` does (compiled.setup), and every benchmark
+    that runs auto starts with: the kernels warm, then the calibration ensured with the
+    engine's measured event cost (a stale one left auto on class constants: seed 20261125's
+    gen-19 took rk4 at 1.9x the CPU of the dop853 it takes when calibrated)."""
+    import inspect
+
+    from rigid_body_sim import compiled
+    from rigid_body_sim.bench import generated, generated_peers, sampling
+    from rigid_body_sim.engine import event_cost
+    calls = []
+    monkeypatch.setattr(compiled, 'warm', lambda: calls.append('warm') or True)
+    monkeypatch.setattr(calibration, 'ensure',
+                        lambda log=print, events=None: calls.append(events))
+    assert compiled.setup() is True
+    assert calls == ['warm', event_cost.measure]
+    for module in (generated, generated_peers, sampling):
+        source = inspect.getsource(module)
+        assert 'compiled.setup()' in source and 'compiled.warm()' not in source, module

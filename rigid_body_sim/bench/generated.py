@@ -367,7 +367,7 @@ def run(quick, log=print, seed=SEED, count=None, families=tuple(FAMILIES)):
     ``families`` (FAMILIES' names), ``count`` scenes of the body family or of the one
     family run (default: each family's own count). Target rows per family (TARGET_NAMES)."""
     from .. import compiled
-    compiled.warm()  # kernels loaded before any clock starts (else the first run pays)
+    compiled.setup()  # kernels loaded before any clock starts (else the first run pays)
     rows, t_rows, first = [], [], None
     for family in families:
         draw_scene, counts = FAMILIES[family]
@@ -515,7 +515,7 @@ def main(argv=None):
     args = parser.parse_args(argv)
     if args.only is not None:
         from .. import compiled
-        compiled.warm()
+        compiled.setup()
         scene = FAMILIES[args.family or 'body'][0](args.seed, args.only, args.quick)
         print(scene.describe())
         row = judge(scene, log=print)

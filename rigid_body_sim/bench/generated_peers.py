@@ -149,7 +149,7 @@ def summary_target(rows, seed):
 def run(quick, log=print, seed=generated.SEED, count=None):
     """(rows, [target row]) on the body family's first ``count`` scenes."""
     from .. import compiled
-    compiled.warm()
+    compiled.setup()
     n = generated.COUNTS[quick] if count is None else count
     rows = []
     for i in range(n):

@@ -77,7 +77,7 @@ def run(quick, log=print, generated_count=None):
     generated ones (:func:`generated_rows`)."""
     from .. import compiled
     from . import targets
-    compiled.warm()
+    compiled.setup()
     repeats = 3 if quick else 5
     rows, out = [], []
     for name, duration, overrides in SAMPLING_SCENES:

@@ -123,7 +123,7 @@ def run(quick, log=print):
     """(rows, target rows)."""
     from . import targets
     from .. import compiled
-    compiled.warm()
+    compiled.setup()
     rows, figures = measure_cpu(quick, log)
     t_rows = []
     for label, (ratio, ratios) in figures.items():
