@@ -85,9 +85,10 @@ class _Fields:
         self.__dict__.update(fields)
 
 
-# plain CDR, little- and big-endian: (stamp and frame id's length, the vector)
-_LAYOUTS = {b'\x00\x01': (struct.Struct('<iII'), struct.Struct('<3d')),
-            b'\x00\x00': (struct.Struct('>iII'), struct.Struct('>3d'))}
+_ENDIAN = {b'\x00\x01': '<', b'\x00\x00': '>'}  # plain CDR: little-, big-endian
+# per encapsulation: (stamp and frame id's length, the vector)
+_LAYOUTS = {kind: (struct.Struct(order + 'iII'), struct.Struct(order + '3d'))
+            for kind, order in _ENDIAN.items()}
 
 
 def vector3_stamped_fields(data: bytes):
