@@ -228,8 +228,12 @@ def test_slew_179_and_retarget(ros_process, namespace, rclpy_node):
     rec.send_target(rotation.axis_rotation(1, math.pi / 2))
     rec.spin(1.5)
     rec.send_target(second)
+    # settled: inside 2 % and nearly at rest. A loaded machine delays the controller's
+    # commands in this real-time loop, and a delayed PD loop can pass through the band
+    # before it settles (once at load ~10: 0.076 rad a second after entering it)
     assert rec.spin_until(
-        lambda: rotation.angle_between(rec.attitude[-1][1], second) < 0.02 * math.pi / 3, 12.0)
+        lambda: rotation.angle_between(rec.attitude[-1][1], second) < 0.02 * math.pi / 3
+        and np.linalg.norm(rec.rate[-1][1]) < 0.01 * WN, 60.0)
     rec.spin(1.0)
     assert rotation.angle_between(rec.attitude[-1][1], second) < 0.02 * math.pi / 3
 
