@@ -108,15 +108,7 @@ def test_lockstep_argument_runs_the_scene_in_lockstep(ros_process, namespace, tm
         lockstep_parameters(load('slew', ['publish_rate=40.0']))
     with pytest.raises(ValueError, match='lockstep:=maybe'):
         plan('slew', lockstep='maybe')
-    procs = {}
-    for n in reversed(nodes):  # recorder first
-        cmd = [venv_exe(n.executable), *n.ros_arguments(namespace)]
-        if n.executable == 'simulator':
-            faster = tmp_path / 'faster.yaml'
-            faster.write_text('/**/attitude_simulator:\n  ros__parameters:\n'
-                              '    real_time_factor: 0.0\n    duration: 1.0\n')
-            cmd += ['--params-file', str(faster)]
-        procs[n.executable] = ros_process(*cmd, env={'PYTHONUNBUFFERED': '1'})
+    procs = _start_planned(nodes, ros_process, namespace, tmp_path)
     sim = procs['simulator']
     assert sim.wait(180) == 0, sim.output()[-3000:]
     assert 'lockstep: 50 exchanges' in sim.output(), sim.output()[-3000:]
@@ -148,17 +140,24 @@ def test_a_formation_in_lockstep_gets_a_controller_per_spacecraft(ros_process, n
         '    tumbler:', '    tumbler:\n      lockstep: false'))
     assert [n.namespace for n in plan(str(out_of_loop), lockstep='true')[0]
             if n.executable == 'controller'] == ['leader', 'wingman']
-    procs = {}
-    for n in reversed(nodes):  # recorder first
-        cmd = [venv_exe(n.executable), *n.ros_arguments(namespace)]
-        if n.executable == 'simulator':
-            faster = tmp_path / 'faster.yaml'
-            faster.write_text('/**/attitude_simulator:\n  ros__parameters:\n'
-                              '    real_time_factor: 0.0\n    duration: 1.0\n')
-            cmd += ['--params-file', str(faster)]
-        procs[n.namespace or n.executable] = ros_process(*cmd, env={'PYTHONUNBUFFERED': '1'})
+    procs = _start_planned(nodes, ros_process, namespace, tmp_path)
     sim = procs['simulator']
     assert sim.wait(240) == 0, sim.output()[-3000:]
     # 10 Hz control, 1 s: the instants t = 0 ... 0.9 s held, each for all three
     assert 'lockstep: 10 exchanges' in sim.output(), sim.output()[-3000:]
     assert 'paused' not in sim.output(), sim.output()[-3000:]
+
+
+def _start_planned(nodes, ros_process, namespace, tmp_path):
+    """The planned nodes started for real, recorder first, the simulator as fast as possible
+    for 1 s; keyed by namespace, else executable."""
+    faster = tmp_path / 'faster.yaml'
+    faster.write_text('/**/attitude_simulator:\n  ros__parameters:\n'
+                      '    real_time_factor: 0.0\n    duration: 1.0\n')
+    procs = {}
+    for n in reversed(nodes):  # recorder first
+        cmd = [venv_exe(n.executable), *n.ros_arguments(namespace)]
+        if n.executable == 'simulator':
+            cmd += ['--params-file', str(faster)]
+        procs[n.namespace or n.executable] = ros_process(*cmd, env={'PYTHONUNBUFFERED': '1'})
+    return procs
