@@ -78,7 +78,12 @@ def test_make_demo_runs_the_live_graph_and_records_a_bag(tmp_path):
     # nothing the demo's own controller sends is refused, not even its zeros before t = 0
     # (stamped with its clock while the simulator's stamps wait for it: no future_stamp)
     log = (tmp_path / 'simulator.log').read_text()
-    assert 'rejected' not in log, log[-3000:]
+    # A command that a stall of the loaded machine delays past command_timeout is refused
+    # as stale, correctly and counted (the fresh clone's suite once: 0.62 s late); any other
+    # refusal (future_stamp, frame, non-finite) is the demo's own fault
+    reasons = set(re.findall(r'torque_command rejected \((\w+)\)', log))
+    assert reasons <= {'stale_stamp'} and 'rejected' not in log.replace(
+        'torque_command rejected (stale_stamp)', ''), log[-3000:]
 
 
 def _descendants_alive(marker):
