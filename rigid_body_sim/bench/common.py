@@ -181,3 +181,23 @@ def replace_section(folder, name, fields, rows, t_rows, prefixes):
     with open(path, 'w', encoding='utf-8') as f:
         f.write('\n'.join(lines[:ours[0]] + table + lines[ours[-1] + 1:]) + '\n')
     return report.write(folder)
+
+
+def section_main(doc, printed, update, quick=True):
+    """A section run alone (``python -m rigid_body_sim.bench.<section>``): with ``--update
+    DIR`` re-run into a full run's DIR (``update``, which returns the summary's path), else
+    each of ``printed(quick)``'s rows as a JSON line."""
+    import argparse
+    import json
+    parser = argparse.ArgumentParser(description=doc.splitlines()[0])
+    if quick:
+        parser.add_argument('--quick', action='store_true')
+    parser.add_argument('--update', metavar='DIR', default='',
+                        help="re-run the section into a full run's DIR (e.g. docs/bench): "
+                             'its CSV, its rows of targets.csv/targets.md, the summary')
+    args = parser.parse_args()
+    if args.update:
+        print(update(args.update))
+        return
+    for r in printed(getattr(args, 'quick', False)):
+        print(json.dumps(r))

@@ -93,14 +93,5 @@ def update(folder, log=print):
 
 
 if __name__ == '__main__':
-    import argparse
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument('--update', metavar='DIR', default='',
-                        help="re-run the section into a full run's DIR (e.g. docs/bench): "
-                             'compile.csv, its row of targets.csv/targets.md, the summary')
-    args = parser.parse_args()
-    if args.update:
-        print(update(args.update))
-    else:
-        for r in run(False):
-            print(json.dumps(r))
+    from .common import section_main
+    section_main(__doc__, run, update, quick=False)

@@ -191,15 +191,5 @@ def _scene_rate(name):
 
 
 if __name__ == '__main__':
-    import argparse
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument('--quick', action='store_true')
-    parser.add_argument('--update', metavar='DIR', default='',
-                        help='re-run the section into a full run\'s DIR (e.g. docs/bench): '
-                             'its CSV, its rows of targets.csv/targets.md, the summary')
-    args = parser.parse_args()
-    if args.update:
-        print(update(args.update))
-        sys.exit(0)
-    for r in run(args.quick)[1]:
-        print(json.dumps(r))
+    from .common import section_main
+    section_main(__doc__, lambda quick: run(quick)[1], update)
