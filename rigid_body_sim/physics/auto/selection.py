@@ -50,7 +50,7 @@ from ..body import RigidBody
 from ..dynamics import Dissipation, Dynamics
 from . import libration, pilot
 from ..integrators import Candidate
-from .model import CANDIDATES, RunModel, is_symmetric
+from .model import CANDIDATES, MEASURED_K, RTOL_RANGE, RunModel, is_symmetric
 
 __all__ = ['CANDIDATES', 'Candidate', 'Selection', 'select', 'selecting']
 
@@ -253,14 +253,20 @@ def selecting(body: RigidBody, dissipation: Dissipation, attitude, angular_veloc
     tolerances = {}
     for c in adaptive:  # a tolerance a priori (RunModel.tolerance): bounded, never piloted
         rtol, cost, err = s.tolerance(c)
-        tolerances[c.name] = rtol
         why.append(f'{c.name} rtol={rtol:.2g} (E≤{err:.2g})')
+        if err > accuracy:
+            # no promise: tighter, as far as its measured error law asks (RTOL_FLOOR)
+            why.append(f'{c.name} cannot promise {accuracy:g} rad even at rtol '
+                       f'{rtol:.0e}')
+            rtol, cost, err = s.beyond_bound(c)
+            if rtol < RTOL_RANGE[0]:
+                why.append(f'{c.name} at rtol {rtol:.2g} instead: its measured error '
+                           f'{MEASURED_K:g}·rtol·ΩT at the budget (E≤{err:.2g} by the bound; '
+                           'not a promise)')
+        tolerances[c.name] = rtol
         if (_better(c, cost, best, accuracy) if err <= accuracy
                 else best[3] > accuracy and err < best[3]):
             best = (c, max_step, cost, err)
-        if err > accuracy:
-            why.append(f'{c.name} cannot promise {accuracy:g} rad even at rtol '
-                       f'{rtol:.0e}')
     head = (f'{effects(commanded, dissipation, environment)} → cheapest method meeting '
             f'{accuracy:g} rad over '
             f'{horizon:g} s; Ω = {s.omega:.3g} rad/s; {s.costs.source}')
