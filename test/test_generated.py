@@ -5,7 +5,7 @@ import math
 import numpy as np
 import pytest
 
-from rigid_body_sim.bench import generated, oracle, perstep
+from rigid_body_sim.bench import generated, generated_judge, oracle, perstep
 from rigid_body_sim.offline import simulate
 from rigid_body_sim.physics import rotation
 
@@ -151,7 +151,7 @@ def test_an_infeasible_budget_is_counted_apart_from_auto_s_misses(monkeypatch, p
     monkeypatch.setattr(oracle, 'reference', lambda scene, cap=None: ref)
     monkeypatch.setattr(oracle, 'try_run', lambda f, attitude, **kw: (
         3 * scene.budget, 0.5, auto))
-    monkeypatch.setattr(generated, 'oracle', lambda *a, **kw: (best, [], ''))
+    monkeypatch.setattr(generated_judge, 'oracle', lambda *a, **kw: (best, [], ''))
     row = generated.judge(scene)
     assert row['status'] == status and row['auto_predicted_error'] == predicted
     ok = dict(row, status='ok', error_ratio=0.5, cpu_ratio=1.1, scene='x')

@@ -22,7 +22,7 @@ import math
 
 import numpy as np
 
-from .generated import Scene, _log_uniform
+from .generated_scenes import Scene, _log_uniform
 
 STREAM = 31
 ORBITS = {True: (0.03, 0.1), False: (0.05, 0.4)}
