@@ -201,7 +201,7 @@ def selecting(body: RigidBody, dissipation: Dissipation, attitude, angular_veloc
     # the attitude matters to the pilot only (set below): the a-priori pass skips its cost
     s = RunModel(dynamics or Dynamics(moments, dissipation), None, m, accuracy, horizon,
                  max_step, torque_rate, environment=environment,
-                 commanded=commanded or restarting)
+                 commanded=commanded or restarting, controlled=commanded)
     if s.omega == 0.0:
         return Selection('splitting2', max_step, 'body at rest, no torque: any step is exact',
                          0.0, s.run_cost(CANDIDATES[0], max_step))
