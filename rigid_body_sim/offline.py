@@ -147,21 +147,25 @@ def effective_parameters(scene: SceneFile, duration=None, integrator=None, step=
 OFFLINE_BLOCK = 16384
 
 
-def block_size(config) -> int:
+def block_size(config, limit=OFFLINE_BLOCK) -> int:
     """Samples per block for an offline run of ``config``: all of them (t = 0, every sample
-    instant, the end when off the grid) up to OFFLINE_BLOCK."""
+    instant, the end when off the grid) up to ``limit`` (None: all)."""
     d, p = config.duration_ns, config.sample_period_ns
-    return max(1, min(OFFLINE_BLOCK, d // p + 1 + (d % p != 0)))
+    n = max(1, d // p + 1 + (d % p != 0))
+    return n if limit is None else min(limit, n)
 
 
 def engine_for(scene: SceneFile, duration=None, integrator=None, step=None, accuracy=None,
-               integrator_options=None, check_stability=False) -> 'Engine':
+               integrator_options=None, check_stability=False,
+               interpolate_samples=True) -> 'Engine':
     """The engine for ``scene`` with CLI overrides; SceneError naming the problem.
     ``check_stability``: refuse or warn about a fixed method's step before the run: its
     stability, and its error predicted against the accuracy (``Engine.check_method``; the
     CLI does; the benchmarks run unstable steps on purpose). It also refuses a fixed
     method's step longer than the sample (or control) period, which the engine would
-    otherwise shorten to that period without a word."""
+    otherwise shorten to that period without a word. ``interpolate_samples``: samples
+    between a fixed method's steps (``Engine``; False: the state lands on every sample, as
+    in the live node)."""
     from .engine import Engine, EngineConfig
     p = effective_parameters(scene, duration, integrator, step, accuracy)
     if scene.spacecraft:
@@ -176,9 +180,12 @@ def engine_for(scene: SceneFile, duration=None, integrator=None, step=None, accu
         raise SceneError(f'{scene.path}: {exc}') from None
     if integrator_options:
         config = config.replace(integrator_options=dict(integrator_options))
+    # samples interpolated between the steps: the sample rate changes neither the steps
+    # nor auto's choice (engine.sample_kernel)
+    engine = Engine(config, check_method=check_stability, block_size=block_size(config),
+                    interpolate_samples=interpolate_samples)
     if check_stability:
-        _check_step_fits(config, 'step' if step is None else '--step')
-    engine = Engine(config, check_method=check_stability, block_size=block_size(config))
+        _check_step_fits(engine, 'step' if step is None else '--step')
     for verdict, message in engine.method_warnings:
         if verdict == 'refuse':
             raise SceneError(message)
@@ -186,15 +193,26 @@ def engine_for(scene: SceneFile, duration=None, integrator=None, step=None, accu
     return engine
 
 
-def _check_step_fits(config, where) -> None:
-    """SceneError when a fixed method's step exceeds the event spacing: the engine stops at
-    every sample (and control instant), so a step of 0.5 s at 100 samples/s ran at 0.01 s."""
+def _check_step_fits(engine, where) -> None:
+    """SceneError when a fixed method's step exceeds the spacing of the events it must land
+    on: the control period, and the sample period where samples cannot be interpolated
+    between steps (``sample_kernel.interpolation_allowed``: the interpolant's error against
+    the accuracy) — the engine would otherwise run a step of 0.5 s at 100 samples/s at
+    0.01 s without a word."""
+    from .engine.sample_kernel import interpolation_allowed
     from .engine.specs import AUTO
-    spacing = config.event_spacing()
-    if config.integrator == AUTO or config.actuators is not None or \
-            config.step <= spacing * (1 + 1e-9):
+    config = engine.config
+    if config.integrator == AUTO or config.actuators is not None:
         return
-    what = 'sample period' if spacing == config.sample_period else 'control period'
+    spacing, what = config.step, None
+    if config.control is not None and config.control.period_ns / 1e9 < spacing:
+        spacing, what = config.control.period_ns / 1e9, 'control period'
+    if config.sample_period < spacing and not (
+            engine.integrator is not None and engine.integrator.loop_code is not None
+            and interpolation_allowed(engine, engine.principal_state[1])):
+        spacing, what = config.sample_period, 'sample period'
+    if what is None or config.step <= spacing * (1 + 1e-9):
+        return
     raise SceneError(
         f'{where} {config.step:g} s is longer than the {what} {spacing:g} s: the engine stops '
         f'at every sample and control instant, so {config.integrator} would run at '
@@ -222,6 +240,8 @@ def simulate(scene: SceneFile, duration=None, integrator=None, step=None, accura
         engine = engine_for(scene, duration, integrator, step, accuracy, integrator_options,
                             check_stability)
     kept = [] if keep == 'all' else Decimated() if keep == 'plot' else None
+    if keep == 'all' and until_ns is None:  # every sample kept: one block, no copies
+        engine.reserve(block_size(engine.config, limit=None))
     bar = _Progress(engine.config.duration, progress)
     first = last = final = None
     count = 0

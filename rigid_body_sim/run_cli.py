@@ -46,7 +46,8 @@ def rehearse(scene, engine, keep) -> None:
     from . import offline
     from .engine import Engine
     from .engine.warm import warm_span
-    copy = Engine(engine.config, block_size=offline.block_size(engine.config))
+    copy = Engine(engine.config, block_size=offline.block_size(engine.config),
+                  interpolate_samples=engine.interpolate_samples)
     offline.simulate(scene, engine=copy, keep=keep,
                      until_ns=min(copy.end_ns, copy.t_ns + warm_span(engine.config)))
 

@@ -10,7 +10,10 @@ schedule and clip; at each sample instant it writes the state into the engine's
 preallocated block (``BlockBuilder``); between them it steps the same compiled integrator
 loop (``physics.integrators``), with the step split exactly as :meth:`Engine._integrate`
 splits it. The samples are the event-by-event path's (test_samples compares them bit for
-bit). :func:`advance` is the engine's side: it decides when the kernel applies, packs its
+bit). Offline (``ticks[INTERPOLATE]``, ``Engine.interpolate_samples``), a fixed-step
+method's steps split only the law's intervals and the samples inside are interpolated
+(``sample_kernel``): the steps and auto's choice then do not depend on the sample rate.
+:func:`advance` is the engine's side: it decides when the kernel applies, packs its
 arguments and takes its results back.
 
 Frames: q is principal → inertial and m the principal-frame momentum (what the
@@ -30,6 +33,8 @@ from ..physics import IntegrationError
 from ..physics import dynamics_kernel
 from ..physics.integrators import (dop853_dense, dop853_kernel, exact_flow_kernel,
                                    explicit_kernel, splitting_kernel)
+from . import sample_kernel
+from .sample_kernel import DOP853, EXACT, EULER, RK4, SPLITTING, fixed_steps
 from ..physics.jit import depends_on, jit
 from ..physics.environment import facets_kernel, magnetic_kernel
 from ..physics.orbit import kernel as orbit_kernel
@@ -44,13 +49,13 @@ NEVER_NS = NEVER  # numba reads module globals as compile-time constants
 # closed_loop_run's integer arguments (int64 array ``ticks``): instants and periods in ns,
 # codes and the block's first free row
 T_NS, LIMIT_NS, CONTROL_NS, PERIOD_NS, SAMPLE_NS, SAMPLE_PERIOD_NS, METHOD, MODEL, MODE, \
-    GYROSCOPIC, FREE, ROW, N_TICKS = range(13)
+    GYROSCOPIC, FREE, ROW, INTERPOLATE, N_TICKS = range(14)
 # and its real ones (float64 array ``reals``)
 H_MAX, COEFFICIENT, RATE_LIMIT, TORQUE_LIMIT, CLIP, MISSION_START, FREE_TIME, EXIT_RATE, \
     RTOL, ATOL, N_REALS = range(11)
-# the methods' loops (their classes' ``loop_code``)
-SPLITTING, RK4, EULER, DOP853, EXACT = range(5)
+__all__ = ['SPLITTING', 'RK4', 'EULER', 'DOP853', 'EXACT', 'closed_loop_run', 'advance']
 ADAPTIVE_FAILED = -3  # out[5] when dop853 failed: out[9] its status, out[10] where (ns)
+NEED_ROOM = -4  # out[5] when the next law interval's samples do not fit in the block
 N_OUT = 11
 
 
@@ -125,63 +130,106 @@ def closed_loop_run(state, ticks, reals, spec, body, law, block, out):
     t = ticks[T_NS]
     rows = 0
     capacity = len(t_out)
+    interpolate = ticks[INTERPOLATE] != 0
+    need_room = False
+    herm = np.empty((8, 4))  # a step's two ends and derivatives (sample_kernel.segment)
     while row + rows < capacity:
-        seg_end = min(control_ns, sample_ns)
-        if seg_end >= limit_ns:
-            break
-        span = seg_end - t
-        # equal steps no longer than h_max, split as Engine._integrate splits them
-        n = max(1, int(math.ceil(span / (h_max * 1e9) - 1e-9)))
-        h = span / (n * 1e9)
-        t0 = t / 1e9  # as Engine._integrate: the environment's torques see the same instants
-        if method == SPLITTING:
-            failed, e = splitting_kernel.splitting_run(
-                q, m, h, n, weights, split_axes, moments, tau_p, has_tau, model, coefficient,
-                splitting_kernel.inner_dissipation(m, h, weights, moments, model,
-                                                   coefficient), t0, env)
+        if interpolate:
+            # the steps split only the intervals between law instants (and the limit, a
+            # physics event here: closed_loop.advance); samples inside are interpolated
+            seg_end = min(control_ns, limit_ns)
+            if seg_end <= t:
+                break
+            at_limit = seg_end == limit_ns
+            # the samples it writes: before seg_end, and at it unless that is the limit
+            count = 0
+            if sample_ns < seg_end or (sample_ns == seg_end and not at_limit):
+                count = (seg_end - sample_ns) // sample_period_ns + 1
+                if at_limit and (seg_end - sample_ns) % sample_period_ns == 0:
+                    count -= 1
+            if count > capacity - row - rows:
+                if law:  # a law interval is never cut: the next block takes it whole
+                    need_room = True
+                    break
+                seg_end = sample_ns + (capacity - row - rows - 1) * sample_period_ns
+                at_limit = False
+            span = seg_end - t
+            n = max(1, int(math.ceil(span / (h_max * 1e9) - 1e-9)))
+            h = span / (n * 1e9)
+            inner = method == SPLITTING and splitting_kernel.inner_dissipation(
+                m, h, weights, moments, model, coefficient)
+            failed, e, written = sample_kernel.segment(
+                method, q, m, t, seg_end, n, sample_ns, sample_period_ns, weights, split_axes,
+                moments, tau_p, tau_body, has_tau, model, coefficient, inner, scratch, q_flow,
+                m_flow, env, herm, t_out, q_out, m_out, tau_out, row + rows)
             evals += e
-        elif method == RK4:
-            failed = explicit_kernel.rk4_steps(q, m, h, n, moments, tau_p, model, coefficient,
-                                               scratch, t0, env)
-            evals += 4 * (n if failed < 0 else failed + 1)
-        elif method == DOP853:
-            # one integration over n·h, as DOP853.run: natural steps, the end interpolated.
-            # A sample inside the step in progress is advance's first test, inlined here:
-            # the call itself (its arrays' reference counts) cost ~150 ns of a sample's ~200
-            if dop853_dense._interpolated(q, m, h * n, tau_p, memory):
-                status, e = dop853_kernel.OK, 0
-            else:
-                status, reached, h_next, e = dop853_dense.advance(
-                    q, m, h * n, tau_p, memory, moments, model, coefficient, rtol, atol, t0,
-                    env)
-            evals += e
-            if status != dop853_kernel.OK:
-                out[0] = t
+            rows += written
+            sample_ns += written * sample_period_ns
+            if failed == -2:  # an interpolated sample was not finite
+                out[0] = sample_ns
                 out[3] = steps
                 out[4] = evals
-                out[5] = ADAPTIVE_FAILED
+                out[5] = -2
                 out[6] = rows
-                out[9] = status
-                out[10] = t + int(reached * 1e9)
-                return h_next if h_next > 0.0 else h * n
-            failed = -1
-        elif method == EXACT:
-            failed, e = exact_flow_kernel.exact_steps(q, m, h, n, moments, tau_p, has_tau,
-                                                      model, coefficient, q_flow, m_flow)
-            evals += e
+                return h
+            if failed >= 0:
+                out[0] = t
+                out[3] = steps + failed + 1
+                out[4] = evals
+                out[5] = failed
+                out[6] = rows
+                return h
+            steps += n
+            t = seg_end
+            if at_limit:  # the limit's own events are the caller's
+                break
         else:
-            failed = explicit_kernel.euler_steps(q, m, h, n, moments, tau_p, model, coefficient,
-                                                 scratch, t0, env)
-            evals += n if failed < 0 else failed + 1
-        if failed >= 0:
-            out[0] = t
-            out[3] = steps + failed + 1
-            out[4] = evals
-            out[5] = failed
-            out[6] = rows
-            return h
-        steps += n
-        t = seg_end
+            seg_end = min(control_ns, sample_ns)
+            if seg_end >= limit_ns:
+                break
+            span = seg_end - t
+            # equal steps no longer than h_max, split as Engine._integrate splits them
+            n = max(1, int(math.ceil(span / (h_max * 1e9) - 1e-9)))
+            h = span / (n * 1e9)
+            t0 = t / 1e9  # as Engine._integrate: the environment's torques see these instants
+            if method == DOP853:
+                # one integration over n·h, as DOP853.run: natural steps, the end
+                # interpolated. A sample inside the step in progress is advance's first
+                # test, inlined here: the call itself (its arrays' reference counts) cost
+                # ~150 ns of a sample's ~200
+                if dop853_dense._interpolated(q, m, h * n, tau_p, memory):
+                    status, e = dop853_kernel.OK, 0
+                else:
+                    status, reached, h_next, e = dop853_dense.advance(
+                        q, m, h * n, tau_p, memory, moments, model, coefficient, rtol, atol,
+                        t0, env)
+                evals += e
+                if status != dop853_kernel.OK:
+                    out[0] = t
+                    out[3] = steps
+                    out[4] = evals
+                    out[5] = ADAPTIVE_FAILED
+                    out[6] = rows
+                    out[9] = status
+                    out[10] = t + int(reached * 1e9)
+                    return h_next if h_next > 0.0 else h * n
+                failed = -1
+            else:
+                inner = method == SPLITTING and splitting_kernel.inner_dissipation(
+                    m, h, weights, moments, model, coefficient)
+                failed, e = fixed_steps(method, q, m, h, n, weights, split_axes, moments,
+                                        tau_p, has_tau, model, coefficient, inner, scratch,
+                                        q_flow, m_flow, t0, env)
+                evals += e
+            if failed >= 0:
+                out[0] = t
+                out[3] = steps + failed + 1
+                out[4] = evals
+                out[5] = failed
+                out[6] = rows
+                return h
+            steps += n
+            t = seg_end
         if t == control_ns:
             # the body-frame state the law sees (Engine.attitude / angular_velocity)
             cx, cy, cz, cw = -p2b[0], -p2b[1], -p2b[2], p2b[3]
@@ -243,7 +291,7 @@ def closed_loop_run(state, ticks, reals, spec, body, law, block, out):
     out[2] = free
     out[3] = steps
     out[4] = evals
-    out[5] = -1
+    out[5] = NEED_ROOM if need_room else -1
     out[6] = rows
     out[7] = t
     out[8] = sample_ns
@@ -251,7 +299,7 @@ def closed_loop_run(state, ticks, reals, spec, body, law, block, out):
 
 
 # it calls the step loops and the law from their own files (see jit.depends_on)
-closed_loop_run = depends_on(closed_loop_run, splitting_kernel, explicit_kernel,
+closed_loop_run = depends_on(closed_loop_run, sample_kernel, splitting_kernel, explicit_kernel,
                              dop853_kernel, dop853_dense, exact_flow_kernel, dynamics_kernel,
                              control_kernel, orbit_kernel, magnetic_kernel, facets_kernel)
 
@@ -270,9 +318,10 @@ def advance(engine, state: State, law, builder, until_ns: int, cap: int) -> Opti
     code = None if integ is None else integ.loop_code  # the method's own
     if engine.selection_pending or code is None or engine.orbit_anchored:
         return None  # (an SGP4 orbit is re-anchored at every interval: event by event)
-    limit = min(engine.end_ns, engine.command.next_event(), until_ns + 1)
+    physical = min(engine.end_ns, engine.command.next_event())  # events of the physics
     if engine.magnetics is not None:  # a held dipole's expiry or a new one ends the stretch
-        limit = min(limit, engine.magnetics.next_event())
+        physical = min(physical, engine.magnetics.next_event())
+    limit = min(physical, until_ns + 1)
     if law is not None:
         if (engine.command.torque is not None or engine.command.expiry != NEVER
                 or not (state.torque_seen or c.integrator != specs.AUTO)):
@@ -326,6 +375,10 @@ def advance(engine, state: State, law, builder, until_ns: int, cap: int) -> Opti
         state.t_ns, limit, control_ns, period
     ticks[SAMPLE_NS], ticks[SAMPLE_PERIOD_NS] = state.next_sample, c.sample_period_ns
     ticks[METHOD], ticks[MODEL], ticks[ROW] = code, integ.loop_model(), builder.n
+    # samples between steps where the stretch ends at an event of the physics (with the law
+    # it ends at a law instant), never at a caller's until_ns, which would split a step
+    ticks[INTERPOLATE] = code != DOP853 and (law is not None or physical <= until_ns + 1) \
+        and sample_kernel.interpolation_allowed(engine, state.m)
     reals[H_MAX], reals[COEFFICIENT] = engine.step_max, d.coefficient
     reals[RTOL], reals[ATOL] = rtol, atol
     body = engine.body
@@ -355,7 +408,7 @@ def advance(engine, state: State, law, builder, until_ns: int, cap: int) -> Opti
             ctl.set_mode(next(k for k, v in MODE_CODES.items() if v == mode))
         law.torque = tau if tau.any() else None
     return Stretch(replace(state, q=q, m=m, t_ns=t_end, next_sample=next_sample), rows, steps,
-                   evals)
+                   evals, full=failed == NEED_ROOM)
 
 
 def _frozen(a):

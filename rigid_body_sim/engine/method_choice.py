@@ -15,6 +15,9 @@ from .specs import AUTO
 
 # the method of scenes with wheels or CMGs: the registered one that advances them
 ACTUATED = next(name for name, cls in INTEGRATORS.items() if cls.requires_actuators)
+# auto's longest step without a law when samples are interpolated (s): its model counts
+# events at this spacing; a sample period longer than this still bounds it
+FREE_SPACING = 1.0
 
 
 class MethodChoice:
@@ -31,6 +34,20 @@ class MethodChoice:
         self.step_max = float(h_max)
         self._anchor = None
 
+    def _spacing(self) -> float:
+        """The longest step (s). Where samples are interpolated between steps
+        (``interpolate_samples``: offline), they do not bound it, so that denser samples
+        change neither auto's choice nor the steps: the control period, and a fixed
+        method's step or auto's FREE_SPACING (or the sample period if longer). Otherwise
+        ``EngineConfig.event_spacing``: samples are events the steps land on."""
+        c = self.config
+        if not self.interpolate_samples:
+            return c.event_spacing()
+        h = max(c.sample_period, FREE_SPACING) if c.integrator == AUTO else c.step
+        if c.control is not None:
+            h = min(h, c.control.period_ns / NS)
+        return h
+
     def _choose(self):
         """Pick the method for the current state (``auto``) or take the configured one."""
         c = self.config
@@ -41,7 +58,7 @@ class MethodChoice:
                       'scene\'s step', actuators=self.actuators)
             return
         if c.integrator != AUTO:
-            self._use(c.integrator, c.event_spacing(),
+            self._use(c.integrator, self._spacing(),
                       f'set by the scene or parameter ({c.integrator})',
                       **dict(c.integrator_options))
             self.method_warnings = self._check_method() if self.check_method else []
@@ -52,7 +69,7 @@ class MethodChoice:
         # the budget covers the rest of the run (what went before was exact or is done)
         left = (self.end_ns - self.t_ns) / NS if c.duration_ns > 0 else 0.0
         kw = dict(torque=self._torque_seen, accuracy=c.accuracy, duration=left,
-                  max_step=c.event_spacing(),
+                  max_step=self._spacing(),
                   torque_rate=c.torque_rate(self._torque_seen) if torque else 0.0,
                   dynamics=self.dynamics,
                   environment=terms, forced=bool(terms) and c.environment.periodic_forcing,
@@ -122,13 +139,13 @@ class MethodChoice:
             sel = done.value
             self._selection = None
             self.selected = sel
-            self._use(sel.name, min(sel.step, self.config.event_spacing()) if sel.step > 0
-                      else self.config.event_spacing(), f'auto: {sel.reason}',
+            self._use(sel.name, min(sel.step, self._spacing()) if sel.step > 0
+                      else self._spacing(), f'auto: {sel.reason}',
                       **dict(sel.options))
         except (ValueError, IntegrationError) as exc:
             self.selection_cpu += time.process_time() - cpu0
             self._selection = None
-            self._use('splitting2', min(self.config.step, self.config.event_spacing()),
+            self._use('splitting2', min(self.config.step, self._spacing()),
                       f'auto: selection failed ({exc}); splitting2 at the scene\'s step')
         else:
             self.selection_cpu += time.process_time() - cpu0

@@ -33,9 +33,11 @@ class State:
 class Stretch:
     """What advancing over a stretch of events gives back: the new ``state``, the sample
     ``rows`` written into the block, the method's ``steps`` and ``evaluations``, and the
-    ``error`` that stopped it (None: none; the counts then include the failed steps)."""
+    ``error`` that stopped it (None: none; the counts then include the failed steps).
+    ``full``: it stopped because the block has no room for the next stretch's samples."""
     state: State
     rows: int
     steps: int
     evaluations: int
     error: Optional[IntegrationError] = None
+    full: bool = False

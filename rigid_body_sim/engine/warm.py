@@ -53,7 +53,7 @@ def warm_for(engine: Engine) -> set:
     60 ms of a 64 ms run). Returns the names of the methods it ran (:func:`load_kernels`)."""
     c = engine.config
     span = warm_span(c)
-    copy = Engine(c)
+    copy = Engine(c, interpolate_samples=engine.interpolate_samples)
     methods = {copy.method}
     for _ in copy.run(min(copy.end_ns, copy.t_ns + span)):
         methods.add(copy.method)

@@ -1,0 +1,193 @@
+"""Samples between steps: a fixed-step method's steps do not land on the sample instants.
+
+Landing on every sample shortened the steps to divide the sample period, so a run at 100
+samples/s ran other steps (and ``auto`` another method) than the same run at 1 sample/s:
+detumble's splitting6 at 20 ms became splitting4 at 5 ms, 1.6x the CPU. Here the steps
+are the method's own, splitting only the intervals between the events that change the
+physics (control instants, the end, a command's expiry), and a sample inside a step is
+the cubic Hermite interpolant of the step's two ends and their derivatives (two
+right-hand-side evaluations per step holding a sample, shared by consecutive steps): its
+error is ~(hΩ)⁴/384 of the rotation, checked against the accuracy budget before it is
+used (:func:`interpolation_allowed`). The state only ever advances by whole steps;
+interpolated values go to the block, never back into the trajectory.
+
+:func:`fixed_steps` runs n steps of any fixed-step method's compiled loop (the closed
+loop's dispatch, shared by both paths); :func:`segment` runs one interval between events
+with its samples interpolated. Frames and arguments as in ``closed_loop.closed_loop_run``.
+All but :func:`_end` (its ``env is not None`` is decided by the argument's type, which
+inlining loses) are inlined into it: a call between kernels costs a reference-count round
+trip per array argument (~0.1 µs for these ~20), per sample where steps land on samples.
+"""
+import math
+
+import numpy as np
+
+from ..physics import dynamics_kernel
+from ..physics.dynamics_kernel import _environment, _rates
+from ..physics.integrators import (dop853_dense, dop853_kernel, exact_flow_kernel,
+                                   explicit_kernel, splitting_kernel)
+from ..physics.jit import depends_on, inline, jit
+from ..physics.environment import facets_kernel, magnetic_kernel
+from ..physics.orbit import kernel as orbit_kernel
+
+# the methods' loops (their classes' ``loop_code``)
+SPLITTING, RK4, EULER, DOP853, EXACT = range(5)
+# a sample this close to a step's end (in steps) is that end's own state
+ON_STEP = 1e-9
+
+
+@inline
+def fixed_steps(method, q, m, h, n, weights, split_axes, moments, tau_p, has_tau, model,
+                coefficient, inner, scratch, q_flow, m_flow, t0, env):
+    """n steps of h of a fixed-step method's loop from (q, m) at t0 (s), in place: (first
+    failing step or -1, right-hand-side evaluations)."""
+    if method == SPLITTING:
+        return splitting_kernel.splitting_run(q, m, h, n, weights, split_axes, moments, tau_p,
+                                              has_tau, model, coefficient, inner, t0, env)
+    if method == RK4:
+        failed = explicit_kernel.rk4_steps(q, m, h, n, moments, tau_p, model, coefficient,
+                                           scratch, t0, env)
+        return failed, 4 * (n if failed < 0 else failed + 1)
+    if method == EXACT:
+        return exact_flow_kernel.exact_steps(q, m, h, n, moments, tau_p, has_tau, model,
+                                             coefficient, q_flow, m_flow)
+    failed = explicit_kernel.euler_steps(q, m, h, n, moments, tau_p, model, coefficient,
+                                         scratch, t0, env)
+    return failed, n if failed < 0 else failed + 1
+
+
+@jit
+def _end(q, m, moments, tau_p, model, coefficient, t, env, herm, at):
+    """The state and its derivative into herm[at:at + 4] = (q, m, dq, dm): one evaluation."""
+    for i in range(4):
+        herm[at, i] = q[i]
+    for i in range(3):
+        herm[at + 1, i] = m[i]
+        herm[at + 3, i] = 0.0
+    _rates(herm[at], herm[at + 1, :3], moments, tau_p, model, coefficient, herm[at + 2],
+           herm[at + 3, :3])
+    if env is not None:
+        _environment(herm[at], t, env, moments, herm[at + 3, :3])
+
+
+@inline
+def _hermite(herm, h, theta, q_row, m_row):
+    """The cubic Hermite interpolant of the step held in herm at theta ∈ (0, 1) of h; q
+    normalised. False if not finite."""
+    t2 = theta * theta
+    t3 = t2 * theta
+    a0 = 2.0 * t3 - 3.0 * t2 + 1.0
+    a1 = 1.0 - a0
+    b0 = (t3 - 2.0 * t2 + theta) * h
+    b1 = (t3 - t2) * h
+    norm = 0.0
+    for i in range(4):
+        v = a0 * herm[0, i] + b0 * herm[2, i] + a1 * herm[4, i] + b1 * herm[6, i]
+        q_row[i] = v
+        norm += v * v
+    norm = math.sqrt(norm)
+    finite = math.isfinite(norm) and norm > 0.0
+    for i in range(4):
+        q_row[i] /= norm
+    for i in range(3):
+        m_row[i] = a0 * herm[1, i] + b0 * herm[3, i] + a1 * herm[5, i] + b1 * herm[7, i]
+        finite = finite and math.isfinite(m_row[i])
+    return finite
+
+
+@inline
+def segment(method, q, m, a_ns, b_ns, n, sample_ns, sample_period_ns, weights, split_axes,
+            moments, tau_p, tau_body, has_tau, model, coefficient, inner, scratch, q_flow,
+            m_flow, env, herm, t_out, q_out, m_out, tau_out, row):
+    """n equal steps from a_ns to b_ns (ns) from (q, m), in place, writing every sample
+    instant sample_ns + k·sample_period_ns < b_ns into rows row, row + 1, … (the caller
+    made room): a step's own end where the sample falls on it, else the step's Hermite
+    interpolant (herm (8, 4): scratch). Returns (first failing step of the segment or -1,
+    -2 if an interpolated sample was not finite, evaluations, rows written)."""
+    span = b_ns - a_ns
+    h = span / (n * 1e9)
+    t0 = a_ns / 1e9
+    k = 0  # steps taken: the state is at a + k·h
+    held = -2  # the step whose two ends herm holds (none yet: not j - 1 of step 0)
+    evals = 0
+    rows = 0
+    s = sample_ns
+    while s < b_ns:
+        x = (s - a_ns) * (n / span)
+        j = int(math.floor(x))
+        theta = x - j
+        if theta > 1.0 - ON_STEP:
+            j += 1
+            theta = 0.0
+        elif theta < ON_STEP:
+            theta = 0.0
+        r = row + rows
+        if theta == 0.0 or held != j:
+            if j > k:
+                failed, e = fixed_steps(method, q, m, h, j - k, weights, split_axes, moments,
+                                        tau_p, has_tau, model, coefficient, inner, scratch,
+                                        q_flow, m_flow, t0 + k * h, env)
+                evals += e
+                if failed >= 0:
+                    return k + failed, evals, rows
+                k = j
+        if theta != 0.0 and held != j:
+            if held >= 0 and held == j - 1:  # the previous step's end is this one's start
+                for i in range(4):
+                    herm[0, i], herm[2, i] = herm[4, i], herm[6, i]
+                for i in range(3):
+                    herm[1, i], herm[3, i] = herm[5, i], herm[7, i]
+            else:
+                _end(q, m, moments, tau_p, model, coefficient, t0 + k * h, env, herm, 0)
+                evals += 1
+            failed, e = fixed_steps(method, q, m, h, 1, weights, split_axes, moments, tau_p,
+                                    has_tau, model, coefficient, inner, scratch, q_flow, m_flow,
+                                    t0 + k * h, env)
+            evals += e
+            if failed >= 0:
+                return k + failed, evals, rows
+            k += 1
+            _end(q, m, moments, tau_p, model, coefficient, t0 + k * h, env, herm, 4)
+            evals += 1
+            held = j
+        if theta == 0.0:
+            for i in range(4):
+                q_out[r, i] = q[i]
+            for i in range(3):
+                m_out[r, i] = m[i]
+        elif not _hermite(herm, h, theta, q_out[r], m_out[r]):
+            return -2, evals, rows
+        t_out[r] = s
+        for i in range(3):
+            tau_out[r, i] = tau_body[i]
+        rows += 1
+        s += sample_period_ns
+    if k < n:
+        failed, e = fixed_steps(method, q, m, h, n - k, weights, split_axes, moments, tau_p,
+                                has_tau, model, coefficient, inner, scratch, q_flow, m_flow,
+                                t0 + k * h, env)
+        evals += e
+        if failed >= 0:
+            return k + failed, evals, rows
+    return -1, evals, rows
+
+
+def interpolation_allowed(engine, m) -> bool:
+    """Whether an offline engine (``Engine.interpolate_samples``) may interpolate samples
+    between its fixed method's steps: the cubic Hermite's attitude error, ~(hΩ)⁴/3072 for
+    a rotation at Ω (q turns at Ω/2; its fourth derivative is (Ω/2)⁴), taken at 2Ω for a
+    tumble's nutation, ≤ a tenth of the run's accuracy budget. Ω: the body's rate now, or
+    the torque's rate scale if larger (``EngineConfig.torque_rate``: the law's bandwidth)."""
+    if not engine.interpolate_samples:
+        return False
+    c = engine.config
+    rate = float(np.linalg.norm(m / engine.dynamics.moments))
+    rate = max(rate, c.torque_rate(c.control is not None or engine.torque is not None))
+    return (engine.step_max * rate) ** 4 / 192.0 <= 0.1 * c.accuracy
+
+
+# they call the step loops from their own files (see jit.depends_on)
+for _kernel in (fixed_steps, _end, segment):
+    depends_on(_kernel, splitting_kernel, explicit_kernel, dop853_kernel, dop853_dense,
+               exact_flow_kernel, dynamics_kernel, orbit_kernel, magnetic_kernel,
+               facets_kernel)
