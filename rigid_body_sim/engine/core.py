@@ -177,6 +177,11 @@ class Engine(MethodChoice):
         self._set_baseline()
 
     @property
+    def next_sample_ns(self) -> int:
+        """The next sample instant on the grid the engine will produce (ns)."""
+        return self._next_sample
+
+    @property
     def t(self) -> float:
         return self.t_ns / NS
 
@@ -393,6 +398,8 @@ class Engine(MethodChoice):
             # actuators the gyrostat steps: the event path (Python) runs those
             if self._compiled_samples and not self._free_exact() and \
                     self._advance_compiled(until_ns, cap):
+                if self.t_ns >= until_ns:  # every event through until_ns is done (its
+                    break  # limit was until_ns + 1): no second call to find none (lockstep)
                 continue
             t_src = min(s.next_event() for s in self.sources)
             end = self.end_ns
