@@ -119,6 +119,20 @@ def vector3_stamped_fields(data: bytes):
     return stamped_fields(data, 3)
 
 
+_LITTLE = _LAYOUTS[b'\x00\x01']
+
+
+def vector3_stamped_cdr(sec: int, nanosec: int, frame_id: str, x, y, z) -> bytes:
+    """A geometry_msgs/Vector3Stamped's plain-CDR bytes (little-endian), as rclpy's
+    serialiser writes them but for the alignment padding (zeros here, uninitialised
+    there): what the lockstep controller publishes, without building a message object
+    and setting its checked fields one by one for every exchange."""
+    frame = frame_id.encode()
+    head = b'\x00\x01\x00\x00' + _LITTLE[0].pack(sec, nanosec, len(frame) + 1) + frame
+    pad = -(len(head) - 3) % 8  # the terminating zero, then up to the 8-aligned vector
+    return head + bytes(1 + pad) + _LITTLE[1][3].pack(x, y, z)
+
+
 def _header(sec, nanosec, frame_id):
     return _Fields(stamp=_Fields(sec=sec, nanosec=nanosec), frame_id=frame_id)
 

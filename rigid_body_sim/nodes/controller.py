@@ -57,7 +57,7 @@ from .. import control
 from ..engine import ControlLaw, ControlSettings, specs
 from ..sensors.estimator import AttitudeEstimator
 from .bdot_commands import BdotCommands
-from .commands import quaternion_stamped, vector3_stamped
+from .commands import quaternion_stamped, vector3_stamped, vector3_stamped_cdr
 from .common import (changed_values, coerce_parameters, declare_parameters, diagnostic_status,
                      frame_id_problem, qos_profile, stamp_to_seconds, validate_update)
 from .process import events_executor, run_node
@@ -316,12 +316,10 @@ class Controller(Node):
                 self._saturated_ticks += self._last.saturated
                 self._rate_limited_ticks += self._last.rate_limited
         self._ticks += 1
-        msg = Vector3Stamped()
-        # field by field: in lockstep the stamp is a decoded state's (commands._Fields)
-        msg.header.stamp.sec, msg.header.stamp.nanosec = stamp.sec, stamp.nanosec
-        msg.header.frame_id = self._p['child_frame_id']
-        msg.vector.x, msg.vector.y, msg.vector.z = torque
-        self._pub.publish(msg)
+        # its CDR bytes, built directly (commands.py: why); in lockstep the stamp is a
+        # decoded state's (commands._Fields), else the clock's
+        self._pub.publish(vector3_stamped_cdr(stamp.sec, stamp.nanosec,
+                                              self._p['child_frame_id'], *torque))
         self._published += 1
         if self._bdot is not None and (self._ctl.mode == 'bdot' or self._timer is None):
             self._bdot.publish(stamp)  # lockstep: every instant, as the simulator awaits it
