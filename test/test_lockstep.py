@@ -291,3 +291,59 @@ def test_the_floor_tool_measures_a_bare_rclpy_exchange():
     assert got['exchanges'] == 20 and got['command_taken_as'] == 'bytes', got
     assert 0 < got['thread_cpu_per_exchange_us'] <= got['cpu_per_exchange_us'], got
     assert got['wall_per_exchange_us'] > 0 and len(got['cpu_per_exchange_us_runs']) == 1, got
+
+
+def test_lockstep_nodes_publish_synchronously(tmp_path):
+    """The simulator and the controller choose Fast DDS's synchronous publication when
+    their ``--ros-args`` set ``lockstep: true`` (a params file section that matches the
+    node, renamed and namespaced or not, or a ``-p`` rule, the later winning), and the
+    asynchronous one otherwise; a mode the user set in the environment is kept. Checked
+    in a process of its own: the choice is the environment's, made before rclpy.init."""
+    import subprocess
+    over = tmp_path / 'lockstep.yaml'
+    over.write_text('/**/attitude_simulator:\n  ros__parameters:\n    lockstep: true\n'
+                    '/**/attitude_controller:\n  ros__parameters:\n    lockstep: false\n')
+    probe = ('import os, sys\n'
+             'from rigid_body_sim.nodes import process\n'
+             'name, args = sys.argv[1], sys.argv[2:]\n'
+             'assert process.start_ros(name, ["x"] + args, lockstep=True) is None\n'
+             'print(os.environ["RMW_FASTRTPS_PUBLICATION_MODE"])\n'
+             'import rclpy; rclpy.try_shutdown()\n')
+
+    def mode(name, *args, env=()):
+        environ = {k: v for k, v in os.environ.items()
+                   if k != 'RMW_FASTRTPS_PUBLICATION_MODE'}
+        out = subprocess.run([sys.executable, '-c', probe, name, '--ros-args', *args],
+                             env={**environ, **dict(env)}, capture_output=True, text=True,
+                             timeout=120)
+        assert out.returncode == 0, out.stderr[-2000:]
+        return out.stdout.split()[-1]
+    files = ('--params-file', str(over))
+    assert mode('attitude_simulator', '-r', '__ns:=/sat1', *files) == 'SYNCHRONOUS'
+    assert mode('attitude_simulator', *files, '-p', 'lockstep:=false') == 'ASYNCHRONOUS'
+    assert mode('attitude_simulator', '-p', 'lockstep:=true') == 'SYNCHRONOUS'
+    assert mode('attitude_simulator') == 'ASYNCHRONOUS'
+    assert mode('attitude_controller', *files) == 'ASYNCHRONOUS'
+    assert mode('attitude_controller', *files, '-p', 'lockstep:=true') == 'SYNCHRONOUS'
+    assert mode('sim', '-r', '__node:=attitude_simulator', *files) == 'SYNCHRONOUS'
+    assert mode('attitude_simulator', *files,
+                env={'RMW_FASTRTPS_PUBLICATION_MODE': 'ASYNCHRONOUS'}) == 'ASYNCHRONOUS'
+
+
+def test_the_lockstep_benchmark_writes_its_target_rows():
+    """tools/lockstep.py's rows of targets.csv: the simulator's CPU per exchange as fast as
+    possible (the worse rate's median, against 100 µs) and the achieved rate at real time
+    at each control rate (against the rate, 1 % short allowed), with the load."""
+    from rigid_body_sim.tools.lockstep import targets_from
+
+    def row(rate, cpu, achieved):
+        fast = {'sim_cpu_per_period_us': cpu, 'sim_thread_cpu_per_period_us': cpu / 2}
+        return {'control_rate_hz': rate, 'as_fast_as_possible': fast,
+                'real_time': {'achieved_rate_hz': achieved}}
+    got = targets_from([row(100.0, 90.0, 99.5), row(1000.0, 140.0, 900.0)], [3.0, 4.0])
+    assert [(r['measured'], r['required'], r['verdict']) for r in got] == [
+        (140.0, 100.0, 'MISS'), (99.5, 100.0, 'PASS'), (900.0, 1000.0, 'MISS')]
+    assert '1000 Hz: 140 (70 in its thread)' in got[0]['note'] and 'load 3.0-4.0' in \
+        got[0]['note']
+    got = targets_from([row(100.0, 90.0, 98.0)], [3.0, 4.0])
+    assert [r['verdict'] for r in got] == ['PASS', 'MISS']

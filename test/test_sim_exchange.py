@@ -7,6 +7,7 @@ loop is driven by hand (``run_once``), so that what it does per turn can be obse
 subscribers are this test's own node, exchanging real messages with it.
 """
 import pytest
+from geometry_msgs.msg import Vector3Stamped
 from rclpy.parameter import Parameter
 from rclpy.serialization import serialize_message
 
@@ -125,6 +126,32 @@ def test_the_held_instants_command_takes_the_short_way(rclpy_node, simulator):
     assert len(routed) == 4 and sim.lockstep_held is None
 
 
+def test_lockstep_at_real_time_calls_the_engine_only_when_a_sample_is_due(rclpy_node,
+                                                                          simulator):
+    """Lockstep at real time: once the held instant's command is in, the next turn before
+    the next sample is due leaves the engine alone (before, it called it to find no
+    event, at every exchange) and waits until then; once due, the run goes on to the
+    next instant, published and held."""
+    sim = simulator(lockstep=True, publish_clock=True, real_time_factor=1.0,
+                    publish_rate=1.0, control_rate=1.0, command_timeout=2.0,
+                    lockstep_timeout=30.0)
+    engine = sim._crafts[''].engine
+    calls = []
+    advance = engine.advance
+    engine.advance = lambda *a, **k: (calls.append(a[0]), advance(*a, **k))[1]
+    sim.run_once()
+    assert sim.lockstep_held is not None and sim.t_ns == 0
+    msg = Vector3Stamped()
+    msg.header.frame_id, msg.vector.z = 'base_link', 0.01
+    sim._on_torque_bytes(serialize_message(msg))  # stamp 0: the held instant's
+    assert sim.lockstep_held is None
+    del calls[:]
+    wait = sim.run_once()  # the next sample is due a second after t = 0
+    assert calls == [] and sim.t_ns == 0 and wait > 0, (calls, sim.t_ns, wait)
+    assert spin_until(rclpy_node, lambda: (sim.run_once(), sim.t_ns)[-1] == NS, 30), sim.t_ns
+    assert calls and sim.lockstep_held is not None
+
+
 @pytest.mark.parametrize('frame, stamp, vector', [
     ('', (0, 0), (0.0, 0.0, 0.0)),
     ('base_link', (12, 340_000_000), (1e-3, -2.5e-7, 3.0)),
@@ -157,3 +184,53 @@ def test_commands_decode_from_their_bytes_as_rclpy_does(frame, stamp, vector):
                                                                     math.isnan(b))
     with pytest.raises(Exception):
         vector3_stamped(data[:-8])  # truncated: rclpy's own error
+
+
+@pytest.mark.parametrize('frame, stamp, quaternion', [
+    ('world', (0, 0), (0.0, 0.0, 0.0, 1.0)),
+    ('w', (3, 20_000_000), (0.1, -0.2, 0.3, 0.9273618495495704)),
+    ('a_longer_frame/name', (2**31 - 1, 1), (float('nan'), -0.0, 5e-324, 1e308))])
+def test_states_decode_from_their_bytes_as_rclpy_does(frame, stamp, quaternion):
+    """The lockstep controller takes the simulator's attitude as CDR bytes: they give the
+    fields rclpy's deserialiser gives, bit for bit (NaN included), little- and big-endian;
+    bytes of another layout are left to rclpy, which raises for them."""
+    import struct
+    from geometry_msgs.msg import QuaternionStamped
+    from rclpy.serialization import deserialize_message
+    from rigid_body_sim.nodes.commands import quaternion_stamped
+    msg = QuaternionStamped()
+    msg.header.frame_id = frame
+    msg.header.stamp.sec, msg.header.stamp.nanosec = stamp
+    o = msg.quaternion
+    o.x, o.y, o.z, o.w = quaternion
+    data = serialize_message(msg)
+    ref = deserialize_message(data, QuaternionStamped)
+    big = (b'\x00\x00\x00\x00' + struct.pack('>iII', *stamp, len(frame) + 1) + frame.encode()
+           + b'\x00')
+    big += b'\x00' * (-(len(big) - 4) % 8) + struct.pack('>4d', *quaternion)
+    for raw in (data, big):
+        got = quaternion_stamped(raw)
+        assert got.header.frame_id == ref.header.frame_id
+        assert (got.header.stamp.sec, got.header.stamp.nanosec) == stamp
+        q, r = got.quaternion, ref.quaternion
+        assert struct.pack('<4d', q.x, q.y, q.z, q.w) == struct.pack('<4d', r.x, r.y, r.z, r.w)
+    with pytest.raises(Exception):
+        quaternion_stamped(data[:-8])  # truncated: rclpy's own error
+
+
+@pytest.mark.parametrize('frame', ['', 'b', 'base_link', 'abcdefgh', 'sc1/base_link_long'])
+def test_commands_encode_to_the_bytes_rclpy_reads(frame):
+    """The controller publishes its command as CDR bytes it builds itself: rclpy's
+    deserialiser reads them as the message it would have serialised, field for field, and
+    they are as long as rclpy's own bytes; our decoder reads them back."""
+    from geometry_msgs.msg import Vector3Stamped
+    from rclpy.serialization import deserialize_message
+    from rigid_body_sim.nodes.commands import vector3_stamped_cdr, vector3_stamped_fields
+    msg = Vector3Stamped()
+    msg.header.frame_id = frame
+    msg.header.stamp.sec, msg.header.stamp.nanosec = 12, 340_000_000
+    msg.vector.x, msg.vector.y, msg.vector.z = 1e-3, -2.5e-7, 0.0
+    data = vector3_stamped_cdr(12, 340_000_000, frame, 1e-3, -2.5e-7, 0.0)
+    assert deserialize_message(data, Vector3Stamped) == msg
+    assert len(data) == len(serialize_message(msg))
+    assert vector3_stamped_fields(data) == (12, 340_000_000, frame, 1e-3, -2.5e-7, 0.0)

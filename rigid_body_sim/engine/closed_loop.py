@@ -21,7 +21,6 @@ integrators advance); the law sees the body frame (attitude body → inertial, �
 everywhere else. ``p2b`` is the principal → body rotation (x, y, z, w), ``axes`` its
 matrix (v_body = axes @ v_principal).
 """
-from dataclasses import replace
 import math
 from typing import Optional
 
@@ -407,8 +406,9 @@ def advance(engine, state: State, law, builder, until_ns: int, cap: int) -> Opti
         if mode != MODE_CODES[ctl.mode]:
             ctl.set_mode(next(k for k, v in MODE_CODES.items() if v == mode))
         law.torque = tau if tau.any() else None
-    return Stretch(replace(state, q=q, m=m, t_ns=t_end, next_sample=next_sample), rows, steps,
-                   evals, full=failed == NEED_ROOM)
+    # the record made directly: dataclasses.replace inspects the fields at every call
+    return Stretch(State(q, m, t_end, next_sample, state.tau_body, state.tau_p,
+                         state.torque_seen), rows, steps, evals, full=failed == NEED_ROOM)
 
 
 def _frozen(a):

@@ -186,6 +186,11 @@ class Engine(MethodChoice):
         self._set_baseline()
 
     @property
+    def next_sample_ns(self) -> int:
+        """The next sample instant on the grid the engine will produce (ns)."""
+        return self._next_sample
+
+    @property
     def t(self) -> float:
         return self.t_ns / NS
 
@@ -404,6 +409,11 @@ class Engine(MethodChoice):
             if self._compiled_samples and not self._free_exact():
                 added = self._advance_compiled(until_ns, cap)
                 if added > 0:
+                    # every event and sample through until_ns done (its limit was
+                    # until_ns + 1): no second call to find none (lockstep); offline, a
+                    # sample at the limit is the event path's (interpolate_samples)
+                    if self.t_ns >= until_ns and self._next_sample > until_ns:
+                        break
                     continue
                 if added < 0 and b.n:  # the next law interval's samples: the next block's
                     break

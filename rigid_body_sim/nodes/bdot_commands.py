@@ -72,7 +72,7 @@ class BdotCommands:
 
     def publish(self, stamp):
         msg = Vector3Stamped()
-        msg.header.stamp = stamp
+        msg.header.stamp.sec, msg.header.stamp.nanosec = stamp.sec, stamp.nanosec  # or decoded
         msg.header.frame_id = self.p['child_frame_id']
         msg.vector.x, msg.vector.y, msg.vector.z = (float(v) for v in self.dipole)
         self.pub.publish(msg)

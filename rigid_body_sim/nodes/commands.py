@@ -86,28 +86,69 @@ class _Fields:
 
 
 _ENDIAN = {b'\x00\x01': '<', b'\x00\x00': '>'}  # plain CDR: little-, big-endian
-# per encapsulation: (stamp and frame id's length, the vector)
-_LAYOUTS = {kind: (struct.Struct(order + 'iII'), struct.Struct(order + '3d'))
+# per encapsulation: (stamp and frame id's length, the payload of n doubles for n = 3, 4)
+_LAYOUTS = {kind: (struct.Struct(order + 'iII'), {n: struct.Struct(f'{order}{n}d')
+                                                  for n in (3, 4)})
             for kind, order in _ENDIAN.items()}
 
 
-def vector3_stamped_fields(data: bytes):
-    """(sec, nanosec, frame_id, x, y, z) of a geometry_msgs/Vector3Stamped's plain-CDR
-    bytes (a raw subscription's), or None for another encoding or bytes that are not one.
-    Plain tuples and precompiled structs: lockstep takes one command per exchange, and each
-    object or format parse there is CPU of every exchange (sim_lockstep.py)."""
+def stamped_fields(data: bytes, n: int = 3):
+    """(sec, nanosec, frame_id, *n doubles) of a stamped message whose payload after the
+    header is ``n`` doubles (geometry_msgs/Vector3Stamped: 3, QuaternionStamped: 4), from
+    its plain-CDR bytes (a raw subscription's), or None for another encoding or bytes
+    that are not one. Plain tuples and precompiled structs: lockstep takes one command
+    per exchange, and each object or format parse there is CPU of every exchange
+    (sim_lockstep.py)."""
     layout = _LAYOUTS.get(data[:2])
     if layout is None or len(data) < 16:
         return None
     sec, nanosec, size = layout[0].unpack_from(data, 4)
-    at = 4 + ((12 + size + 7) & ~7)  # the vector: 8-aligned after the frame id
-    if size < 1 or len(data) < at + 24 or data[15 + size] != 0:
+    at = 4 + ((12 + size + 7) & ~7)  # the doubles: 8-aligned after the frame id
+    if size < 1 or len(data) < at + 8 * n or data[15 + size] != 0:
         return None
     try:
         frame_id = data[16:15 + size].decode()
     except UnicodeDecodeError:
         return None
-    return (sec, nanosec, frame_id) + layout[1].unpack_from(data, at)
+    return (sec, nanosec, frame_id) + layout[1][n].unpack_from(data, at)
+
+
+def vector3_stamped_fields(data: bytes):
+    """(sec, nanosec, frame_id, x, y, z) of a geometry_msgs/Vector3Stamped's CDR bytes, or
+    None (``stamped_fields``)."""
+    return stamped_fields(data, 3)
+
+
+_LITTLE = _LAYOUTS[b'\x00\x01']
+
+
+def vector3_stamped_cdr(sec: int, nanosec: int, frame_id: str, x, y, z) -> bytes:
+    """A geometry_msgs/Vector3Stamped's plain-CDR bytes (little-endian), as rclpy's
+    serialiser writes them but for the alignment padding (zeros here, uninitialised
+    there): what the lockstep controller publishes, without building a message object
+    and setting its checked fields one by one for every exchange."""
+    frame = frame_id.encode()
+    head = b'\x00\x01\x00\x00' + _LITTLE[0].pack(sec, nanosec, len(frame) + 1) + frame
+    pad = -(len(head) - 3) % 8  # the terminating zero, then up to the 8-aligned vector
+    return head + bytes(1 + pad) + _LITTLE[1][3].pack(x, y, z)
+
+
+def _header(sec, nanosec, frame_id):
+    return _Fields(stamp=_Fields(sec=sec, nanosec=nanosec), frame_id=frame_id)
+
+
+def quaternion_stamped(data: bytes):
+    """A geometry_msgs/QuaternionStamped's fields from its CDR bytes, as rclpy's
+    deserialiser gives them (``vector3_stamped`` says why; the lockstep controller takes
+    the simulator's attitude this way)."""
+    fields = stamped_fields(data, 4)
+    if fields is not None:
+        sec, nanosec, frame_id, x, y, z, w = fields
+        return _Fields(header=_header(sec, nanosec, frame_id),
+                       quaternion=_Fields(x=x, y=y, z=z, w=w))
+    from geometry_msgs.msg import QuaternionStamped
+    from rclpy.serialization import deserialize_message
+    return deserialize_message(data, QuaternionStamped)
 
 
 def vector3_stamped(data: bytes):
@@ -119,9 +160,7 @@ def vector3_stamped(data: bytes):
     fields = vector3_stamped_fields(data)
     if fields is not None:
         sec, nanosec, frame_id, x, y, z = fields
-        return _Fields(header=_Fields(stamp=_Fields(sec=sec, nanosec=nanosec),
-                                      frame_id=frame_id),
-                       vector=_Fields(x=x, y=y, z=z))
+        return _Fields(header=_header(sec, nanosec, frame_id), vector=_Fields(x=x, y=y, z=z))
     from geometry_msgs.msg import Vector3Stamped
     from rclpy.serialization import deserialize_message
     return deserialize_message(data, Vector3Stamped)

@@ -42,6 +42,7 @@ import sys
 import time
 
 import numpy as np
+import rclpy
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 from rclpy.parameter import Parameter
@@ -56,9 +57,10 @@ from .. import control
 from ..engine import ControlLaw, ControlSettings, specs
 from ..sensors.estimator import AttitudeEstimator
 from .bdot_commands import BdotCommands
+from .commands import quaternion_stamped, vector3_stamped, vector3_stamped_cdr
 from .common import (changed_values, coerce_parameters, declare_parameters, diagnostic_status,
                      frame_id_problem, qos_profile, stamp_to_seconds, validate_update)
-from .process import run_node
+from .process import events_executor, run_node
 
 NODE_NAME = 'attitude_controller'
 DIAGNOSTICS_PERIOD_S = 1.0  # wall clock
@@ -140,6 +142,11 @@ class Controller(Node):
             self.create_subscription(Imu, 'gyro', self._on_gyro, qos)
             self.create_subscription(QuaternionStamped, 'star_tracker', self._on_star_tracker,
                                      qos)
+        elif self._p['lockstep']:  # raw: decoded from the bytes (commands.py: why)
+            self.create_subscription(QuaternionStamped, 'attitude', lambda data: (
+                self._on_attitude(quaternion_stamped(data))), qos, raw=True)
+            self.create_subscription(Vector3Stamped, 'angular_velocity', lambda data: (
+                self._on_angular_velocity(vector3_stamped(data))), qos, raw=True)
         else:
             self.create_subscription(QuaternionStamped, 'attitude', self._on_attitude, qos)
             self.create_subscription(Vector3Stamped, 'angular_velocity',
@@ -309,11 +316,10 @@ class Controller(Node):
                 self._saturated_ticks += self._last.saturated
                 self._rate_limited_ticks += self._last.rate_limited
         self._ticks += 1
-        msg = Vector3Stamped()
-        msg.header.stamp = stamp
-        msg.header.frame_id = self._p['child_frame_id']
-        msg.vector.x, msg.vector.y, msg.vector.z = torque
-        self._pub.publish(msg)
+        # its CDR bytes, built directly (commands.py: why); in lockstep the stamp is a
+        # decoded state's (commands._Fields), else the clock's
+        self._pub.publish(vector3_stamped_cdr(stamp.sec, stamp.nanosec,
+                                              self._p['child_frame_id'], *torque))
         self._published += 1
         if self._bdot is not None and (self._ctl.mode == 'bdot' or self._timer is None):
             self._bdot.publish(stamp)  # lockstep: every instant, as the simulator awaits it
@@ -407,9 +413,22 @@ class Controller(Node):
         self._diag_pub.publish(array)
 
 
+def _spin(node: Controller):
+    """In lockstep, rclpy's C++ events executor (turned as the viewer turns it): each
+    exchange is two state callbacks, and the Python executor rebuilds its wait set over
+    every subscription, service and timer at each, which held the simulator's round trip
+    longer than the law and the messages together. Otherwise rclpy.spin: the control
+    timer may run on sim time (use_sim_time), which the events executor is not used for."""
+    if not node._p['lockstep']:
+        return rclpy.spin(node)
+    with events_executor(node) as executor:
+        while node.context.ok():
+            executor.spin_once(timeout_sec=0.1)
+
+
 def main(args=None):
     """Entry point of ``ros2 run rigid_body_sim controller``; returns the exit code."""
-    return run_node(NODE_NAME, Controller, args=args)
+    return run_node(NODE_NAME, Controller, run=_spin, args=args, lockstep=True)
 
 
 if __name__ == '__main__':

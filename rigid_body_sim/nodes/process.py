@@ -70,7 +70,7 @@ def quiet_interrupted_futures() -> None:
     sys.unraisablehook = hook
 
 
-def prefer_asynchronous_publication():
+def prefer_asynchronous_publication(synchronous: bool = False):
     """Call before ``rclpy.init``: Fast DDS (Jazzy's default RMW) sends from its own thread
     unless the user chose otherwise (``RMW_FASTRTPS_PUBLICATION_MODE``; other RMWs ignore
     it). Why: a synchronous write delivers to every matched reader inside ``publish``;
@@ -78,8 +78,84 @@ def prefer_asynchronous_publication():
     synchronous and 3.2 µs asynchronous, and the simulator with every state topic
     subscribed went from 4.7 % to 3.0 % of a core at real time and from 64× to 145× as
     fast as possible (``python -m rigid_body_sim.tools.live_simulator --subscribe``).
-    Delivery guarantees are the QoS's either way (reliable history, acknowledgements)."""
-    os.environ.setdefault('RMW_FASTRTPS_PUBLICATION_MODE', 'ASYNCHRONOUS')
+    Delivery guarantees are the QoS's either way (reliable history, acknowledgements).
+
+    ``synchronous`` (lockstep, ``lockstep_requested``): a node that publishes a few
+    messages and then waits for the answer gains nothing from handing them to a sending
+    thread, and pays for it: a wake-up of that thread per exchange, and its spinning
+    while the writer is locked, which grows with the load (the simulator's CPU per
+    lockstep exchange, ``tools.lockstep``: docs/live-nodes.md gives the figures). The
+    mode is Fast DDS's per participant, read when the first node is made, so it is
+    chosen from the command line before ROS starts.
+
+    Synchronous, the writers also send a heartbeat every HEARTBEAT_PERIOD_NS
+    (``heartbeat_profile``) unless the user gave Fast DDS profiles of their own."""
+    mode = os.environ.setdefault('RMW_FASTRTPS_PUBLICATION_MODE',
+                                 'SYNCHRONOUS' if synchronous else 'ASYNCHRONOUS')
+    if mode == 'SYNCHRONOUS' and not os.environ.get('FASTRTPS_DEFAULT_PROFILES_FILE'):
+        os.environ['FASTRTPS_DEFAULT_PROFILES_FILE'] = heartbeat_profile()
+
+
+# Why: a synchronous writer asks its readers for acknowledgements (a heartbeat) only
+# periodically, every 3 s by default, or once it has sent about a socket buffer's worth
+# of data; an asynchronous one after every burst it sends. So synchronous, the
+# simulator's waits for acknowledgements (sim_acks, one per 500 messages a topic) ran
+# into their 1 s timeout (4.99 s of a 2,000-exchange lockstep run, profiled), and a
+# message a reader's full shared-memory queue lost went again only seconds later.
+HEARTBEAT_PERIOD_NS = 20_000_000
+_PROFILE = f"""<?xml version="1.0" encoding="UTF-8"?>
+<dds xmlns="http://www.eprosima.com/XMLSchemas/fastRTPS_Profiles">
+  <profiles>
+    <data_writer profile_name="rigid_body_sim_heartbeat" is_default_profile="true">
+      <times>
+        <heartbeatPeriod><sec>0</sec><nanosec>{HEARTBEAT_PERIOD_NS}</nanosec></heartbeatPeriod>
+      </times>
+    </data_writer>
+  </profiles>
+</dds>
+"""
+
+
+def heartbeat_profile() -> str:
+    """The path of a Fast DDS XML profile that makes every data writer's heartbeat period
+    HEARTBEAT_PERIOD_NS (``FASTRTPS_DEFAULT_PROFILES_FILE``; rmw_fastrtps then sets the
+    ROS QoS over it, as over Fast DDS's defaults). Written once per content into the
+    temporary directory, atomically (processes start together)."""
+    import hashlib
+    import tempfile
+    path = os.path.join(tempfile.gettempdir(), 'rigid_body_sim_fastdds_%s.xml' % hashlib.sha256(
+        _PROFILE.encode()).hexdigest()[:12])
+    if not os.path.isfile(path):
+        with tempfile.NamedTemporaryFile('w', dir=os.path.dirname(path), suffix='.xml',
+                                         delete=False) as f:
+            f.write(_PROFILE)
+        os.replace(f.name, path)
+    return path
+
+
+def lockstep_requested(node_name: str, argv=None) -> bool:
+    """Whether the ``--ros-args`` in ``argv`` (default sys.argv) give the node
+    ``node_name`` (renamed by ``-r __node:=``, in the namespace of ``-r __ns:=``)
+    ``lockstep: true``, read from its params files and ``-p`` rules as rcl reads them.
+    False when they cannot be read: the node then reports why itself."""
+    from ..params_file import ParamsFileError, fully_qualified, given_values
+    from .usage import ros_sources
+    argv = sys.argv if argv is None else list(argv)
+    name, ns = node_name, '/'
+    for flag, rule in zip(argv, argv[1:]):
+        if flag in ('-r', '--remap'):
+            key, _, value = rule.rpartition(':=')
+            key = key.rsplit(':', 1)[-1]  # 'node:__ns' applies to that node only; taken alike
+            if key == '__node':
+                name = value
+            elif key == '__ns':
+                ns = value
+    try:
+        _, kept = given_values(ros_sources(argv), fully_qualified(name, ns))
+    except (ParamsFileError, OSError):
+        return False
+    value = kept.get('lockstep')
+    return value is not None and value.value is True
 
 
 _KEPT_EXECUTORS = []  # events executors rclpy could not tear down (see events_executor)
@@ -119,7 +195,7 @@ def executors_kept() -> bool:
     return bool(_KEPT_EXECUTORS)
 
 
-def start_ros(node_name: str, args=None):
+def start_ros(node_name: str, args=None, lockstep: bool = False):
     """``rclpy.init`` with the package's signal handling (``stop_between_callbacks``);
     None once ROS is up, else the exit code: 0 for a Ctrl-C before rclpy's handler was up
     (a stop like any other), 2 with the reason for bad ``--ros-args`` (e.g. a bad remap,
@@ -129,7 +205,9 @@ def start_ros(node_name: str, args=None):
     if problem:  # rcl's own answer is a raw error with C source paths
         print(f'[FATAL] [{node_name}]: {problem}', file=sys.stderr)
         return 2
-    prefer_asynchronous_publication()
+    # lockstep (simulator, controller): synchronous publication, when the args ask for it
+    prefer_asynchronous_publication(lockstep and lockstep_requested(
+        node_name, sys.argv if args is None else args))
     stop_between_callbacks()
     try:
         rclpy.init(args=args)
@@ -144,7 +222,7 @@ def start_ros(node_name: str, args=None):
 
 
 def run_node(node_name: str, build, run=None, args=None, fatal=(ValueError,),
-             exit_codes=None, close=None) -> int:
+             exit_codes=None, close=None, lockstep: bool = False) -> int:
     """Every node's entry point (``ros2 run``); returns the exit code.
 
     ``rclpy.init`` failing on bad ``--ros-args`` → 2 with the reason; ``build()`` raising
@@ -156,8 +234,9 @@ def run_node(node_name: str, build, run=None, args=None, fatal=(ValueError,),
     ignored exception with its traceback), also in ``rclpy.init`` and when they land in
     the middle of an rclpy call (rclpy shut the context down, so the call raised); before
     the node's module is imported, ``nodes.entry`` ends it. Shutdown runs with the signals
-    ignored: ``close(node)``, then destroy."""
-    code = start_ros(node_name, args)
+    ignored: ``close(node)``, then destroy. ``lockstep``: the node has a ``lockstep``
+    parameter; when the args set it, it publishes synchronously (``start_ros``)."""
+    code = start_ros(node_name, args, lockstep)
     if code is not None:
         return code
     node = None

@@ -110,6 +110,33 @@ def spread(row: dict, key: str) -> str:
     return f'{row[key]:.0f} ({min(values):.0f}-{max(values):.0f})'
 
 
+TARGET_CPU = 'lockstep simulator CPU per exchange as fast as possible (µs)'
+TARGET_RATE = 'lockstep exchanges/s at real time, {rate:g} Hz control'
+
+
+def targets_from(rows, load) -> list:
+    """The section's rows of targets.csv: the simulator's process CPU per exchange as fast
+    as possible, the worse rate's median (target ≤ 100 µs), and at real time the achieved
+    control rate at each rate (target: the rate; 1 % short passes, for the run's start
+    and end); ``load``: the load average before and after."""
+    from ..bench import targets
+    fast = max((r['as_fast_as_possible'] for r in rows),
+               key=lambda f: f['sim_cpu_per_period_us'])
+    cpu = fast['sim_cpu_per_period_us']
+    out = [targets.simple(TARGET_CPU, cpu, 100.0, cpu <= 100.0, '; '.join(
+        f'{r["control_rate_hz"]:g} Hz: {spread(r["as_fast_as_possible"], "sim_cpu_per_period_us")}'
+        f' ({spread(r["as_fast_as_possible"], "sim_thread_cpu_per_period_us")} in its thread)'
+        for r in rows) + f'; load {load[0]:.1f}-{load[1]:.1f}')]
+    for r in rows:
+        real, rate = r['real_time'], r['control_rate_hz']
+        got = real['achieved_rate_hz'] or 0.0
+        values = [x['achieved_rate_hz'] or 0.0 for x in real.get('runs', [real])]
+        out.append(targets.simple(TARGET_RATE.format(rate=rate), got, rate, got >= 0.99 * rate,
+                                  f'runs {min(values):.1f}-{max(values):.1f}; load '
+                                  f'{load[0]:.1f}-{load[1]:.1f}'))
+    return out
+
+
 def main(argv=None):
     parser = argument_parser(__spec__, __doc__)
     parser.add_argument('--periods', type=int, default=2000,
@@ -145,6 +172,11 @@ def main(argv=None):
     if args.out:
         report({'command': command_line(__spec__, argv), 'rows': rows,
                 'load_average': load, 'cpus': os.cpu_count()}, args.out, 'lockstep.json')
+        from ..bench import report as summary
+        t_rows = targets_from(rows, load)
+        summary.replace_targets(args.out, tuple(r['target'] for r in t_rows), t_rows,
+                                command=command_line(__spec__, argv), after='live')
+        summary.write(args.out)
     return 0
 
 

@@ -8,7 +8,8 @@ angular_velocity, CDR bytes made once by rclpy's serialiser: no physics, no mess
 building, no /clock), then turns the events executor until the command is taken. What it
 spends per exchange (process CPU, its own thread's, wall) is what rclpy and the middleware
 cost whatever the simulator does. Measured for each Fast DDS publication mode
-(``RMW_FASTRTPS_PUBLICATION_MODE``: the nodes use ASYNCHRONOUS, ``process.py`` says why) and
+(``RMW_FASTRTPS_PUBLICATION_MODE``: the nodes use SYNCHRONOUS in lockstep, ASYNCHRONOUS
+otherwise, ``process.py`` says why; the synchronous rows with its heartbeat profile) and
 with the command taken as a message or as bytes (the simulator takes bytes). Each
 configuration runs in its own process, ``--runs`` times; figures are the runs' medians.
 """
@@ -100,6 +101,9 @@ def floor(mode: str, raw: bool, periods: int, runs: int) -> dict:
     """``runs`` runs of one configuration, each in a process of its own: the medians."""
     env = dict(os.environ, RMW_FASTRTPS_PUBLICATION_MODE=mode,
                ROS_DOMAIN_ID=os.environ.get('ROS_DOMAIN_ID', str(random.randint(101, 200))))
+    if mode == 'SYNCHRONOUS' and not env.get('FASTRTPS_DEFAULT_PROFILES_FILE'):
+        from ..nodes.process import heartbeat_profile  # as the nodes publish in lockstep
+        env['FASTRTPS_DEFAULT_PROFILES_FILE'] = heartbeat_profile()
     got = []
     for _ in range(runs):
         out = subprocess.run([sys.executable, '-m', __spec__.name, '--one', str(periods)]
@@ -141,6 +145,8 @@ def main(argv=None):
     if args.out:
         report({'command': command_line(__spec__, argv), 'control_rate_hz': RATE,
                 'rows': rows}, args.out, 'lockstep_floor.json')
+        from ..bench import report as summary
+        summary.write(args.out)  # the benchmarks page's figures, this floor's with them
     return 0
 
 
