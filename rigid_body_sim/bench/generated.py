@@ -29,6 +29,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import oracle as oracle_mod
+from .common import GENERATED_COUNTS
 from ..param_spec import coerce_all
 from ..scene import SceneFile
 
@@ -275,7 +276,7 @@ FIELDS = ('scene', 'kind', 'budget', 'rotation', 'duration', 'publish_rate', 'st
           'oracle_method', 'oracle_param', 'oracle_cpu_s', 'oracle_error', 'cpu_ratio',
           'reference', 'reference_error', 'reason', 'note')
 SEED = 20261125
-COUNTS = {True: 20, False: 200}
+COUNTS = GENERATED_COUNTS
 # The families of the suite: (draw(seed, index, quick), scenes (quick, full)); a family's
 # scenes are named and seeded apart (gen<seed>-<index>, gen<seed>-gg<index>)
 FAMILIES = {
