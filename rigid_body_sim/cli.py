@@ -52,7 +52,7 @@ SUBCOMMANDS = {
     'scenes': ('rigid_body_sim.scene', 'list the built-in scenes'),
     'demo': ('rigid_body_sim.demo', 'the live demo: simulator + controller + recorder'),
     'bag': ('rigid_body_sim.bag.cli', 'inspect or recover MCAP bags (info, recover)'),
-    'bench': ('rigid_body_sim.bench.suite', 'work-precision, stability and speed benchmarks'),
+    'bench': ('rigid_body_sim.bench.command', 'work-precision, stability and speed benchmarks'),
     'campaign': ('rigid_body_sim.campaign.cli', 'Monte Carlo campaign of a scene on Dask: '
                  'dispersions, Parquet rows, summary and plots'),
     'tour': ('rigid_body_sim.tour', 'the five classic phenomena of free rotation: one figure '

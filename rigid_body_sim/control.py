@@ -281,8 +281,11 @@ class AttitudeController:
     """
 
     def __init__(self, config: Optional[ControlConfig] = None, mode: str = 'detumble',
-                 target=(0.0, 0.0, 0.0, 1.0)):
+                 target=(0.0, 0.0, 0.0, 1.0), compiled: bool = True):
         self.config = config if config is not None else ControlConfig()
+        # compiled=False: the same law interpreted (control_law.py), for a front end that
+        # evaluates it once per control period and should not load numba for that (the node)
+        self.compiled = compiled
         self.set_mode(mode)
         self.target = validated_target(target)
 
@@ -304,9 +307,13 @@ class AttitudeController:
         w = np.asarray(angular_velocity, dtype=float).reshape(3)
         q = np.asarray(attitude, dtype=float).reshape(4)
         tau, unsaturated = np.empty(3), np.empty(3)
-        # The law itself is a compiled kernel (control_kernel.py), the same in every front end;
-        # imported here, on the first use: a scene's checks build a ControlConfig without it.
-        from .control_kernel import MODE_CODES, control_torque
+        # The law itself is one function (control_law.py), the same in every front end,
+        # compiled (control_kernel.py) unless ``compiled`` is off; imported here, on the
+        # first use: a scene's checks build a ControlConfig without it.
+        if self.compiled:
+            from .control_kernel import MODE_CODES, control_torque
+        else:
+            from .control_law import MODE_CODES, control_torque
         saturated, rate_limited, angle, rate_norm = control_torque(
             MODE_CODES[self.mode], q, w, self.target, body.principal_axes,
             body.principal_moments, cfg.kp_principal, cfg.kd_principal,

@@ -239,6 +239,8 @@ def add_arguments(parser):
     parser.add_argument('--viewer-port', type=int,
                         default=os.environ.get('DEMO_VIEWER_PORT', '8765'),
                         help='port of the Foxglove viewer (default: $DEMO_VIEWER_PORT or 8765)')
+    parser.add_argument('--no-plots', dest='plots', action='store_false',
+                        help='skip the PNG plots (the summary is the same)')
     parser.add_argument('--lockstep', action='store_true',
                         help='the simulator holds each control instant until the '
                              'controller\'s command for it (docs/live-nodes.md, Lockstep)')
@@ -390,7 +392,7 @@ def run(args) -> int:
                    if n not in failed and c not in (0, None, -signal.SIGINT)})
     code = summarize(view, bag, out, watcher, target, failed,
                      {p.name: p.log_path for p in procs}, interrupted,
-                     f'/{shown}' if shown else '', list(scene.spacecraft))
+                     f'/{shown}' if shown else '', list(scene.spacecraft), args.plots)
     return exit_code(code, interrupted, watcher.t0 is not None)
 
 

@@ -145,12 +145,13 @@ def spacecraft_lines(bag, crafts, prefix):
 
 
 def summarize(scene, bag, out, watcher, target, failed, logs, interrupted, prefix='',
-              crafts=()) -> int:
+              crafts=(), plots=True) -> int:
     """Print the demo's summary from the bag, on the simulator's time origin, and write
     the plots; 1 when the bag is unreadable or a node failed (``failed``: name → exit
     code; ``logs``: name → log path), else 0. A formation (``crafts``, their names):
     ``scene`` is the shown spacecraft's (``scene.spacecraft_scene``), its topics under
-    ``prefix``, and a line per spacecraft says what the bag holds of it."""
+    ``prefix``, and a line per spacecraft says what the bag holds of it. ``plots``
+    False: no plots (``demo --no-plots``; they cost ~2 CPU-s)."""
     from .bag.errors import BagError
     from .bag.reader import read_info
     samples, free_end, bag_error = None, None, None
@@ -189,7 +190,7 @@ def summarize(scene, bag, out, watcher, target, failed, logs, interrupted, prefi
           f'{info.duration_s:.2f} s — bag: {bag}')
     for line in spacecraft_lines(bag, crafts, prefix) if crafts else ():
         print(line)
-    if samples is not None:
+    if samples is not None and plots:
         from .plots import write_plots
         for path in write_plots(samples, body_of(scene), out, f'{scene.name} (live)', free_end,
                                 scene):

@@ -389,3 +389,33 @@ def test_invalid_startup_parameters_exit_2(ros_process, namespace):
     assert ctl.wait(20.0) == 2
     out = ctl.output()
     assert 'invalid parameters' in out and 'Traceback' not in out
+
+
+def test_the_node_computes_its_commands_without_numba(ros_process, namespace, rclpy_node):
+    """The node's law runs interpreted (control_law.py): a controller that has computed
+    a non-zero detumble torque has not loaded numba (its llvmlite library is not mapped).
+    Loading numba and the compiled law cost each controller start 0.8 CPU-s (issue 32)."""
+    rec = Recorder(rclpy_node, namespace)
+    ctl = start_controller(ros_process, namespace, mode='detumble')
+    att_pub = rclpy_node.create_publisher(QuaternionStamped, f'{namespace}/attitude', 10)
+    rate_pub = rclpy_node.create_publisher(Vector3Stamped, f'{namespace}/angular_velocity', 10)
+
+    def publish_state():
+        now = rclpy_node.get_clock().now().to_msg()
+        a, r = QuaternionStamped(), Vector3Stamped()
+        a.header.stamp = r.header.stamp = now
+        a.header.frame_id, r.header.frame_id = 'world', 'base_link'
+        a.quaternion.w = 1.0
+        r.vector.x = 0.1
+        att_pub.publish(a)
+        rate_pub.publish(r)
+        return False
+
+    expected = (-2 * WN * INERTIA[0] * 0.1, 0.0, 0.0)  # detumble K_ω = k_d = 2 ω_n I
+    assert rec.spin_until(lambda: publish_state() or (
+        rec.torque and rec.torque[-1][1] == pytest.approx(expected, abs=1e-9)), 30.0), \
+        ctl.output()
+    with open(f'/proc/{ctl.pid}/maps') as f:
+        mapped = f.read()
+    assert 'llvmlite' not in mapped and '/numba/' not in mapped, \
+        [line for line in mapped.splitlines() if 'llvmlite' in line or '/numba/' in line][:3]

@@ -99,7 +99,7 @@ def test_interrupting_the_demo_stops_everything_and_keeps_the_bag(tmp_path, sign
     is gone, and the bag is finished (bag info reads it without recover)."""
     cli = os.path.join(os.path.dirname(sys.executable), 'rigid-body-sim')
     proc = subprocess.Popen([cli, 'demo', '--duration', '120', '--out', str(tmp_path),
-                             '--viewer-port', str(_free_port())],
+                             '--viewer-port', str(_free_port()), '--no-plots'],
                             stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     deadline = time.monotonic() + 90
     while time.monotonic() < deadline and not (tmp_path / 'simulator.log').exists():
@@ -131,9 +131,10 @@ def test_demo_set_reaches_each_node_and_the_bag_starts_at_t0(tmp_path):
     from rigid_body_sim.bag.reader import iter_messages
     from rigid_body_sim.bag.schema import message_class
     cli = os.path.join(os.path.dirname(sys.executable), 'rigid-body-sim')
+    # --no-plots: the summary is the same, without the plots' ~2 CPU-s (issue 32)
     out = subprocess.run([cli, 'demo', '--scene', 'slew', '--duration', '4', '--no-viewer',
                           '--out', str(tmp_path), '--set', 'publish_rate=25',
-                          '--set', 'control_rate=10'],
+                          '--set', 'control_rate=10', '--no-plots'],
                          capture_output=True, text=True, timeout=240)
     assert out.returncode == 0, out.stdout[-3000:] + out.stderr[-3000:]
     bag = tmp_path / 'bag'
@@ -154,6 +155,7 @@ def test_demo_set_reaches_each_node_and_the_bag_starts_at_t0(tmp_path):
                        r'free until ([0-9.]+) s', out.stdout)
     assert phases, out.stdout
     assert abs(float(phases.group(1)) - (first - origin * 1e-9)) < 0.006, out.stdout
+    assert 'plot:' not in out.stdout and not list(tmp_path.glob('*.png')), out.stdout
 
 
 def test_demo_lockstep_answers_every_control_instant(tmp_path):
@@ -170,7 +172,7 @@ def test_demo_lockstep_answers_every_control_instant(tmp_path):
     assert bad.returncode == 2 and 'error: --lockstep: scene tennis_racket runs no controller' \
         in bad.stderr, bad.stderr
     out = subprocess.run([cli, 'demo', '--scene', 'slew', '--duration', '2', '--no-viewer',
-                          '--lockstep', '--out', str(tmp_path)],
+                          '--lockstep', '--out', str(tmp_path), '--no-plots'],
                          capture_output=True, text=True, timeout=240)
     assert out.returncode == 0, out.stdout[-3000:] + out.stderr[-3000:]
     log = (tmp_path / 'simulator.log').read_text()
@@ -195,7 +197,7 @@ def test_demo_lockstep_runs_a_formation_with_a_controller_per_spacecraft(tmp_pat
     from rigid_body_sim.bag.schema import message_class
     cli = os.path.join(os.path.dirname(sys.executable), 'rigid-body-sim')
     out = subprocess.run([cli, 'demo', '--scene', 'formation', '--duration', '2',
-                          '--no-viewer', '--lockstep', '--out', str(tmp_path)],
+                          '--no-viewer', '--lockstep', '--out', str(tmp_path), '--no-plots'],
                          capture_output=True, text=True, timeout=300)
     assert out.returncode == 0, out.stdout[-3000:] + out.stderr[-3000:]
     crafts = ('leader', 'wingman', 'tumbler')
@@ -229,7 +231,7 @@ def test_a_node_that_fails_at_start_has_its_last_log_line_in_the_summary(tmp_pat
     ("try a longer --duration" would send the user the wrong way)."""
     cli = os.path.join(os.path.dirname(sys.executable), 'rigid-body-sim')
     out = subprocess.run([cli, 'demo', '--scene', 'slew', '--duration', '5', '--no-viewer',
-                          '--out', str(tmp_path), '--set', 'lockstep=true'],
+                          '--out', str(tmp_path), '--set', 'lockstep=true', '--no-plots'],
                          capture_output=True, text=True, timeout=240)
     text = out.stdout + out.stderr
     assert out.returncode == 1, text[-3000:]
@@ -253,7 +255,8 @@ def test_another_simulator_in_the_domain_does_not_end_the_demo(tmp_path, ros_pro
     assert wait_output(other, 'kernels loaded', 90.0)  # then it publishes from t = 0
     cli = os.path.join(os.path.dirname(sys.executable), 'rigid-body-sim')
     out = subprocess.run([cli, 'demo', '--scene', 'slew', '--duration', '4', '--no-viewer',
-                          '--out', str(tmp_path)], capture_output=True, text=True, timeout=240)
+                          '--out', str(tmp_path), '--no-plots'], capture_output=True, text=True,
+                         timeout=240)
     assert out.returncode == 0, out.stdout[-3000:] + out.stderr[-3000:]
     assert 'ended at t = 4.00 s' in out.stdout, out.stdout[-3000:]
     # the summary's time origin, from the bag's diagnostics, is its simulator's too
@@ -280,7 +283,7 @@ def test_a_node_lost_mid_run_is_named_and_the_demo_fails(tmp_path, name, sig):
     over; a lost viewer stops nothing and the run goes to its end."""
     cli = os.path.join(os.path.dirname(sys.executable), 'rigid-body-sim')
     demo = subprocess.Popen([cli, 'demo', '--scene', 'slew', '--duration', '8', '--out',
-                             str(tmp_path), '--viewer-port', str(_free_port())],
+                             str(tmp_path), '--viewer-port', str(_free_port()), '--no-plots'],
                             stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
                             start_new_session=True)
     try:
@@ -319,7 +322,7 @@ def test_a_viewer_without_its_port_is_named_and_the_run_goes_on(tmp_path):
         held.listen()
         port = held.getsockname()[1]
         out = subprocess.run([cli, 'demo', '--scene', 'slew', '--duration', '3', '--out',
-                              str(tmp_path), '--viewer-port', str(port)],
+                              str(tmp_path), '--viewer-port', str(port), '--no-plots'],
                              capture_output=True, text=True, timeout=240)
     text = out.stdout + out.stderr
     assert out.returncode == 1, text[-3000:]

@@ -1,4 +1,5 @@
-"""--help, parsing a scene file and checking parameters never import numba (issue 32).
+"""--help (the CLI's, the nodes', the bench's and every tool's), parsing a scene file and
+checking parameters never import numba (issue 32).
 
 numba's start-up (~0.35 CPU-s, with the scipy.linalg it imports) was paid by every --help
 and every refused input: the specs took constants from the kernels' modules. Those now
@@ -36,6 +37,13 @@ def node_help(name):
         assert usage.answer(name, [name, '--help']) == 0
     return answer
 
+def module_help(name):  # `python -m name --help`
+    def answer():
+        import runpy
+        sys.argv = [name, '--help']
+        runpy.run_module(name, run_name='__main__', alter_sys=False)
+    return answer
+
 def load(name):
     def parse():
         from rigid_body_sim.scene import load
@@ -51,15 +59,20 @@ def refused():
     raise AssertionError('an unknown dissipation model was accepted')
 
 step('rigid-body-sim --help', cli('--help'))
-for sub in ('run', 'campaign', 'demo'):
+for sub in ('run', 'campaign', 'demo', 'bench'):
     step(f'rigid-body-sim {sub} --help', cli(sub, '--help'))
 for name in ('simulator', 'controller', 'recorder', 'viewer', 'replay'):
     step(f'{name} --help', node_help(name))
 step('import the viewer node', lambda: __import__('rigid_body_sim.nodes.viewer'))
+import pkgutil, rigid_body_sim.tools
+TOOLS = sorted(m.name for m in pkgutil.iter_modules(rigid_body_sim.tools.__path__))
+for tool in TOOLS:
+    step(f'python -m rigid_body_sim.tools.{tool} --help',
+         module_help(f'rigid_body_sim.tools.{tool}'))
 for scene in ('tennis_racket', 'wheel_slew', 'cmg_slew', 'slew'):
     step(f'parse the scene file {scene}', load(scene))
 step('a refused scene value', refused)
-print(json.dumps(steps))
+print(json.dumps([len(TOOLS), steps]))
 '''
 
 
@@ -67,7 +80,7 @@ def test_help_and_scene_parsing_do_not_import_numba():
     out = subprocess.run([sys.executable, '-c', _STEPS], capture_output=True, text=True,
                          timeout=120)
     assert out.returncode == 0, out.stderr
-    steps = json.loads(out.stdout.strip().splitlines()[-1])
-    assert len(steps) == 15, steps
+    tools, steps = json.loads(out.stdout.strip().splitlines()[-1])
+    assert tools >= 15 and len(steps) == 16 + tools, steps
     first = next((name for name, loaded in steps if loaded), None)
     assert first is None, f'{first} imported numba'

@@ -372,7 +372,7 @@ def test_demo_starts_the_viewer_and_prints_its_url(client_js, tmp_path):
     # samples from t = 0 on whether or not the run outlasts it (the graph's 15 s more of
     # real time cost ~13 CPU-s and asserted nothing more)
     demo = subprocess.Popen([cli, 'demo', '--duration', '10', '--out', str(tmp_path),
-                             '--viewer-port', str(port)], stdout=subprocess.PIPE,
+                             '--viewer-port', str(port), '--no-plots'], stdout=subprocess.PIPE,
                             stderr=subprocess.STDOUT, text=True, start_new_session=True)
     try:
         _wait_port(port, 90.0)

@@ -15,6 +15,7 @@ live, selection, generated, compile, exact_horizon (with reference40, the 40-dig
 mpmath); scenes (data), peers, targets and charts serve them. Standalone load, soak, fault
 and host tools are in :mod:`rigid_body_sim.tools`.
 """
-# The command lives in :mod:`.suite`, not here: a package that imports its modules makes
+# The command lives in :mod:`.command` (its arguments, numba-free for --help) and
+# :mod:`.suite` (the run), not here: a package that imports its modules makes
 # ``python -m rigid_body_sim.bench.<module>`` warn (runpy: found in sys.modules before
 # execution), and makes every tool importing ``bench.common`` load the whole suite.

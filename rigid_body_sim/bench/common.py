@@ -14,6 +14,9 @@ from ..physics import rotation
 from ..physics.body import RigidBody
 
 REF_RTOL = 1e-13
+# generated scenes in the generalisation section (--quick, full): generated.COUNTS, here so
+# that the suite's --help states them without importing the section (and numba)
+GENERATED_COUNTS = {True: 20, False: 200}
 EPS = np.finfo(float).eps
 
 

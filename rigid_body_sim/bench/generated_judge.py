@@ -10,6 +10,7 @@ import os
 import numpy as np
 
 from . import oracle as oracle_mod
+from .common import GENERATED_COUNTS
 from .generated_scenes import Scene, draw, draw_gravity_gradient
 
 # ---------------------------------------------------------------------------- measuring
@@ -36,7 +37,7 @@ FIELDS = ('scene', 'kind', 'budget', 'rotation', 'duration', 'publish_rate', 'st
           'oracle_method', 'oracle_param', 'oracle_cpu_s', 'oracle_error', 'cpu_ratio',
           'reference', 'reference_error', 'reason', 'note')
 SEED = 20261125
-COUNTS = {True: 20, False: 200}
+COUNTS = GENERATED_COUNTS
 # The families of the suite: (draw(seed, index, quick), scenes (quick, full)); a family's
 # scenes are named and seeded apart (gen<seed>-<index>, gen<seed>-gg<index>)
 FAMILIES = {

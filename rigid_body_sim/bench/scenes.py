@@ -4,11 +4,14 @@ All states are principal-frame, as in :mod:`rigid_body_sim.physics.dynamics`: q 
 maps principal-frame vectors to the inertial frame, m = I ω is the body angular momentum.
 """
 from dataclasses import dataclass
-from typing import Optional, Tuple
+from typing import TYPE_CHECKING, Optional, Tuple
 
 import numpy as np
 
-from ..physics import Dissipation, Dynamics, rotation
+from ..physics import Dissipation, rotation
+
+if TYPE_CHECKING:  # imported where a scene's dynamics are built: it loads numba, and the
+    from ..physics import Dynamics  # bench's --help lists these scenes without it
 
 
 @dataclass(frozen=True)
@@ -55,7 +58,8 @@ class Scene:
     budget_scale: float = 1.0  # CPU budget per method relative to the others (long scenes)
 
     @property
-    def dynamics(self) -> Dynamics:
+    def dynamics(self) -> 'Dynamics':
+        from ..physics import Dynamics
         return Dynamics(np.array(self.moments, float), self.dissipation)
 
     @property

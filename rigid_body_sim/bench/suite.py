@@ -1,33 +1,15 @@
-"""The benchmark suite's command (``rigid-body-sim bench``): its arguments and the run of
-every section (:mod:`.sections`); see the package's docstring."""
+"""The benchmark suite's command (``rigid-body-sim bench``): the run of every section
+(:mod:`.sections`); its arguments are :mod:`.command`'s. See the package's docstring."""
 import math
 import os
 import platform
 import sys
 import time
 
-from . import charts, generated, peers, report, sections, targets
+from . import charts, generated, peers, report, sections, targets  # noqa: F401 - suite.generated
+from .command import add_arguments  # noqa: F401 - the command's arguments, re-exported
 from .common import write_csv
 from .scenes import SCENES, SCENE_BY_NAME
-
-
-def add_arguments(parser):
-    parser.add_argument('--quick', action='store_true',
-                        help='shortened run (< 2 min on 2 cores; used by the test suite)')
-    parser.add_argument('--out', default='out/bench', metavar='DIR',
-                        help='output directory (default out/bench)')
-    parser.add_argument('--peers', action='store_true',
-                        help='also measure MuJoCo and Basilisk if installed '
-                             f'({peers.INSTALL_HINT})')
-    parser.add_argument('--generated', type=int, default=None, metavar='N',
-                        help='generated scenes in the generalisation section (default '
-                             f'{generated.COUNTS[True]} with --quick, {generated.COUNTS[False]} '
-                             'without)')
-    parser.add_argument('--scenes', default='', metavar='A,B',
-                        help='comma-separated subset of scenes for the work-precision section: '
-                             + ', '.join(SCENE_BY_NAME))
-    parser.epilog = ('CPU times are process seconds; errors are attitude angles in rad against '
-                     'the reference each chart names; drifts are relative (value/initial − 1).')
 
 
 def machine():

@@ -26,7 +26,7 @@ from typing import Optional
 
 import numpy as np
 
-from .. import control_kernel
+from .. import control_kernel, control_law
 from ..control_kernel import MODE_CODES, control_torque
 from ..physics import IntegrationError
 from ..physics import dynamics_kernel
@@ -300,7 +300,8 @@ def closed_loop_run(state, ticks, reals, spec, body, law, block, out):
 # it calls the step loops and the law from their own files (see jit.depends_on)
 closed_loop_run = depends_on(closed_loop_run, sample_kernel, splitting_kernel, explicit_kernel,
                              dop853_kernel, dop853_dense, exact_flow_kernel, dynamics_kernel,
-                             control_kernel, orbit_kernel, magnetic_kernel, facets_kernel)
+                             control_kernel, control_law, orbit_kernel, magnetic_kernel,
+                             facets_kernel)
 
 
 def advance(engine, state: State, law, builder, until_ns: int, cap: int) -> Optional[Stretch]:

@@ -92,9 +92,11 @@ class ControlLaw(TorqueSource):
     """
     name = 'control'
 
-    def __init__(self, settings: ControlSettings, clip: float = math.inf, observer=None):
+    def __init__(self, settings: ControlSettings, clip: float = math.inf, observer=None,
+                 compiled: bool = True):
         super().__init__()
         self.settings, self.clip = settings, float(clip)
+        self.compiled = compiled  # the law compiled or interpreted (control.AttitudeController)
         # observer(t_ns) -> (attitude, ω) or None: the law sees an estimate, not the truth
         self.observer = observer
         self.reset(0)
@@ -102,7 +104,7 @@ class ControlLaw(TorqueSource):
     def reset(self, t_ns):
         super().reset(t_ns)
         s = self.settings
-        self.controller = control.AttitudeController(s.config, s.mode, s.target)
+        self.controller = control.AttitudeController(s.config, s.mode, s.target, self.compiled)
         self.mission = control.Mission(s.free_time, s.detumble_exit_rate)
         self.next_t = t_ns
         self.last: Optional[control.ControlOutput] = None

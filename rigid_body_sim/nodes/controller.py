@@ -106,8 +106,10 @@ class Controller(Node):
             self.set_parameters([Parameter('mode', Parameter.Type.STRING, self._p['mode'])])
         check_parameters(self._p)
         self._log = self.get_logger()
-        # The law and its scene schedule: the object the offline engine runs as a torque source.
-        self._law = ControlLaw(ControlSettings.from_parameters(self._p))
+        # The law and its scene schedule: the object the offline engine runs as a torque source,
+        # the law interpreted: one command per control period does not need numba, whose
+        # import and kernel load cost each start 0.7 CPU-s (bit for bit the same torques)
+        self._law = ControlLaw(ControlSettings.from_parameters(self._p), compiled=False)
         self._ctl = self._law.controller
 
         # latest state: value, stamp (s, node clock), frame of the attitude
@@ -158,11 +160,6 @@ class Controller(Node):
             qos, lockstep_ns, self._answer, command_qos)
         self._timer = None if self._p['lockstep'] else \
             self.create_timer(1.0 / self._p['control_rate'], self._tick)
-        # Load the law's kernel now, before the simulator's t = 0 (it waits for us), not
-        # at the first non-free command: that load held the first command ~0.4 s at real
-        # time, so it acted later than its stamp says (and a lockstep answer, longer).
-        from ..control_kernel import warm
-        warm()
         self.create_timer(DIAGNOSTICS_PERIOD_S, self._publish_diagnostics,
                           clock=Clock(clock_type=ClockType.STEADY_TIME))
         self.add_on_set_parameters_callback(self._validate_parameters)

@@ -19,10 +19,10 @@ import sys
 
 import numpy as np
 
-from ..physics import Dissipation, Dynamics, create
-from ..physics.auto.calibration import ADAPTIVE_EVALS, REPEATS, current
-from ..physics.auto.model import CANDIDATES, DAMP_SUBSTEP
 from ..bench.common import best_of
+
+# physics and auto's model are imported where they are used: they load numba, which
+# --help does not need (0.35 CPU-s)
 
 MOMENTS = (0.04, 0.2, 0.2)   # Explorer 1, kg·m²
 M0 = np.array([2.5132741228718345, 0.04386936299713697, 0.0])  # its initial momentum
@@ -33,12 +33,16 @@ STEP, STEPS = 0.01, 200_000
 
 def table_cost(candidate, damped):
     """µs per step the model assumes (splitting2 with damping: its substeps, one here)."""
+    from ..physics.auto.model import DAMP_SUBSTEP
     if damped and candidate.name == 'splitting2':
         return candidate.cost[0] + 2 * DAMP_SUBSTEP
     return candidate.cost[1 if damped else 0]
 
 
 def run(steps=STEPS, log=print):
+    from ..physics import Dissipation, Dynamics, create
+    from ..physics.auto.calibration import ADAPTIVE_EVALS, REPEATS
+    from ..physics.auto.model import CANDIDATES
     rows = []
     for damped in (False, True):
         dyn = Dynamics(np.array(MOMENTS), Dissipation('double_bracket', ALPHA) if damped
@@ -73,6 +77,7 @@ def main(argv=None):
     parser.add_argument('--steps', type=int, default=STEPS, help='steps per timing')
     args = parser.parse_args(argv)
     rows = run(args.steps)
+    from ..physics.auto.calibration import current
     print(f'auto uses: {current().source}')
     print(json.dumps({'all_within_1.5x': all(r['ok'] for r in rows)}))
     return 0

@@ -11,8 +11,6 @@ import sys
 import numpy as np
 
 from .. import offline, scene as S
-from ..sensors.plots import pointing_error
-from ..sensors.prediction import pointing_variance
 
 
 def main(argv=None) -> int:
@@ -25,6 +23,9 @@ def main(argv=None) -> int:
     parser.add_argument('--settle', type=float, default=100.0, help='s ignored at the start')
     offline.add_set_argument(parser)
     args = parser.parse_args(argv)
+    # after the arguments: these load numba, which --help does not need (0.35 CPU-s)
+    from ..sensors.plots import pointing_error
+    from ..sensors.prediction import pointing_variance
     try:
         scene = S.load(args.scene, args.set)
         sim, ctl = scene.simulator, scene.controller
