@@ -62,6 +62,13 @@ class Publishing:
             return t_ns
         return self._stamp0 + round((t_ns - self._sim0) / self._rtf)
 
+    def stamps_ns(self, times: list) -> list:
+        """``stamp_ns`` of each sim time of ``times`` (ints, ns)."""
+        if self._p['publish_clock']:
+            return times
+        stamp0, sim0, rtf = self._stamp0, self._sim0, self._rtf
+        return [stamp0 + round((t - sim0) / rtf) for t in times]
+
     def _tick_clock(self, t_ns):
         """/clock at each sample instant, once however many spacecraft reach it, when it has
         subscribers (counted with the state topics': a use_sim_time node that joins gets it
@@ -81,24 +88,36 @@ class Publishing:
         except RCLError as exc:  # a paced reader's history is full (sim_acks)
             sensors = 0
             self._acks.refused('sensor topics', exc)
-        msgs, active = craft.msgs, craft.active
         # paced: every message counts toward the next wait for acknowledgements (sim_acks)
         count = self._paced
         if count and sensors:  # readings on the busiest sensor topic, before the samples'
             self._acks.published(sensors)
+        n = len(block)
+        if not n:
+            return
+        times = block.t_ns.tolist()
+        active = craft.active
+        # the block's messages on the subscribed topics only, made at once
+        states = craft.msgs.encoded_block(block, self.stamps_ns(times),
+                                          craft.active_names) if active else None
         # several samples: topic by topic (Spacecraft.publish_states: why); not in lockstep
         # or to a /clock subscriber, which see each sample's topics before the next one's
-        by_topic = active and len(block) > 1 and not (self._lockstep or self._clock_subscribed)
+        by_topic = active and n > 1 and not (self._lockstep or self._clock_subscribed)
         if by_topic:
-            craft.publish_states([msgs.encoded(block, i, self.stamp_ns(int(t)),
-                                               craft.active_names)
-                                  for i, t in enumerate(block.t_ns)], self._acks.refused)
-        for i in range(len(block)):
-            t_ns = int(block.t_ns[i])
+            craft.publish_states(states, self._acks.refused)
+        if (by_topic or not active) and rtf == 0 and craft.orbit is None and \
+                not self._clock_subscribed:
+            # nothing more goes out sample by sample, and no deadline to check: the
+            # bookkeeping of every sample at once (~2 µs a sample of a loop otherwise)
+            self._clock_ns = max(self._clock_ns, times[-1])
+            self._published += n * len(active)
+            for _ in range(n if count else 0):
+                self._acks.published()
+            return
+        for i, t_ns in enumerate(times):
             new = self._tick_clock(t_ns)  # the first spacecraft at this sample instant
             if active and not by_topic:
-                craft.publish_states([msgs.encoded(block, i, self.stamp_ns(t_ns),
-                                                   craft.active_names)], self._acks.refused)
+                craft.publish_states(states, self._acks.refused, i)
             if craft.orbit is not None:
                 try:
                     craft.orbit.publish(block, i, self.stamp_ns(t_ns))
