@@ -273,14 +273,21 @@ class _Templates:
     def encode_rows(self, rows, stamps, only=None) -> dict:
         """{topic: [bytes of each row]}: ``encode`` over rows (SampleBlock.values each)
         and their stamps (ns), one list comprehension a topic."""
-        bad = next((len(v) for v in rows if len(v) != N_VALUES), None)
-        if bad is not None:  # the unpacking below would shift the constants
-            raise ValueError(f'a sample has {N_VALUES} values (SampleBlock.values), not {bad}')
+        for v in rows:
+            if len(v) != N_VALUES:  # the unpacking below would shift the constants
+                raise ValueError(f'a sample has {N_VALUES} values (SampleBlock.values), '
+                                 f'not {len(v)}')
         constants = self.row[2 + N_VALUES:]
         full = [[*divmod(int(stamp), 1_000_000_000), *v, *constants]
                 for v, stamp in zip(rows, stamps)]
-        out = {name: [pack(*get(row)) for row in full] for name, pack, get in self._topics(only)}
-        fallback = [(n, m) for n, m in self.fallback if only is None or n in only]
+        if len(full) == 1:  # a sample at a time (real time): no comprehension per topic
+            row = full[0]
+            out = {name: [pack(*get(row))] for name, pack, get in self._topics(only)}
+        else:
+            out = {name: [pack(*get(row)) for row in full]
+                   for name, pack, get in self._topics(only)}
+        fallback = [(n, m) for n, m in self.fallback if only is None or n in only] \
+            if self.fallback else ()
         for name, _ in fallback:
             out[name] = []
         for v, stamp in zip(rows, stamps) if fallback else ():
