@@ -3,16 +3,7 @@
 A thin shell over :class:`rigid_body_sim.engine.Engine`: it declares the parameters
 (``engine.specs.SIMULATOR``), paces the engine against the wall clock, turns its samples
 into messages (``StateMessages``), and turns commands, parameter changes and ``~/reset``
-into engine calls.
-
-Time stamps. Every message carries the sim time of the state it holds, mapped to ROS time
-in one way: with ``publish_clock: true`` the stamp is the sim time (and equals /clock);
-otherwise it is the wall-clock time at which the run started plus sim time divided by
-``real_time_factor`` (1 when running as fast as possible). Consecutive samples are
-therefore exactly one sample period apart whatever the load, and all topics of one sample
-share the stamp. A sample published later than ``deadline_tolerance`` (wall time) after
-its due time counts as a missed deadline in diagnostics, with the worst lateness of each
-diagnostics period; it never bends a stamp.
+into engine calls. It publishes through ``sim_publish.Publishing`` (time stamps there).
 
 Pacing. The engine processes its events (samples, command expiry) up to the sim time the
 wall clock allows; between those, the executor serves callbacks and the ``auto`` pilot
@@ -41,11 +32,8 @@ import time
 from dataclasses import replace
 
 from rclpy.node import Node
-from rclpy._rclpy_pybind11 import RCLError
 
-from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import Vector3Stamped, WrenchStamped
-from rosgraph_msgs.msg import Clock
 from std_srvs.srv import Trigger
 
 from ..engine import NS, fleet, lockstep, specs
@@ -56,21 +44,15 @@ from .commands import CommandFilter
 from .common import (check_overrides, declare_parameters,
                      overridden_warnings, qos_profile, validate_update)
 from .process import events_executor, run_node
-from .state_messages import clock_cdr
 from .usage import ros_arguments
 from .sim_services import AVAILABLE as SIM_SERVICES, SimulationServices
 from .sim_control import Control
 from .sim_fleet import Fleet, check_parameters
-from .sim_acks import DIAGNOSTICS_ACK_TIMEOUT, FINAL_ACK_TIMEOUT, Acknowledgements, paced_qos
+from .sim_acks import Acknowledgements
 from .sim_holds import Holds
 from .sim_lockstep import Exchange
-from .sim_status import diagnostics, summary
-from .spacecraft import STATE_DEPTH
-
-try:  # /tf only where tf2_msgs exists (a full ROS install); the PyPI venv has none
-    from tf2_msgs.msg import TFMessage
-except ImportError:  # pragma: no cover - depends on the installation
-    TFMessage = None
+from .sim_publish import Publishing
+from .sim_status import summary
 
 NODE_NAME = 'attitude_simulator'
 SPECS = specs.SIMULATOR
@@ -81,7 +63,7 @@ MAX_LAG_S = 1.0              # behind the wall-clock target by more: drop the ba
 PILOT_SLICE_S = 0.002        # least time for auto's pilot per loop turn (as fast as possible)
 
 
-class Simulator(Control, Fleet, Holds, Exchange, Node):
+class Simulator(Control, Fleet, Holds, Exchange, Publishing, Node):
     """The ``attitude_simulator`` node.
 
     Build, then call :meth:`run` (or drive :meth:`run_once`).
@@ -111,20 +93,8 @@ class Simulator(Control, Fleet, Holds, Exchange, Node):
         except ValueError as exc:
             raise SceneError(str(exc)) from None
         self._log = self.get_logger()
-        self._clock_ns, self._clock_subscribed = -1, False
         self._qos = qos_profile(self._p['qos'])
-        # paced (as fast as possible, or a recorder waited for): keep every unacknowledged
-        # message, so that no reliable reader loses one and the node never stops to ask
-        keep_all = self._paced and self._p['qos'] == 'reliable'  # sim_acks: why
-        self._state_qos = paced_qos(self._p['qos']) if self._paced else \
-            qos_profile(self._p['qos'], STATE_DEPTH)
-        self._tf_qos = paced_qos('reliable') if self._paced else qos_profile('reliable', 100)
-        pub = self.create_publisher
-        self._tf_pub = pub(TFMessage, '/tf', self._tf_qos) if TFMessage is not None else None
-        self._clock_pub = None
-        if self._p['publish_clock']:
-            self._clock_pub = pub(Clock, '/clock', qos_profile('reliable'))
-        self._diag_pub = pub(DiagnosticArray, '/diagnostics', qos_profile('reliable'))
+        keep_all = self._create_publishers()
         # commands on the node's own topics: the unnamed spacecraft's, or routed by frame_id
         self._commands = CommandFilter(self, self._p)  # what reaches no spacecraft
         self._command_subs = [
@@ -187,17 +157,6 @@ class Simulator(Control, Fleet, Holds, Exchange, Node):
                 self._log.warning(craft.prefix + message)
 
     # ------------------------------------------------------------------ time
-    def _base_stamp(self, epoch_ns: int):
-        """Stamps from now on: epoch_ns at the current sim time, then sim time / rtf."""
-        self._stamp0, self._sim0 = int(epoch_ns), self.t_ns
-        self._rtf = self._p['real_time_factor'] or 1.0
-
-    def stamp_ns(self, t_ns: int) -> int:
-        """The header stamp (ns) of the state at sim time ``t_ns`` (see module docstring)."""
-        if self._p['publish_clock']:
-            return t_ns
-        return self._stamp0 + round((t_ns - self._sim0) / self._rtf)
-
     def _anchor(self):
         """Pace from now: the engine's sim time corresponds to the wall time now."""
         self._wall_anchor, self._sim_anchor = time.monotonic(), self.t_ns
@@ -273,78 +232,6 @@ class Simulator(Control, Fleet, Holds, Exchange, Node):
             self._idle_ns = (self._idle_ns // p + 1) * p
             self._tick_clock(self._idle_ns)
 
-    def _tick_clock(self, t_ns):
-        """/clock at each sample instant, once however many spacecraft reach it, when it has
-        subscribers (counted with the state topics': a use_sim_time node that joins gets it
-        from the next refresh on, as a late state subscriber does; none: nothing to send,
-        and a publish cost ~25 µs of the ~600 µs of a lockstep exchange)."""
-        if t_ns <= self._clock_ns:
-            return False
-        self._clock_ns = t_ns
-        if self._clock_subscribed:
-            self._clock_pub.publish(clock_cdr(t_ns))
-        return True
-
-    def _publish(self, craft, block, late=True):
-        rtf = self._p['real_time_factor'] if late else 0
-        try:
-            sensors = craft.publish_sensors(block, self.stamp_ns)
-        except RCLError as exc:  # a paced reader's history is full (sim_acks)
-            sensors = 0
-            self._acks.refused('sensor topics', exc)
-        msgs, active = craft.msgs, craft.active
-        # paced: every message counts toward the next wait for acknowledgements (sim_acks)
-        count = self._paced
-        if count and sensors:  # readings on the busiest sensor topic, before the samples'
-            self._acks.published(sensors)
-        # several samples: topic by topic (Spacecraft.publish_states: why); not in lockstep
-        # or to a /clock subscriber, which see each sample's topics before the next one's
-        by_topic = active and len(block) > 1 and not (self._lockstep or self._clock_subscribed)
-        if by_topic:
-            craft.publish_states([msgs.encoded(block, i, self.stamp_ns(int(t)),
-                                               craft.active_names)
-                                  for i, t in enumerate(block.t_ns)], self._acks.refused)
-        for i in range(len(block)):
-            t_ns = int(block.t_ns[i])
-            new = self._tick_clock(t_ns)  # the first spacecraft at this sample instant
-            if active and not by_topic:
-                craft.publish_states([msgs.encoded(block, i, self.stamp_ns(t_ns),
-                                                   craft.active_names)], self._acks.refused)
-            if craft.orbit is not None:
-                try:
-                    craft.orbit.publish(block, i, self.stamp_ns(t_ns))
-                except RCLError as exc:
-                    self._acks.refused('orbit topics', exc)
-            self._published += len(active)
-            if count:
-                self._acks.published()
-            if rtf > 0 and new:
-                late = time.monotonic() - self._due_wall(t_ns)
-                self._worst_late = max(self._worst_late, late)
-                if late > self._p['deadline_tolerance']:
-                    self._missed += 1
-
-    @property
-    def _paced(self) -> bool:
-        """Publishing waits for acknowledgements: as fast as possible, or when subscribers
-        were waited for (a recorder: it must get every sample, even if it lags)."""
-        return not self._p['real_time_factor'] or self._p['wait_for_subscribers'] > 0
-
-    def _acked_publishers(self):
-        """Every publisher the spacecraft publish on per sample or reading (one without
-        readers answers at once)."""
-        for c in self._crafts.values():
-            yield from c.publishers()
-            if c.orbit is not None:
-                yield from (p for p, _ in c.orbit.pubs)
-
-    def _wait_acked(self, timeout=FINAL_ACK_TIMEOUT):
-        """Hold until reliable subscribers have acknowledged what was published
-        (``sim_acks``), the last diagnostics included: the run's summary, which a recorder
-        keeps beside the samples (a run as fast as possible may publish no other)."""
-        self._acks.wait(timeout)
-        self._diag_pub.wait_for_all_acked(DIAGNOSTICS_ACK_TIMEOUT)
-
     def _catch_up(self, now=None):
         """Real-time modes: process what is due by the wall clock."""
         rtf = self._p['real_time_factor']
@@ -408,12 +295,6 @@ class Simulator(Control, Fleet, Holds, Exchange, Node):
         due = [min(e.next_sample_ns, e.end_ns) for e in (c.engine for c in self._crafts.values())
                if not e.finished]
         return not due or self._due_wall(min(due)) <= now
-
-    def _refresh_subscribers(self):
-        for craft in self._crafts.values():
-            craft.refresh()
-        self._clock_subscribed = self._clock_pub is not None and \
-            self._clock_pub.get_subscription_count() > 0
 
     def run(self):
         """Spin until shutdown or ``duration`` is reached.
@@ -515,9 +396,6 @@ class Simulator(Control, Fleet, Holds, Exchange, Node):
             craft.fault = reason
         self._log.error(f'simulation stopped: {reason}; fix parameters and call ~/reset')
         self._publish_diagnostics()
-
-    def _publish_diagnostics(self):
-        self._diag_pub.publish(diagnostics(self))
 
 def main(args=None):
     """Entry point of ``ros2 run rigid_body_sim simulator``; returns the exit code."""

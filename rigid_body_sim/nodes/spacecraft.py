@@ -136,19 +136,20 @@ class Spacecraft:
         if self.orbit is not None:
             self.orbit.refresh()
 
-    def publish_states(self, samples, refused):
-        """The state messages of consecutive samples (``samples``: one {topic: CDR bytes}
-        each, StateMessages.encoded) on the subscribed topics, topic by topic: Fast DDS's
-        sending thread puts a writer's consecutive messages into one datagram, one
-        shared-memory push and one wake-up of the reader, so a block sent topic by topic
-        cost its publisher 34-41 µs of CPU a sample against 82 sample by sample (nine raw
-        topics, keep-all, one reader in another process). Each topic keeps its order.
-        ``refused(topic, exc)``: a publish refused because a paced reader's history is
-        full (sim_acks)."""
+    def publish_states(self, states, refused, at=None):
+        """The state messages of consecutive samples (``states``: {topic: [CDR bytes of
+        each sample]}, StateMessages.encoded_block) on the subscribed topics, topic by
+        topic: Fast DDS's sending thread puts a writer's consecutive messages into one
+        datagram, one shared-memory push and one wake-up of the reader, so a block sent
+        topic by topic cost its publisher 34-41 µs of CPU a sample against 82 sample by
+        sample (nine raw topics, keep-all, one reader in another process). Each topic
+        keeps its order. ``at``: only that sample's. ``refused(topic, exc)``: a publish
+        refused because a paced reader's history is full (sim_acks)."""
         for send, publisher, name in self.active_raw:
-            for data in samples:
+            data = states[name]
+            for message in data if at is None else data[at:at + 1]:
                 try:
-                    send(data[name])
+                    send(message)
                 except RCLError as exc:
                     refused(publisher.topic_name, exc)
 
