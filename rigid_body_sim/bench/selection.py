@@ -127,3 +127,17 @@ def run(quick, log=print):
         for duration in SHARE_HORIZONS:
             t_rows.append(_share_row(targets, 'explorer1', duration, log))
     return rows, t_rows
+
+
+def update(folder, log=print):
+    """Re-run this section (full) into a full run's ``folder``
+    (:func:`.common.replace_section`): selection.csv and this section's target rows."""
+    from .common import replace_section
+    rows, t_rows = run(False, log)
+    return replace_section(folder, 'selection.csv', FIELDS, rows, t_rows,
+                           ('auto CPU / cheapest', 'auto selection CPU'))
+
+
+if __name__ == '__main__':
+    from .common import section_main
+    section_main(__doc__, lambda quick: run(quick)[1], update)

@@ -323,10 +323,14 @@ def advance(engine, state: State, law, builder, until_ns: int, cap: int) -> Opti
         physical = min(physical, engine.magnetics.next_event())
     limit = min(physical, until_ns + 1)
     if law is not None:
-        if (engine.command.torque is not None or engine.command.expiry != NEVER
-                or not (state.torque_seen or c.integrator != specs.AUTO)):
+        if engine.command.torque is not None or engine.command.expiry != NEVER:
             return None
         control_ns = law.next_t
+        if not state.torque_seen and c.integrator == specs.AUTO:
+            # auto chooses again at the first torque (Engine._update_torque), which the
+            # event loop must see: the kernel runs the mission's free phase only, whose law
+            # instants give no torque; the first that may is the event loop's
+            limit = min(limit, law.first_instant_after_free(control_ns))
     else:
         control_ns = NEVER
     # the events at the current instant (t = 0's sample and law) are the event loop's

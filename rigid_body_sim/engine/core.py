@@ -417,6 +417,8 @@ class Engine(MethodChoice):
                     continue
                 if added < 0 and b.n:  # the next law interval's samples: the next block's
                     break
+            if self._law is not None and self._free_exact():
+                self._law.skip_free_instants()
             t_src = min(s.next_event() for s in self.sources)
             end = self.end_ns
             t_event = min(self._next_sample, t_src, end)

@@ -123,6 +123,27 @@ class ControlLaw(TorqueSource):
     def next_event(self):
         return self.next_t
 
+    def first_instant_after_free(self, t_ns: int) -> int:
+        """The first law instant at or after ``t_ns`` (one of the law's) outside the
+        mission's free phase: the first that may give a torque (Mission.update's test,
+        ``t - start < free_time``, in the same arithmetic)."""
+        mission, period = self.mission, self.settings.period_ns
+        start = self.next_t / 1e9 if mission.start is None else mission.start
+        if not mission.free_time > 0.0:
+            return t_ns
+        k = max(0, int((start + mission.free_time) * 1e9 - t_ns) // period - 1)
+        while (t_ns + k * period) / 1e9 - start < mission.free_time:
+            k += 1
+        return t_ns + k * period
+
+    def skip_free_instants(self):
+        """In the free phase the law gives no torque and changes nothing: where the state
+        between instants does not depend on them (the exact torque-free flow, anchored: up
+        to round-off), its next instant is the first that may give a torque (~20 µs saved at
+        each, e.g. 850 in the default scene's free phase at 50 Hz)."""
+        if self.observer is None and self.free and self.mission.start is not None:
+            self.next_t = self.first_instant_after_free(self.next_t)
+
     def on_event(self, t_ns, attitude, angular_velocity):
         if self.observer is not None:
             estimate = self.observer(t_ns)
