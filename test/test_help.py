@@ -1,5 +1,6 @@
 """Every executable answers -h/--help without starting ROS or writing a file; arguments
 that cannot work get a clear error before ROS starts (issue 33)."""
+import json
 import os
 import subprocess
 import sys
@@ -201,15 +202,60 @@ def _readme_modules():
 
 _HELP = {}
 
+# `python -m module --help` for many modules in one interpreter: numpy, scipy and numba
+# (third-party, most of each run's CPU) are imported once, then each module runs in a forked
+# child as `python -m` runs it (runpy, alter_sys; its own package not yet imported, so
+# runpy's RuntimeWarning still shows), in its own directory, its output in files.
+_FORKED_HELP = """
+import json, os, runpy, sys, traceback
+import numba, numpy, scipy.integrate  # noqa: F401
+codes = {}
+for module, cwd, out, err in json.load(sys.stdin):
+    sys.stdout.flush(); sys.stderr.flush()
+    pid = os.fork()
+    if pid == 0:
+        code = 1
+        try:
+            for fd, path in ((1, out), (2, err)):
+                os.dup2(os.open(path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC), fd)
+            os.chdir(cwd)
+            sys.argv = [module, '--help']
+            try:
+                runpy.run_module(module, run_name='__main__', alter_sys=True)
+                code = 0
+            except SystemExit as exc:
+                code = exc.code if isinstance(exc.code, int) else exc.code is not None
+                if isinstance(exc.code, str):
+                    print(exc.code, file=sys.stderr)
+        except BaseException:
+            traceback.print_exc()
+        finally:
+            sys.stdout.flush(); sys.stderr.flush()
+            os._exit(int(code))
+    codes[module] = os.waitstatus_to_exitcode(os.waitpid(pid, 0)[1])
+print(json.dumps(codes))
+"""
+
 
 def module_help(module, tmp_path_factory):
     """(result, files it left) of ``python -m module --help`` run in an empty directory:
     once per module, shared by the tests that check the README's modules and the tools
-    (loadfile keeps this file on one worker)."""
+    (loadfile keeps this file on one worker). The first call runs every such module's."""
     if module not in _HELP:
-        cwd = tmp_path_factory.mktemp('help')
-        res = run([sys.executable, '-m', module, '--help'], cwd, timeout=300)
-        _HELP[module] = res, os.listdir(cwd)
+        modules = sorted(set(_readme_modules()) | {f'rigid_body_sim.tools.{name}'
+                                                   for name in _tool_names()} | {module})
+        logs = tmp_path_factory.mktemp('help_output')
+        jobs = [(m, str(tmp_path_factory.mktemp('help')), str(logs / f'{m}.out'),
+                 str(logs / f'{m}.err')) for m in modules]
+        res = subprocess.run([sys.executable, '-c', _FORKED_HELP], input=json.dumps(jobs),
+                             capture_output=True, text=True, timeout=600)
+        assert res.returncode == 0, res.stderr[-3000:]
+        codes = json.loads(res.stdout)
+        for m, cwd, out, err in jobs:
+            with open(out) as o, open(err) as e:
+                result = subprocess.CompletedProcess([sys.executable, '-m', m, '--help'],
+                                                     codes[m], o.read(), e.read())
+            _HELP[m] = result, os.listdir(cwd)
     return _HELP[module]
 
 

@@ -6,6 +6,7 @@ possible, at real time and beside a process that keeps both cores busy; a contro
 does not answer pauses the simulator, which reports it and resumes on the answer.
 """
 import os
+import signal
 import sys
 
 import pytest
@@ -46,9 +47,10 @@ def _offline_bag(tmp_path, overrides=OVERRIDES, path=SCENE, scene=None, label='o
 
 
 def _live_bag(ros_process, namespace, tmp_path, label, rtf, integrator='splitting4',
-              path=SCENE, recorder=(), duration=3.0, topics=('torque_command',)):
+              path=SCENE, recorder=(), duration=3.0, topics=('torque_command',), busy=0):
     """Recorder, controller and simulator in lockstep on the scene; the bag.
-    ``recorder``: more arguments for the recorder (``-p name:=value``)."""
+    ``recorder``: more arguments for the recorder (``-p name:=value``). ``busy``: processes
+    busy-looping from the simulator's kernels loaded (before t = 0) to its end."""
     rate = load(path).controller['control_rate']
     over = tmp_path / f'{label}.yaml'
     over.write_text('/**/attitude_simulator:\n  ros__parameters:\n'
@@ -67,7 +69,14 @@ def _live_bag(ros_process, namespace, tmp_path, label, rtf, integrator='splittin
                       '--params-file', path, '--params-file', str(over), env=env)
     sim = ros_process(venv_exe('simulator'), '--ros-args', '-r', f'__ns:={ns}',
                       '--params-file', path, '--params-file', str(over), env=env)
+    loops = []
+    if busy:  # the run, not the nodes' start-up, is what they load (and their CPU is spent)
+        assert wait_output(sim, 'kernels loaded', 120.0), sim.output()[-3000:]
+        loops = [ros_process(sys.executable, '-c', 'while True: pass') for _ in range(busy)]
     assert sim.wait(240) == 0, sim.output()[-3000:]
+    assert all(loop.poll() is None for loop in loops)  # they were busy until the end
+    for loop in loops:
+        loop.signal(signal.SIGKILL)
     out = sim.output()
     assert 'every state topic has its subscribers; starting at t = 0' in out, out[-3000:]
     # the control instants: t = 0 … the duration less one period
@@ -86,9 +95,8 @@ def test_lockstep_runs_equal_each_other_and_the_offline_run(ros_process, namespa
     expected = _state_messages(_offline_bag(tmp_path))
     assert len(expected['attitude']) == 151  # t = 0 … 3 s at 50 Hz
     fast_bag, fast = _live_bag(ros_process, namespace, tmp_path, 'fast', 0.0)
-    for _ in range(2):  # keep both cores busy meanwhile (stopped at teardown)
-        ros_process(sys.executable, '-c', 'while True: pass')
-    slow_bag, slow = _live_bag(ros_process, namespace, tmp_path, 'loaded', 1.0)
+    # both cores kept busy through the real-time run
+    slow_bag, slow = _live_bag(ros_process, namespace, tmp_path, 'loaded', 1.0, busy=2)
     for topic, messages in expected.items():
         assert fast[topic] == messages, topic
         assert slow[topic] == messages, topic

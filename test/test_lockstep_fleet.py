@@ -3,6 +3,7 @@ spacecraft in the loop has its command, one controller per spacecraft namespace.
 
 Real processes (simulator, one controller per spacecraft, recorder) and real messages.
 """
+import signal
 import sys
 
 import pytest
@@ -68,7 +69,9 @@ def _yaml(values):
         f'    {k}: {v!r}\n'.replace("'", '') for k, v in values.items())
 
 
-def _live(ros_process, namespace, tmp_path, label, rtf):
+def _live(ros_process, namespace, tmp_path, label, rtf, busy=0):
+    """The formation's bag, live in lockstep. ``busy``: processes busy-looping from the
+    simulator's kernels loaded (before t = 0) to its end."""
     scene = tmp_path / 'formation.yaml'
     over = tmp_path / f'{label}.yaml'
     over.write_text('/**/attitude_simulator:\n  ros__parameters:\n'
@@ -91,7 +94,14 @@ def _live(ros_process, namespace, tmp_path, label, rtf):
             env=env))
     sim = ros_process(venv_exe('simulator'), '--ros-args', '-r', f'__ns:={ns}',
                       '--params-file', str(scene), '--params-file', str(over), env=env)
+    loops = []
+    if busy:  # the run, not the nodes' start-up, is what they load (and their CPU is spent)
+        assert wait_output(sim, 'kernels loaded', 120.0), sim.output()[-3000:]
+        loops = [ros_process(sys.executable, '-c', 'while True: pass') for _ in range(busy)]
     assert sim.wait(240) == 0, sim.output()[-3000:]
+    assert all(loop.poll() is None for loop in loops)  # they were busy until the end
+    for loop in loops:
+        loop.signal(signal.SIGKILL)
     out = sim.output()
     assert 'every state topic has its subscribers; starting at t = 0' in out, out[-3000:]
     assert 'lockstep: 50 exchanges' in out and 'paused' not in out, out[-3000:]
@@ -123,9 +133,8 @@ def test_a_formation_in_lockstep_gives_the_offline_run_of_each_spacecraft(
                          _messages(tmp_path / f'offline_{craft}').items() if t in TOPICS})
     assert len(expected['leader', 'attitude']) == 101  # t = 0 … 2 s at 50 Hz
     fast = _live(ros_process, namespace, tmp_path, 'fast', 0.0)
-    for _ in range(2):  # keep both cores busy meanwhile (stopped at teardown)
-        ros_process(sys.executable, '-c', 'while True: pass')
-    slow = _live(ros_process, namespace, tmp_path, 'loaded', 1.0)
+    # both cores kept busy through the real-time run
+    slow = _live(ros_process, namespace, tmp_path, 'loaded', 1.0, busy=2)
     for key, messages in expected.items():
         assert fast[key] == messages, key
         assert slow[key] == messages, key
