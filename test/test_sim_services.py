@@ -208,9 +208,14 @@ def test_simulate_steps_action_feedback_and_cancellation(ros_process, namespace,
     assert message.startswith('canceled after ') and message.endswith(f' of {n} steps')
     completed = int(message.split()[2])
     assert 5 <= completed < n
-    spin_until(rclpy_node, lambda: len(att) >= before + completed, 30.0)
+    # the state topics keep the last STATE_DEPTH samples (reliable): a loaded reader may
+    # miss some of a fast goal's, never the last; it is the state after `completed` steps
+    start = _stamp(att[before - 1])
+    spin_until(rclpy_node, lambda: _stamp(att[-1]) >= start + completed * 20_000_000, 30.0)
     spin_until(rclpy_node, lambda: False, 1.0)  # nothing more comes: it stopped
-    assert len(att) == before + completed
+    final = _stamp(att[-1])
+    assert final == start + completed * 20_000_000, (final - start, completed)
+    assert before < len(att) <= before + completed
     # each step's feedback in order; a fast goal may overwrite some in the server's history
     # before they are acknowledged (KEEP_LAST), never the last
     got = sent(handle)
