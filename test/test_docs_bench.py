@@ -228,6 +228,34 @@ def test_the_sampling_section_re_run_alone_replaces_its_own_rows(tmp_path, monke
     assert 'slew 1.23×' in '\n'.join(lines(folder / 'summary.md'))
 
 
+def test_the_perstep_section_re_run_alone_replaces_its_own_rows(tmp_path, monkeypatch):
+    """``bench.perstep --update DIR``: its block of targets (per step, per sample and the
+    MuJoCo ratios, one row per dynamics when MuJoCo is installed) replaces the old block
+    where it stood; every other row stays the full run's."""
+    import shutil
+    from rigid_body_sim.bench import perstep
+    folder = tmp_path / 'bench'
+    shutil.copytree(RUN, folder)
+    fig = {'free': 0.1, 'damped': 0.25, 'mujoco_euler': 1.5, 'offline_exact': 0.2,
+           'offline_dissipative': 0.3}
+    monkeypatch.setattr(perstep, 'run', lambda quick, log=print: ([], dict(fig)))
+    perstep.update(str(folder), log=lambda *a: None)
+    mine = ('| splitting2 µs per step', '| offline run µs per', '| MuJoCo Euler step')
+
+    def lines(name):
+        with open(name, encoding='utf-8') as f:
+            return f.read().splitlines()
+    before, after = lines(os.path.join(RUN, 'targets.md')), lines(folder / 'targets.md')
+    assert [x for x in before if not x.startswith(mine)] == \
+        [x for x in after if not x.startswith(mine)]
+    ours = [i for i, x in enumerate(after) if x.startswith(mine)]
+    assert ours == list(range(ours[0], ours[0] + 6)), 'one block'
+    assert ours[0] == next(i for i, x in enumerate(before) if x.startswith(mine))
+    damped = after[ours[-1]]
+    assert damped.startswith('| MuJoCo Euler step / splitting2 step (damped)') and \
+        '| 6 | 4 | PASS' in damped, damped
+
+
 def test_the_generated_suite_read_back_from_its_csv_gives_its_targets():
     """``bench.generated --update DIR --from-csv FILE`` judges the rows a run wrote: read
     back from the full run's generated.csv, they give that run's target rows."""

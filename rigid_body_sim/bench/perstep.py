@@ -6,6 +6,8 @@ against MuJoCo's Euler stepping the same free body in its C loop (``mj_step`` wi
 ``offline.simulate`` on a built-in scene with nothing kept (what ``rigid-body-sim run
 --no-bag --no-plots`` does): CPU per sample for a torque-free scene evaluated by
 ``exact``, and CPU per physics step for a dissipative one.
+
+    python -m rigid_body_sim.bench.perstep [--quick] [--update DIR]
 """
 import importlib.util
 
@@ -116,3 +118,17 @@ def targets_from(fig, quick=False):
         out.append(targets.simple('MuJoCo Euler step / splitting2 step', float('nan'), 4.0, None,
                                   'mujoco not installed'))
     return out
+
+
+def update(folder, log=print):
+    """Re-run this section (full) into a full run's ``folder``
+    (:func:`.common.replace_section`): perstep.csv and this section's target rows."""
+    from .common import replace_section
+    rows, fig = run(False, log)
+    return replace_section(folder, 'perstep.csv', FIELDS, rows, targets_from(fig),
+                           ('splitting2 µs per step', 'offline run µs per', 'MuJoCo Euler step'))
+
+
+if __name__ == '__main__':
+    from .common import section_main
+    section_main(__doc__, lambda quick: targets_from(run(quick)[1], quick), update)
