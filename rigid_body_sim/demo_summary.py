@@ -27,6 +27,13 @@ def phase_hint(watcher, scene, slew_start):
         return (f' — the slew began at t = {slew_start:.2f} s and settles to 2 % in '
                 f'5.83/ω_n = {settle:.1f} s (try a longer --duration)')
     free = scene.controller.get('mission.free_time', 0.0)
+    exit_rate = scene.controller.get('mission.detumble_exit_rate', 0.0)
+    if watcher.ended_in() in ('detumble', 'bdot', 'controlled'):
+        if not exit_rate > 0.0:  # a detumble scene: no slew follows, nothing to point at
+            return (' — a detumble damps the rate and points nowhere: the error is the '
+                    'attitude where the tumble stopped, not the controller\'s')
+        return (f' — the slew had not begun: it follows once |ω| < {exit_rate:g} rad/s; the '
+                'error is the tumble\'s, not the controller\'s (try a longer --duration)')
     return (f' — the slew had not begun: the free phase lasts {free:g} s, then the detumble; '
             'the error is the tumble\'s, not the controller\'s (try a longer --duration)')
 

@@ -123,3 +123,8 @@ def test_demo_summary_explains_an_unfinished_run():
     assert 'settles to 2 % in 5.83/ω_n = 7.3 s' in _phase_hint(w, scene, 20.0)
     _at(w, 40.0)
     assert _phase_hint(w, scene, 20.0) == ''
+    w.phase = 'detumble'  # the default mission: the slew follows the detumble
+    assert 'it follows once |ω| <' in _phase_hint(w, scene, math.nan)
+    detumble = load(os.path.join(REPO, 'config', 'detumble.yaml'))  # no slew follows
+    hint = _phase_hint(w, detumble, math.nan)
+    assert 'points nowhere' in hint and 'slew had not begun' not in hint, hint
