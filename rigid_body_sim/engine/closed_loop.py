@@ -59,6 +59,17 @@ N_OUT = 11
 
 
 @jit
+def _stopped(out, at_ns, steps, evals, failed, rows):
+    """The record of a run that stopped on a failure (``closed_loop_run``'s ``out``):
+    where (ns), the steps and evaluations done, the failure's code, the rows written."""
+    out[0] = at_ns
+    out[3] = steps
+    out[4] = evals
+    out[5] = failed
+    out[6] = rows
+
+
+@jit
 def closed_loop_run(state, ticks, reals, spec, body, law, block, out):
     """Advance ``state`` = (q, m, tau_body, tau_p) in place from ``ticks[T_NS]`` through
     every event instant before ``ticks[LIMIT_NS]``: the law at each control instant
@@ -152,83 +163,60 @@ def closed_loop_run(state, ticks, reals, spec, body, law, block, out):
                     break
                 seg_end = sample_ns + (capacity - row - rows - 1) * sample_period_ns
                 at_limit = False
-            span = seg_end - t
-            n = max(1, int(math.ceil(span / (h_max * 1e9) - 1e-9)))
-            h = span / (n * 1e9)
-            inner = method == SPLITTING and splitting_kernel.inner_dissipation(
-                m, h, weights, moments, model, coefficient)
-            failed, e, written = sample_kernel.segment(
-                method, q, m, t, seg_end, n, sample_ns, sample_period_ns, weights, split_axes,
-                moments, tau_p, tau_body, has_tau, model, coefficient, inner, scratch, q_flow,
-                m_flow, env, herm, t_out, q_out, m_out, tau_out, row + rows)
-            evals += e
-            rows += written
-            sample_ns += written * sample_period_ns
-            if failed == -2:  # an interpolated sample was not finite
-                out[0] = sample_ns
-                out[3] = steps
-                out[4] = evals
-                out[5] = -2
-                out[6] = rows
-                return h
-            if failed >= 0:
-                out[0] = t
-                out[3] = steps + failed + 1
-                out[4] = evals
-                out[5] = failed
-                out[6] = rows
-                return h
-            steps += n
-            t = seg_end
-            if at_limit:  # the limit's own events are the caller's
-                break
         else:
             seg_end = min(control_ns, sample_ns)
             if seg_end >= limit_ns:
                 break
-            span = seg_end - t
-            # equal steps no longer than h_max, split as Engine._integrate splits them
-            n = max(1, int(math.ceil(span / (h_max * 1e9) - 1e-9)))
-            h = span / (n * 1e9)
-            t0 = t / 1e9  # as Engine._integrate: the environment's torques see these instants
-            if method == DOP853:
-                # one integration over n·h, as DOP853.run: natural steps, the end
-                # interpolated. A sample inside the step in progress is advance's first
-                # test, inlined here: the call itself (its arrays' reference counts) cost
-                # ~150 ns of a sample's ~200
-                if dop853_dense._interpolated(q, m, h * n, tau_p, memory):
-                    status, e = dop853_kernel.OK, 0
-                else:
-                    status, reached, h_next, e = dop853_dense.advance(
-                        q, m, h * n, tau_p, memory, moments, model, coefficient, rtol, atol,
-                        t0, env)
-                evals += e
-                if status != dop853_kernel.OK:
-                    out[0] = t
-                    out[3] = steps
-                    out[4] = evals
-                    out[5] = ADAPTIVE_FAILED
-                    out[6] = rows
-                    out[9] = status
-                    out[10] = t + int(reached * 1e9)
-                    return h_next if h_next > 0.0 else h * n
-                failed = -1
+            at_limit = False  # the limit ends the loop before it is stepped to
+        span = seg_end - t
+        # equal steps no longer than h_max, split as Engine._integrate splits them
+        n = max(1, int(math.ceil(span / (h_max * 1e9) - 1e-9)))
+        h = span / (n * 1e9)
+        t0 = t / 1e9  # as Engine._integrate: the environment's torques see these instants
+        failed = -1
+        if method == DOP853:  # (never interpolating: closed_loop.advance)
+            # one integration over n·h, as DOP853.run: natural steps, the end
+            # interpolated. A sample inside the step in progress is advance's first
+            # test, inlined here: the call itself (its arrays' reference counts) cost
+            # ~150 ns of a sample's ~200
+            if dop853_dense._interpolated(q, m, h * n, tau_p, memory):
+                status, e = dop853_kernel.OK, 0
             else:
-                inner = method == SPLITTING and splitting_kernel.inner_dissipation(
-                    m, h, weights, moments, model, coefficient)
+                status, reached, h_next, e = dop853_dense.advance(
+                    q, m, h * n, tau_p, memory, moments, model, coefficient, rtol, atol,
+                    t0, env)
+            evals += e
+            if status != dop853_kernel.OK:
+                _stopped(out, t, steps, evals, ADAPTIVE_FAILED, rows)
+                out[9] = status
+                out[10] = t + int(reached * 1e9)
+                return h_next if h_next > 0.0 else h * n
+        else:
+            inner = method == SPLITTING and splitting_kernel.inner_dissipation(
+                m, h, weights, moments, model, coefficient)
+            if interpolate:
+                failed, e, written = sample_kernel.segment(
+                    method, q, m, t, seg_end, n, sample_ns, sample_period_ns, weights,
+                    split_axes, moments, tau_p, tau_body, has_tau, model, coefficient, inner,
+                    scratch, q_flow, m_flow, env, herm, t_out, q_out, m_out, tau_out,
+                    row + rows)
+                rows += written
+                sample_ns += written * sample_period_ns
+                if failed == -2:  # an interpolated sample was not finite
+                    _stopped(out, sample_ns, steps, evals + e, -2, rows)
+                    return h
+            else:
                 failed, e = fixed_steps(method, q, m, h, n, weights, split_axes, moments,
                                         tau_p, has_tau, model, coefficient, inner, scratch,
                                         q_flow, m_flow, t0, env)
-                evals += e
-            if failed >= 0:
-                out[0] = t
-                out[3] = steps + failed + 1
-                out[4] = evals
-                out[5] = failed
-                out[6] = rows
-                return h
-            steps += n
-            t = seg_end
+            evals += e
+        if failed >= 0:  # a step failed: the segment's start, and that step's index in it
+            _stopped(out, t, steps + failed + 1, evals, failed, rows)
+            return h
+        steps += n
+        t = seg_end
+        if at_limit:  # (interpolating) the limit's own events are the caller's
+            break
         if t == control_ns:
             # the body-frame state the law sees (Engine.attitude / angular_velocity)
             cx, cy, cz, cw = -p2b[0], -p2b[1], -p2b[2], p2b[3]
@@ -270,11 +258,7 @@ def closed_loop_run(state, ticks, reals, spec, body, law, block, out):
             for i in range(3):
                 finite = finite and math.isfinite(m[i])
             if not finite:  # the loops check every step; this is the sample's own check
-                out[0] = t
-                out[3] = steps
-                out[4] = evals
-                out[5] = -2
-                out[6] = rows
+                _stopped(out, t, steps, evals, -2, rows)
                 return h
             r = row + rows
             t_out[r] = t
