@@ -318,15 +318,16 @@ def test_advancing_to_a_lockstep_instant_calls_the_compiled_loop_once(monkeypatc
     """An external command held, the engine advanced to the next control instant (what
     a lockstep exchange asks of it): one call of the compiled loop, which writes that
     instant's sample; before, a second call followed to find no event up to the instant."""
-    from rigid_body_sim.engine import closed_loop
+    from rigid_body_sim.engine import closed_loop_args
     from rigid_body_sim.scene import load
     scene = load(os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))),
                               'config', 'slew.yaml'),
                  ['integrator=splitting4', 'duration=1.0', 'publish_rate=50.0'])
     period = 20_000_000
     calls = []
-    advance = closed_loop.advance
-    monkeypatch.setattr(closed_loop, 'advance', lambda *a: (calls.append(a[4]), advance(*a))[1])
+    advance = closed_loop_args.advance
+    monkeypatch.setattr(closed_loop_args, 'advance',
+                        lambda *a: (calls.append(a[4]), advance(*a))[1])
     stepped = Engine(EngineConfig.from_parameters(scene.simulator), blocking_selection=False)
     assert len(stepped.advance(0)) == 1
     for k in range(1, 10):

@@ -147,7 +147,7 @@ def test_samples_between_steps_in_both_jit_modes():
 _DIVERGING = """
 import json, sys
 import numpy as np
-from rigid_body_sim.engine import Engine, EngineConfig, closed_loop
+from rigid_body_sim.engine import Engine, EngineConfig, closed_loop, closed_loop_args
 from rigid_body_sim.physics import IntegrationError
 from rigid_body_sim.physics.jit import COMPILED
 kernel, interpolated = closed_loop.closed_loop_run, []
@@ -158,7 +158,7 @@ def spy(state, ticks, *rest):
     return kernel(state, ticks, *rest)
 
 
-closed_loop.closed_loop_run = spy
+closed_loop_args.closed_loop_run = spy
 out = {'compiled': COMPILED}
 for name, options in (('between', {'interpolate_samples': True}),
                       ('events', {'compiled_loop': False})):
