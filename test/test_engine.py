@@ -335,3 +335,77 @@ def test_advancing_to_a_lockstep_instant_calls_the_compiled_loop_once(monkeypatc
         del calls[:]
         block = stepped.advance(k * period)
         assert len(block) == 1 and stepped.t_ns == k * period and calls == [k * period]
+
+
+def _lockstep_pair(sim, ctl=None):
+    """The same engine with the compiled loop (its arguments packed once, reused) and
+    event by event (nothing packed)."""
+    config = EngineConfig.from_parameters(sim, ctl)
+    return [Engine(config, blocking_selection=False, compiled_loop=compiled)
+            for compiled in (True, False)]
+
+
+def _same_samples(engines, until_ns):
+    a, b = (e.advance(until_ns) for e in engines)
+    assert len(a) == len(b) > 0 and engines[0].t_ns == engines[1].t_ns
+    np.testing.assert_array_equal(a.t_ns, b.t_ns)
+    for field in ('q', 'm', 'torque'):
+        np.testing.assert_allclose(getattr(a, field), getattr(b, field), rtol=0, atol=1e-12,
+                                   err_msg=field)
+
+
+def test_the_compiled_loops_arguments_packed_once_follow_every_change():
+    """The compiled loop's arguments are packed once per engine and reused from call to
+    call (a lockstep exchange is a call): what changed between calls reaches the loop.
+    Driven call by call through commands (held, then another), a new step and
+    dissipation (a new integrator and dynamics), a new torque clip and target for the
+    law, and a reset to a new inertia (a new body and controller), each engine's
+    samples are those of the event-by-event path (which packs nothing) to 1e-12; while
+    nothing changes the packed groups are the same objects."""
+    sim = {'inertia': [1.0, 2.0, 3.0], 'initial_angular_velocity': [0.3, -0.2, 0.4],
+           'integrator': 'rk4', 'step': 0.005, 'publish_rate': 50.0, 'duration': 0.0}
+    period = 20_000_000
+    held = _lockstep_pair(sim)
+    _same_samples(held, 0)
+    packing = held[0]._loop_args
+    for k in range(1, 6):
+        for e in held:
+            e.apply_command((1e-3 * k, 0.0, -2e-3 * k))
+        _same_samples(held, k * period)
+    assert held[0]._loop_args is packing
+    groups = (packing.method(held[0].integrator),
+              packing.body(held[0].dynamics, held[0].body), packing.ticks, packing.out)
+    for e in held:
+        e.reconfigure(EngineConfig.from_parameters(
+            {**sim, 'step': 0.002, 'dissipation.model': 'viscous',
+             'dissipation.coefficient': 0.3}))
+        e.apply_command((0.0, 5e-3, 0.0))
+    _same_samples(held, 6 * period)
+    assert packing.method(held[0].integrator) is not groups[0]
+    assert packing.body(held[0].dynamics, held[0].body) is not groups[1]
+    assert packing.ticks is groups[2] and packing.out is groups[3]
+
+    ctl = {'inertia': [1.0, 2.0, 3.0], 'mode': 'slew', 'control_rate': 50.0,
+           'max_torque': 0.05}
+    controlled = _lockstep_pair({**sim, 'max_torque': 0.05}, ctl)
+    _same_samples(controlled, 0)
+    for k in range(1, 4):
+        _same_samples(controlled, k * period)
+    law = controlled[0]._loop_args.law(controlled[0]._law.controller)
+    _same_samples(controlled, 4 * period)
+    assert controlled[0]._loop_args.law(controlled[0]._law.controller) is law
+    for e in controlled:  # a new target for the law's controller
+        e._law.controller.set_target((0.0, 0.6, 0.0, 0.8))
+    _same_samples(controlled, 6 * period)
+    for e in controlled:  # a tighter clip: the law's torque now saturates
+        e.reconfigure(EngineConfig.from_parameters({**sim, 'max_torque': 1e-4}, ctl))
+    _same_samples(controlled, 9 * period)
+    assert np.abs(controlled[0].torque).max() == pytest.approx(1e-4)
+    bigger = {**ctl, 'inertia': [2.0, 5.0, 7.0]}
+    for e in controlled:  # a new body for the simulator and the law's model
+        e.reconfigure(EngineConfig.from_parameters(
+            {**sim, 'inertia': [2.0, 5.0, 7.0], 'max_torque': 0.05}, bigger))
+        e.reset()
+    for k in range(10, 13):
+        _same_samples(controlled, k * period)
+    assert controlled[0]._loop_args.law(controlled[0]._law.controller) is not law

@@ -23,6 +23,8 @@ from .config import NS
 class Stepping:
     """The engine's stepping between events (see the module docstring)."""
 
+    _loop_args = None  # the compiled loop's arguments (closed_loop_args.Packing), reused
+
     def _anchor_orbit(self, t_ns: int, t_end: int):
         """The osculating conic at the interval's midpoint (its error grows as the square of
         the distance from it) into the dynamics' element array, in place (the integrators
@@ -78,8 +80,10 @@ class Stepping:
                                           self.t_ns / NS, self._aligned) \
                 and self._integ.adaptive:
             self._integ.reset()  # its step in progress saw the previous dipole
+        if self._loop_args is None:
+            self._loop_args = closed_loop_args.Packing()
         done = closed_loop_args.advance(self, self._state(), self._law, self._builder,
-                                        until_ns, cap)
+                                        until_ns, cap, self._loop_args)
         if done is None:
             return 0
         if mag is not None and done.rows:  # the stretch ends at the hold's next event
