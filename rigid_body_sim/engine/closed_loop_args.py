@@ -187,7 +187,7 @@ def advance(engine, state: State, law, builder, until_ns: int, cap: int,
         if mode != MODE_CODES[ctl.mode]:
             ctl.set_mode(next(k for k, v in MODE_CODES.items() if v == mode))
         law.torque = tau if tau.any() else None
-    # the record made directly: dataclasses.replace inspects the fields at every call
+    # the record made directly, field by field
     return Stretch(State(q, m, t_end, next_sample, state.tau_body, state.tau_p,
                          state.torque_seen), rows, steps, evals, full=failed == NEED_ROOM)
 
