@@ -3,8 +3,9 @@ it applies, its arguments, and its results taken back.
 
 :func:`advance` decides whether a stretch of events can run in the kernel (a method with
 a compiled loop, only the law or only a held command acting, no re-anchored orbit), packs
-the kernel's arguments from the engine (read, never written) and its :class:`State`, and
-returns what the kernel did as a :class:`Stretch` for the engine to take.
+the kernel's arguments from the engine (read, never written) and its :class:`State` into
+the engine's :class:`Packing` (kept from call to call), and returns what the kernel did
+as a :class:`Stretch` for the engine to take.
 """
 from typing import Optional
 
