@@ -142,3 +142,53 @@ def test_samples_between_steps_in_both_jit_modes():
     assert compiled['steps'] == plain['steps'] == 125 and len(compiled['q']) == 51
     for k in ('q', 'm'):
         np.testing.assert_allclose(compiled[k], plain[k], rtol=0, atol=1e-12, err_msg=k)
+
+
+_DIVERGING = """
+import json, sys
+import numpy as np
+from rigid_body_sim.engine import Engine, EngineConfig, closed_loop, closed_loop_args
+from rigid_body_sim.physics import IntegrationError
+from rigid_body_sim.physics.jit import COMPILED
+kernel, interpolated = closed_loop.closed_loop_run, []
+
+
+def spy(state, ticks, *rest):
+    interpolated.append(int(ticks[closed_loop.INTERPOLATE]))
+    return kernel(state, ticks, *rest)
+
+
+closed_loop_args.closed_loop_run = spy
+out = {'compiled': COMPILED}
+for name, options in (('between', {'interpolate_samples': True}),
+                      ('events', {'compiled_loop': False})):
+    engine = Engine(EngineConfig.from_parameters(json.loads(sys.argv[1])), **options)
+    del interpolated[:]
+    try:
+        with np.errstate(all='ignore'):
+            list(engine.run())
+        out[name] = None
+    except IntegrationError as exc:
+        out[name] = [str(exc), engine.fault, list(interpolated)]
+print(json.dumps(out))
+"""
+
+
+@pytest.mark.slow
+def test_a_step_failing_between_samples_stops_the_run_in_both_jit_modes():
+    """Euler diverging inside the interpolating loop (the whole run one call, samples
+    between steps) stops the run with the event path's IntegrationError (method, step,
+    the failing step's time) and a fault, compiled and as plain Python: the loop's one
+    failure tail serves both ways of stepping."""
+    import json
+    from jit_modes import run_both
+    sim = {'inertia': [1.0, 2.0, 3.0], 'initial_angular_velocity': [0.5, 3.0, 0.5],
+           'integrator': 'euler', 'step': 0.5, 'publish_rate': 0.01, 'duration': 1e4,
+           'accuracy': 1.0}
+    compiled, plain = run_both(_DIVERGING, json.dumps(sim))
+    assert compiled.pop('compiled') is True and plain.pop('compiled') is False
+    for mode in (compiled, plain):
+        message, fault, interpolated = mode['between']
+        assert interpolated == [1]  # one call of the loop, interpolating
+        assert message == mode['events'][0] and mode['events'][2] == []
+        assert 'euler failed at t = 11.5 s with step h = 0.5 s' in message and fault

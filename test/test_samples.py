@@ -397,3 +397,16 @@ def test_auto_runs_the_free_phase_in_the_compiled_loop(monkeypatch):
     assert np.abs(every.samples.angular_momentum
                   - run.samples.angular_momentum[:n]).max() < 1e-13 * np.abs(
                       every.samples.angular_momentum).max()
+
+
+def test_the_loop_writes_its_failure_record_in_one_place():
+    """Every way the compiled loop stops on a failure (a fixed step interpolating or not,
+    dop853, a non-finite sample) writes ``out`` through one function
+    (``closed_loop._stopped``), and a failed fixed step's tail is written once for both
+    ways of stepping: before, five copies of the record, two of the tail."""
+    import inspect
+    from rigid_body_sim.engine import closed_loop
+    kernel = closed_loop.closed_loop_run
+    src = inspect.getsource(getattr(kernel, 'py_func', kernel))
+    assert src.count('out[5] =') == 1  # the run's normal end
+    assert src.count('_stopped(') == 4 and src.count('if failed >= 0') == 1

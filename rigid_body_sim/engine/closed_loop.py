@@ -13,8 +13,8 @@ splits it. The samples are the event-by-event path's (test_samples compares them
 bit). Offline (``ticks[INTERPOLATE]``, ``Engine.interpolate_samples``), a fixed-step
 method's steps split only the law's intervals and the samples inside are interpolated
 (``sample_kernel``): the steps and auto's choice then do not depend on the sample rate.
-:func:`advance` is the engine's side: it decides when the kernel applies, packs its
-arguments and takes its results back.
+The engine's side (when the kernel applies, its arguments, its results taken back) is
+``closed_loop_args``.
 
 Frames: q is principal → inertial and m the principal-frame momentum (what the
 integrators advance); the law sees the body frame (attitude body → inertial, ω body), as
@@ -22,13 +22,11 @@ everywhere else. ``p2b`` is the principal → body rotation (x, y, z, w), ``axes
 matrix (v_body = axes @ v_principal).
 """
 import math
-from typing import Optional
 
 import numpy as np
 
 from .. import control_kernel, control_law
-from ..control_kernel import MODE_CODES, control_torque
-from ..physics import IntegrationError
+from ..control_kernel import control_torque
 from ..physics import dynamics_kernel
 from ..physics.integrators import (dop853_dense, dop853_kernel, exact_flow_kernel,
                                    explicit_kernel, splitting_kernel)
@@ -37,10 +35,7 @@ from .sample_kernel import DOP853, EXACT, EULER, RK4, SPLITTING, fixed_steps
 from ..physics.jit import depends_on, jit
 from ..physics.environment import facets_kernel, magnetic_kernel
 from ..physics.orbit import kernel as orbit_kernel
-from . import specs
-from .config import NS
 from .sources import NEVER
-from .state import State, Stretch
 
 NEVER_NS = NEVER  # numba reads module globals as compile-time constants
 
@@ -52,10 +47,21 @@ T_NS, LIMIT_NS, CONTROL_NS, PERIOD_NS, SAMPLE_NS, SAMPLE_PERIOD_NS, METHOD, MODE
 # and its real ones (float64 array ``reals``)
 H_MAX, COEFFICIENT, RATE_LIMIT, TORQUE_LIMIT, CLIP, MISSION_START, FREE_TIME, EXIT_RATE, \
     RTOL, ATOL, N_REALS = range(11)
-__all__ = ['SPLITTING', 'RK4', 'EULER', 'DOP853', 'EXACT', 'closed_loop_run', 'advance']
+__all__ = ['SPLITTING', 'RK4', 'EULER', 'DOP853', 'EXACT', 'closed_loop_run']
 ADAPTIVE_FAILED = -3  # out[5] when dop853 failed: out[9] its status, out[10] where (ns)
 NEED_ROOM = -4  # out[5] when the next law interval's samples do not fit in the block
 N_OUT = 11
+
+
+@jit
+def _stopped(out, at_ns, steps, evals, failed, rows):
+    """The record of a run that stopped on a failure (``closed_loop_run``'s ``out``):
+    where (ns), the steps and evaluations done, the failure's code, the rows written."""
+    out[0] = at_ns
+    out[3] = steps
+    out[4] = evals
+    out[5] = failed
+    out[6] = rows
 
 
 @jit
@@ -135,7 +141,7 @@ def closed_loop_run(state, ticks, reals, spec, body, law, block, out):
     while row + rows < capacity:
         if interpolate:
             # the steps split only the intervals between law instants (and the limit, a
-            # physics event here: closed_loop.advance); samples inside are interpolated
+            # physics event here: closed_loop_args.advance); samples inside are interpolated
             seg_end = min(control_ns, limit_ns)
             if seg_end <= t:
                 break
@@ -152,83 +158,60 @@ def closed_loop_run(state, ticks, reals, spec, body, law, block, out):
                     break
                 seg_end = sample_ns + (capacity - row - rows - 1) * sample_period_ns
                 at_limit = False
-            span = seg_end - t
-            n = max(1, int(math.ceil(span / (h_max * 1e9) - 1e-9)))
-            h = span / (n * 1e9)
-            inner = method == SPLITTING and splitting_kernel.inner_dissipation(
-                m, h, weights, moments, model, coefficient)
-            failed, e, written = sample_kernel.segment(
-                method, q, m, t, seg_end, n, sample_ns, sample_period_ns, weights, split_axes,
-                moments, tau_p, tau_body, has_tau, model, coefficient, inner, scratch, q_flow,
-                m_flow, env, herm, t_out, q_out, m_out, tau_out, row + rows)
-            evals += e
-            rows += written
-            sample_ns += written * sample_period_ns
-            if failed == -2:  # an interpolated sample was not finite
-                out[0] = sample_ns
-                out[3] = steps
-                out[4] = evals
-                out[5] = -2
-                out[6] = rows
-                return h
-            if failed >= 0:
-                out[0] = t
-                out[3] = steps + failed + 1
-                out[4] = evals
-                out[5] = failed
-                out[6] = rows
-                return h
-            steps += n
-            t = seg_end
-            if at_limit:  # the limit's own events are the caller's
-                break
         else:
             seg_end = min(control_ns, sample_ns)
             if seg_end >= limit_ns:
                 break
-            span = seg_end - t
-            # equal steps no longer than h_max, split as Engine._integrate splits them
-            n = max(1, int(math.ceil(span / (h_max * 1e9) - 1e-9)))
-            h = span / (n * 1e9)
-            t0 = t / 1e9  # as Engine._integrate: the environment's torques see these instants
-            if method == DOP853:
-                # one integration over n·h, as DOP853.run: natural steps, the end
-                # interpolated. A sample inside the step in progress is advance's first
-                # test, inlined here: the call itself (its arrays' reference counts) cost
-                # ~150 ns of a sample's ~200
-                if dop853_dense._interpolated(q, m, h * n, tau_p, memory):
-                    status, e = dop853_kernel.OK, 0
-                else:
-                    status, reached, h_next, e = dop853_dense.advance(
-                        q, m, h * n, tau_p, memory, moments, model, coefficient, rtol, atol,
-                        t0, env)
-                evals += e
-                if status != dop853_kernel.OK:
-                    out[0] = t
-                    out[3] = steps
-                    out[4] = evals
-                    out[5] = ADAPTIVE_FAILED
-                    out[6] = rows
-                    out[9] = status
-                    out[10] = t + int(reached * 1e9)
-                    return h_next if h_next > 0.0 else h * n
-                failed = -1
+            at_limit = False  # the limit ends the loop before it is stepped to
+        span = seg_end - t
+        # equal steps no longer than h_max, split as Engine._integrate splits them
+        n = max(1, int(math.ceil(span / (h_max * 1e9) - 1e-9)))
+        h = span / (n * 1e9)
+        t0 = t / 1e9  # as Engine._integrate: the environment's torques see these instants
+        failed = -1
+        if method == DOP853:  # (never interpolating: closed_loop_args.advance)
+            # one integration over n·h, as DOP853.run: natural steps, the end
+            # interpolated. A sample inside the step in progress is advance's first
+            # test, inlined here: the call itself (its arrays' reference counts) cost
+            # ~150 ns of a sample's ~200
+            if dop853_dense._interpolated(q, m, h * n, tau_p, memory):
+                status, e = dop853_kernel.OK, 0
             else:
-                inner = method == SPLITTING and splitting_kernel.inner_dissipation(
-                    m, h, weights, moments, model, coefficient)
+                status, reached, h_next, e = dop853_dense.advance(
+                    q, m, h * n, tau_p, memory, moments, model, coefficient, rtol, atol,
+                    t0, env)
+            evals += e
+            if status != dop853_kernel.OK:
+                _stopped(out, t, steps, evals, ADAPTIVE_FAILED, rows)
+                out[9] = status
+                out[10] = t + int(reached * 1e9)
+                return h_next if h_next > 0.0 else h * n
+        else:
+            inner = method == SPLITTING and splitting_kernel.inner_dissipation(
+                m, h, weights, moments, model, coefficient)
+            if interpolate:
+                failed, e, written = sample_kernel.segment(
+                    method, q, m, t, seg_end, n, sample_ns, sample_period_ns, weights,
+                    split_axes, moments, tau_p, tau_body, has_tau, model, coefficient, inner,
+                    scratch, q_flow, m_flow, env, herm, t_out, q_out, m_out, tau_out,
+                    row + rows)
+                rows += written
+                sample_ns += written * sample_period_ns
+                if failed == -2:  # an interpolated sample was not finite
+                    _stopped(out, sample_ns, steps, evals + e, -2, rows)
+                    return h
+            else:
                 failed, e = fixed_steps(method, q, m, h, n, weights, split_axes, moments,
                                         tau_p, has_tau, model, coefficient, inner, scratch,
                                         q_flow, m_flow, t0, env)
-                evals += e
-            if failed >= 0:
-                out[0] = t
-                out[3] = steps + failed + 1
-                out[4] = evals
-                out[5] = failed
-                out[6] = rows
-                return h
-            steps += n
-            t = seg_end
+            evals += e
+        if failed >= 0:  # a step failed: the segment's start, and that step's index in it
+            _stopped(out, t, steps + failed + 1, evals, failed, rows)
+            return h
+        steps += n
+        t = seg_end
+        if at_limit:  # (interpolating) the limit's own events are the caller's
+            break
         if t == control_ns:
             # the body-frame state the law sees (Engine.attitude / angular_velocity)
             cx, cy, cz, cw = -p2b[0], -p2b[1], -p2b[2], p2b[3]
@@ -270,11 +253,7 @@ def closed_loop_run(state, ticks, reals, spec, body, law, block, out):
             for i in range(3):
                 finite = finite and math.isfinite(m[i])
             if not finite:  # the loops check every step; this is the sample's own check
-                out[0] = t
-                out[3] = steps
-                out[4] = evals
-                out[5] = -2
-                out[6] = rows
+                _stopped(out, t, steps, evals, -2, rows)
                 return h
             r = row + rows
             t_out[r] = t
@@ -302,129 +281,3 @@ closed_loop_run = depends_on(closed_loop_run, sample_kernel, splitting_kernel, e
                              dop853_kernel, dop853_dense, exact_flow_kernel, dynamics_kernel,
                              control_kernel, control_law, orbit_kernel, magnetic_kernel,
                              facets_kernel)
-
-
-def advance(engine, state: State, law, builder, until_ns: int, cap: int) -> Optional[Stretch]:
-    """Every sample and control instant up to ``until_ns`` (before the run's end and any
-    other source's event) in one compiled kernel, from ``state``, the samples written
-    straight into ``builder`` (the engine's block, rows from ``builder.n`` up to ``cap``;
-    the engine counts them in); ``law``: the in-process ControlLaw or None. Returns the
-    :class:`Stretch` (new state, rows, steps, evaluations, error) for the engine to take,
-    or None where it does not apply: it needs a method with a compiled loop and only the
-    law (no held command) or only a held command acting; otherwise ``Engine.advance`` goes
-    event by event. ``engine`` is read, never written."""
-    c = engine.config
-    integ = engine.integrator
-    code = None if integ is None else integ.loop_code  # the method's own
-    if engine.selection_pending or code is None or engine.orbit_anchored:
-        return None  # (an SGP4 orbit is re-anchored at every interval: event by event)
-    physical = min(engine.end_ns, engine.command.next_event())  # events of the physics
-    if engine.magnetics is not None:  # a held dipole's expiry or a new one ends the stretch
-        physical = min(physical, engine.magnetics.next_event())
-    limit = min(physical, until_ns + 1)
-    if law is not None:
-        if engine.command.torque is not None or engine.command.expiry != NEVER:
-            return None
-        control_ns = law.next_t
-        if not state.torque_seen and c.integrator == specs.AUTO:
-            # auto chooses again at the first torque (Engine._update_torque), which the
-            # event loop must see: the kernel runs the mission's free phase only, whose law
-            # instants give no torque; the first that may is the event loop's
-            limit = min(limit, law.first_instant_after_free(control_ns))
-    else:
-        control_ns = NEVER
-    # the events at the current instant (t = 0's sample and law) are the event loop's
-    first = min(control_ns, state.next_sample)
-    if first >= limit or builder.n >= cap or first <= state.t_ns:
-        return None
-    spec = integ.loop_spec()
-    if spec is None:
-        return None
-    adaptive = integ.loop_memory()
-    memory, rtol, atol = (_NO_MEMORY, 0.0, 0.0) if adaptive is None else adaptive
-    d = engine.dynamics.dissipation
-    q, m = state.q.copy(), state.m.copy()
-    out = np.zeros(N_OUT, dtype=np.int64)
-    ticks = np.zeros(N_TICKS, dtype=np.int64)
-    reals = np.zeros(N_REALS)
-    if law is not None:
-        settings, ctl, mission = law.settings, law.controller, law.mission
-        cfg, model_body = ctl.config, ctl.config.body
-        if mission.start is None:
-            mission.start = law.next_t / NS
-        tau = np.zeros(3) if law.torque is None else np.array(law.torque, float)
-        tau_p = np.zeros(3)
-        ticks[FREE] = law.free
-        ticks[MODE], ticks[GYROSCOPIC] = MODE_CODES[ctl.mode], cfg.gyroscopic_compensation
-        reals[RATE_LIMIT], reals[TORQUE_LIMIT], reals[CLIP] = \
-            cfg.rate_limit, cfg.torque_limit, law.clip
-        reals[MISSION_START], reals[FREE_TIME], reals[EXIT_RATE] = \
-            mission.start, mission.free_time, mission.detumble_exit_rate
-        law_arrays = (ctl.target, model_body.principal_axes, model_body.principal_moments,
-                      cfg.kp_principal, cfg.kd_principal, cfg.rate_gain_principal,
-                      model_body.inertia)
-        period = settings.period_ns
-    else:  # the held command (or nothing): constant over the whole stretch
-        tau = np.zeros(3) if state.tau_body is None else np.array(state.tau_body, float)
-        tau_p = np.zeros(3) if state.tau_p is None else np.array(state.tau_p, float)
-        law_arrays, period = _NO_LAW, 1
-    if law is not None and control_ns < limit:
-        # the stretch's last law instant goes through the event loop, so that law.last
-        # holds the law's latest evaluation (saturation, error angle) as without the
-        # kernel; one Python evaluation per call, not per instant
-        limit = control_ns + (limit - 1 - control_ns) // period * period
-        if min(control_ns, state.next_sample) >= limit:
-            return None
-    ticks[T_NS], ticks[LIMIT_NS], ticks[CONTROL_NS], ticks[PERIOD_NS] = \
-        state.t_ns, limit, control_ns, period
-    ticks[SAMPLE_NS], ticks[SAMPLE_PERIOD_NS] = state.next_sample, c.sample_period_ns
-    ticks[METHOD], ticks[MODEL], ticks[ROW] = code, integ.loop_model(), builder.n
-    # samples between steps where the stretch ends at an event of the physics (with the law
-    # it ends at a law instant), never at a caller's until_ns, which would split a step
-    ticks[INTERPOLATE] = code != DOP853 and (law is not None or physical <= until_ns + 1) \
-        and sample_kernel.interpolation_allowed(engine, state.m)
-    reals[H_MAX], reals[COEFFICIENT] = engine.step_max, d.coefficient
-    reals[RTOL], reals[ATOL] = rtol, atol
-    body = engine.body
-    h = closed_loop_run(
-        (q, m, tau, tau_p), ticks, reals, (spec[0], spec[1], memory),
-        (engine.dynamics.moments, body.principal_axes, body.principal_to_body,
-         engine.dynamics.environment), law_arrays,
-        builder.columns(cap), out)
-    next_control, mode, free, steps, evals, failed, rows, t_end, next_sample, status, \
-        failed_ns = out.tolist()  # Python ints, in one call (a lockstep exchange's CPU)
-    error = None
-    if failed == ADAPTIVE_FAILED:  # as DOP853._advance reports it, and starts afresh next
-        integ.reset()
-        error = IntegrationError(engine.method, h, failed_ns / NS,
-                                 dop853_kernel.REASONS[status])
-    elif failed >= 0:
-        error = IntegrationError(engine.method, h, (next_control + (failed + 1) * h * NS) / NS,
-                                 'state became non-finite (the method diverged)')
-    elif failed == -2:
-        error = IntegrationError(engine.method, engine.step_max, next_control / NS,
-                                 f'state became non-finite at t = {next_control / NS:.9g} s')
-    if error is not None:
-        return Stretch(state, rows, steps, evals, error)
-    if law is not None:
-        law.next_t, law.free, law.last = next_control, bool(free), None
-        if mode != MODE_CODES[ctl.mode]:
-            ctl.set_mode(next(k for k, v in MODE_CODES.items() if v == mode))
-        law.torque = tau if tau.any() else None
-    # the record made directly: dataclasses.replace inspects the fields at every call
-    return Stretch(State(q, m, t_end, next_sample, state.tau_body, state.tau_p,
-                         state.torque_seen), rows, steps, evals, full=failed == NEED_ROOM)
-
-
-def _frozen(a):
-    a.setflags(write=False)
-    return a
-
-
-_NO_MEMORY = np.zeros(dop853_dense.MEMORY)  # what methods without one pass (never read)
-
-# the law's arrays when no law runs (never read: its instant is NEVER), typed as the
-# law's own (read-only model arrays), so that both share one compiled kernel
-_NO_LAW = (np.array([0.0, 0.0, 0.0, 1.0]), _frozen(np.eye(3)), _frozen(np.ones(3)),
-           _frozen(np.zeros(3)), _frozen(np.zeros(3)), _frozen(np.zeros(3)),
-           _frozen(np.eye(3)))

@@ -3,18 +3,20 @@
 :class:`Engine` owns its state; the parts of the engine in other modules (the compiled
 closed loop, the health report) receive a :class:`State` and, where they advance it,
 return a new one in a :class:`Stretch` for the engine to take (cf. MuJoCo's mjData,
-Drake's Context): nothing outside ``core.py`` writes the engine's attributes.
+Drake's Context): nothing outside ``core.py`` and its mixins writes the engine's
+attributes.
+
+Both are named tuples, immutable like the frozen dataclasses they were but made in a
+third of the time: a lockstep exchange makes three (1.1 µs each as dataclasses).
 """
-from dataclasses import dataclass
-from typing import Optional
+from typing import NamedTuple, Optional
 
 import numpy as np
 
 from ..physics import IntegrationError
 
 
-@dataclass(frozen=True)
-class State:
+class State(NamedTuple):
     """q (4,) principal → inertial (x, y, z, w); m (3,) principal-frame momentum, kg·m²/s;
     t_ns: sim time, ns; next_sample: the next sample instant, ns; tau_body: the held total
     torque, body frame, N·m (None: none); tau_p: what acts on the body from outside,
@@ -29,8 +31,7 @@ class State:
     torque_seen: bool
 
 
-@dataclass(frozen=True)
-class Stretch:
+class Stretch(NamedTuple):
     """What advancing over a stretch of events gives back: the new ``state``, the sample
     ``rows`` written into the block, the method's ``steps`` and ``evaluations``, and the
     ``error`` that stopped it (None: none; the counts then include the failed steps).

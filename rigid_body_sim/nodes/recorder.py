@@ -32,7 +32,6 @@ import rclpy.logging
 from rclpy.clock import Clock, ClockType
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
-from rclpy.parameter import parameter_value_to_python
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
 from rigid_body_sim.bag.errors import BagError
@@ -46,6 +45,7 @@ from rigid_body_sim.node_interfaces import (DEFAULT_OUTPUT_DIR, RECORDED_BY_DEFA
 from rigid_body_sim.nodes import matches
 from rigid_body_sim.nodes.matches import hidden, latched as _latched
 from rigid_body_sim.nodes.process import signals_ignored, start_ros
+from rigid_body_sim.nodes.recorder_config import fetch_simulator_parameters
 
 # The default topics, their types (subscribed at start, before their publishers exist) and
 # the parameters are data, shared with the docs' reference.
@@ -113,8 +113,9 @@ class Recorder(Node):
         self._discover()
         self._report_matches()
         self.create_timer(matches.PERIOD_S, self._report_matches, clock=steady)
-        self._start_config_fetch(get('simulator_node').value, float(get('config_timeout').value),
-                                 steady)
+        fetch_simulator_parameters(self, get('simulator_node').value,
+                                   float(get('config_timeout').value), steady, self._config,
+                                   self.writer)
 
     # --- topics --------------------------------------------------------------------
 
@@ -278,49 +279,6 @@ class Recorder(Node):
     def _own_parameters(self) -> dict[str, Any]:
         names = self.list_parameters([], 0).names
         return {p.name: p.value for p in self.get_parameters(names)}
-
-    def _start_config_fetch(self, node_name: str, timeout: float, clock: Clock) -> None:
-        """Ask the simulator for its parameters in the background (never blocks recording)."""
-        from rcl_interfaces.srv import GetParameters, ListParameters
-        if not node_name:
-            return
-        base = node_name if node_name.startswith('/') else \
-            f'{self.get_namespace().rstrip("/")}/{node_name}'
-        self._config['simulator_node'] = base
-        self._list = self.create_client(ListParameters, f'{base}/list_parameters')
-        self._get = self.create_client(GetParameters, f'{base}/get_parameters')
-        deadline = time.monotonic() + timeout
-
-        def poll() -> None:
-            if self._list.service_is_ready() and self._get.service_is_ready():
-                self._poll.cancel()
-                self._list.call_async(ListParameters.Request()).add_done_callback(on_list)
-            elif time.monotonic() > deadline:
-                self._poll.cancel()
-                self.get_logger().info(f'{base} not found: run configuration holds the '
-                                       'recorder parameters only')
-
-        def on_list(future: Any) -> None:
-            names = list(future.result().result.names) if future.result() else []
-            request = GetParameters.Request(names=names)
-            self._get.call_async(request).add_done_callback(lambda f: on_get(names, f))
-
-        def on_get(names: list[str], future: Any) -> None:
-            if future.result() is None:
-                return
-            params = {n: parameter_value_to_python(v)
-                      for n, v in zip(names, future.result().values)}
-            self._config.update({'integrator': params.get('integrator'),
-                                 'simulator_parameters': params})
-            # the simulator's scene record (engine.specs.SCENE_RECORD), under the offline
-            # record's keys; this node's own `scene` parameter, if given, names it
-            self._config['scene'] = self._config['scene'] or params.get('scene.name') or None
-            self._config['scene_sha256'] = params.get('scene.sha256') or None
-            self.writer.add_run_configuration(self._config)
-            self.get_logger().info(f'stored the run configuration of {base} '
-                                   f'({len(params)} parameters)')
-
-        self._poll = self.create_timer(0.2, poll, clock=clock)
 
     # --- lifecycle -----------------------------------------------------------------
 
