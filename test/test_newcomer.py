@@ -40,7 +40,7 @@ def _at(w, t):
 def test_demo_status_line_is_empty_until_the_first_sample_then_has_no_nan():
     import numpy as np
 
-    from rigid_body_sim.demo import _Watcher
+    from rigid_body_sim.demo_watch import Watcher as _Watcher
     from rigid_body_sim.nodes.common import qos_profile  # noqa: F401 - rclpy importable
     w = _Watcher(_FakeNode(), np.array([0.0, 0.0, 0.0, 1.0]), time_scale=2.0)
     assert w.status() == ''
@@ -111,7 +111,7 @@ def test_make_venv_skips_a_pyenv_shim_of_a_missing_version_quietly(tmp_path):
 def test_demo_summary_explains_an_unfinished_run():
     import numpy as np
 
-    from rigid_body_sim.demo import _Watcher
+    from rigid_body_sim.demo_watch import Watcher as _Watcher
     from rigid_body_sim.demo_summary import phase_hint as _phase_hint
     from rigid_body_sim.scene import load
     scene = load(os.path.join(REPO, 'config', 'default.yaml'))
