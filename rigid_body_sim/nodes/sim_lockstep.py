@@ -18,11 +18,12 @@ The wait for that command is the node's loop's, not the executor's (``_serve_exc
 in lockstep the node's own ``torque_command`` is taken out of the executor and read from
 an rcl wait set of that one subscription, and the executor is turned for everything else
 once per EXECUTOR_SLICE_S while an instant is held. Why, measured with
-``tools.lockstep_floor`` (a bare rclpy exchange; the same minutes, 7 runs each, loaded
-machine): the events executor's turn and its listener in Fast DDS's receiving thread
-cost ~10 µs of the thread and a few of the receiver per exchange (process CPU min 80,
-median 91 µs through the executor; 68 and 92 through the wait set; the thread's min 47
-against 37).
+``tools.lockstep_floor`` (a bare rclpy exchange, loaded machine): the events executor's
+turn and its listener in Fast DDS's receiving thread cost ~10 µs of the thread and a
+few of the receiver per exchange (3 runs at load 6.9: process CPU 99 (84-130) µs through
+the executor, 70 (70-74) through the wait set; the thread 54 against 40). The simulator
+itself, runs alternating with and without it (load 7-10, 9 each): 333 (243-359) µs ->
+271 (228-358).
 """
 import math
 import time
@@ -52,7 +53,9 @@ class Exchange:
     def _serve_exchange(self):
         """Lockstep: the node's torque_command (``_command_subs[0]``, raw) leaves the
         executor, which serves what the node lists (rclpy's ``Node._subscriptions``): the
-        loop reads it (``_take_commands``, ``_wait_command``). Put back for the node's own
+        loop reads it (``_take_commands`` at every turn, ``_turn`` waits for it while an
+        instant is held). A command on it for a named spacecraft (routed by frame_id) is
+        read at the loop's next turn, at most 0.1 s later. Put back for the node's own
         teardown (``destroy_node``)."""
         self._exchange_sub = sub = self._command_subs[0]
         self._subscriptions.remove(sub)
