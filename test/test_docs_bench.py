@@ -190,6 +190,12 @@ def test_the_lockstep_floor_file_is_rendered(tmp_path):
     text = report.render(str(tmp_path))
     assert ('synchronous publication, command as bytes: 172 µs CPU (95.2 µs in its own '
             'thread), 0.812 ms wall (medians of 3 runs)') in text, text
+    # the transports and the loop, in a file that gives them
+    row.update(transport='shm', loop='waitset')
+    write_json({'command': 'python -m rigid_body_sim.tools.lockstep_floor', 'rows': [row]},
+               str(tmp_path), 'lockstep_floor.json')
+    assert ('synchronous publication, command as bytes, shared memory only, wait set: 172 µs '
+            'CPU') in report.render(str(tmp_path))
 
 
 def test_the_sampling_section_re_run_alone_replaces_its_own_rows(tmp_path, monkeypatch):

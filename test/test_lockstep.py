@@ -293,12 +293,19 @@ def test_the_lockstep_benchmark_reports_the_simulators_figures():
 def test_the_floor_tool_measures_a_bare_rclpy_exchange():
     """tools/lockstep_floor.py: a bare rclpy node in its own process exchanges states and
     commands with the controller (real processes); its CPU per exchange, its own thread's
-    within it, and the wall time are reported."""
+    within it, and the wall time are reported, and each thread's part."""
     from rigid_body_sim.tools.lockstep_floor import floor
     got = floor('ASYNCHRONOUS', True, 20, 1)
     assert got['exchanges'] == 20 and got['command_taken_as'] == 'bytes', got
     assert 0 < got['thread_cpu_per_exchange_us'] <= got['cpu_per_exchange_us'], got
     assert got['wall_per_exchange_us'] > 0 and len(got['cpu_per_exchange_us_runs']) == 1, got
+    # the other options: shared memory only, the command read from a wait set; each
+    # thread's share (by Fast DDS's thread names), this one's as 'main'
+    got = floor('SYNCHRONOUS', True, 20, 1, 'shm', 'waitset')
+    assert (got['transport'], got['loop'], got['exchanges']) == ('shm', 'waitset', 20), got
+    threads = got['threads_us_runs'][0]
+    assert 0 < threads['main'] <= got['cpu_per_exchange_us'], got
+    assert sum(threads.values()) <= got['cpu_per_exchange_us'] * 1.01 + 1, got
 
 
 def test_lockstep_nodes_publish_synchronously(tmp_path):

@@ -152,6 +152,49 @@ def test_lockstep_at_real_time_calls_the_engine_only_when_a_sample_is_due(rclpy_
     assert calls and sim.lockstep_held is not None
 
 
+def test_the_loop_waits_for_the_exchanges_command_itself(ros_process, simulator, namespace,
+                                                        tmp_path, monkeypatch):
+    """Lockstep as fast as possible with the controller (a real process): while an instant
+    is held for the node's torque_command, the loop waits for it on its own (an rcl wait
+    set of that subscription), never in a turn of the executor, which turns for the rest
+    without waiting, once per EXECUTOR_SLICE_S (sim_lockstep.py: why). Every instant is
+    answered. Before, each exchange's wait was a turn of the events executor."""
+    import contextlib
+    from ros_helpers import venv_exe
+    from rigid_body_sim.nodes import simulator as node_module
+    from rigid_body_sim.tools.lockstep import SCENE
+    turns = []
+    opened = node_module.events_executor
+
+    @contextlib.contextmanager
+    def counted(node):
+        with opened(node) as executor:
+            spin = executor.spin_once
+
+            class Counted:  # the executor, its turns recorded
+                def __getattr__(self, name):
+                    return getattr(executor, name)
+
+                def spin_once(self, timeout_sec=None):
+                    turns.append((timeout_sec, node.lockstep_held is not None and
+                                  ('', 'torque') in node._awaiting))
+                    return spin(timeout_sec=timeout_sec)
+            yield Counted()
+    monkeypatch.setattr(node_module, 'events_executor', counted)
+    over = tmp_path / 'controller.yaml'
+    over.write_text('/**/attitude_controller:\n  ros__parameters:\n    lockstep: true\n'
+                    '    control_rate: 100.0\n')
+    ros_process(venv_exe('controller'), '--ros-args', '-r', f'__ns:={namespace}',
+                '--params-file', SCENE, '--params-file', str(over))
+    sim = simulator(lockstep=True, publish_clock=True, real_time_factor=0.0,
+                    publish_rate=100.0, control_rate=100.0, lockstep_timeout=30.0,
+                    duration=0.3, wait_for_subscribers_timeout=60.0)
+    sim.run()
+    assert sim._round_trips.count == 30, sim._round_trips.summary()
+    held = [t for t, waiting in turns if waiting]
+    assert all(t == 0.0 for t in held), held[:10]
+
+
 @pytest.mark.parametrize('frame, stamp, vector', [
     ('', (0, 0), (0.0, 0.0, 0.0)),
     ('base_link', (12, 340_000_000), (1e-3, -2.5e-7, 3.0)),

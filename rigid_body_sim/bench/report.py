@@ -319,12 +319,21 @@ def live_section(out):
                      'publishes the two states the controller answers and takes its command, '
                      'nothing else, per exchange: ' + '; '.join(
                          f'{r["publication_mode"].lower()} publication, command as '
-                         f'{r["command_taken_as"]}: {_f(r["cpu_per_exchange_us"])} µs CPU '
+                         f'{r["command_taken_as"]}{_floor_options(r)}: '
+                         f'{_f(r["cpu_per_exchange_us"])} µs CPU '
                          f'({_f(r["thread_cpu_per_exchange_us"])} µs in its own thread), '
                          f'{_f(r["wall_per_exchange_us"] / 1000)} ms wall'
                          for r in floor['rows']) + ' (medians of '
                      f'{len(floor["rows"][0]["cpu_per_exchange_us_runs"])} runs).')
     return lines or _missing('live.json, soak.json, flood.json, recovery.json')
+
+
+def _floor_options(row) -> str:
+    """A lockstep floor row's transports and loop, when it says (older files do not)."""
+    if 'loop' not in row:
+        return ''
+    return (f', {"shared memory only" if row["transport"] == "shm" else "default transports"}, '
+            f'{"wait set" if row["loop"] == "waitset" else "events executor"}')
 
 
 def _runs_figure(row, key) -> str:

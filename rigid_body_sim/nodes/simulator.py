@@ -103,6 +103,9 @@ class Simulator(Control, Fleet, Holds, Exchange, Publishing, Node):
                                      self._qos, raw=True),
             self.create_subscription(WrenchStamped, 'wrench_command', lambda m: self._route(
                 m.header, m.wrench.torque, 'wrench_command'), self._qos)]
+        self._exchange_sub = None  # lockstep: torque_command read by the loop (sim_lockstep)
+        if self._p['lockstep']:
+            self._serve_exchange()
         # lockstep: the controller's values from the same params files (auto's choice)
         self._controller_values = lockstep.controller_values(
             ros_arguments()[0], self.get_namespace()) if self._p['lockstep'] else None
@@ -254,6 +257,8 @@ class Simulator(Control, Fleet, Holds, Exchange, Publishing, Node):
 
     def run_once(self) -> float:
         """Advance what is due; returns the seconds the executor may wait before the next call."""
+        if self._exchange_sub is not None:  # lockstep: the commands that came (sim_lockstep)
+            self._take_commands()
         now = time.monotonic()
         if now >= self._next_refresh_wall:
             self._refresh_subscribers()
@@ -312,7 +317,7 @@ class Simulator(Control, Fleet, Holds, Exchange, Publishing, Node):
             self._anchor()  # pace from the first turn of the loop, not from construction
             while self.context.ok() and not self.finished and not (
                     self._quit_at is not None and time.monotonic() >= self._quit_at):
-                executor.spin_once(timeout_sec=self.run_once())
+                self._turn(executor, self.run_once())
             if self.finished and self._paced and self.context.ok():
                 # the last samples are still in flight when the run ends: a recorder that
                 # was waited for must get them before this process takes its writers away

@@ -1,26 +1,34 @@
 """Lockstep floor: the least an rclpy process spends per exchange with our controller.
 
-``python -m rigid_body_sim.tools.lockstep_floor [--periods 2000] [--runs 3] [--out docs/bench]``
+``python -m rigid_body_sim.tools.lockstep_floor [--periods 2000] [--runs 3] [--out docs/bench]
+[--config MODE:TAKEN:TRANSPORT:LOOP ...]``
 
 The simulator's side of a lockstep exchange (``tools.lockstep``) with everything of ours
 taken out: a bare rclpy node publishes the two states the controller answers (attitude and
 angular_velocity, CDR bytes made once by rclpy's serialiser: no physics, no message
-building, no /clock), then turns the events executor until the command is taken. What it
+building, no /clock), then waits until the command is taken. What it
 spends per exchange (process CPU, its own thread's, wall) is what rclpy and the middleware
 cost whatever the simulator does. Measured for each Fast DDS publication mode
 (``RMW_FASTRTPS_PUBLICATION_MODE``: the nodes use SYNCHRONOUS in lockstep, ASYNCHRONOUS
-otherwise, ``process.py`` says why; the synchronous rows with its heartbeat profile) and
-with the command taken as a message or as bytes (the simulator takes bytes). Each
-configuration runs in its own process, ``--runs`` times; figures are the runs' medians.
+otherwise, ``process.py`` says why; the synchronous rows with its heartbeat profile),
+with the command taken as a message or as bytes (the simulator takes bytes), over Fast
+DDS's default transports or shared memory only (``FASTDDS_BUILTIN_TRANSPORTS=SHM``, both
+processes), and taken by turning the events executor or from an rcl wait set of the one
+subscription (the simulator's loop does the latter: ``nodes/sim_lockstep.py``). Each
+configuration runs in its own process, ``--runs`` times; figures are the runs' medians,
+and each run gives its threads' parts (``threads_us``: 'main' is this one, ``dds.shm``
+Fast DDS's shared-memory receiver, ``dds.ev`` its timed events, ...).
 """
 import argparse
 import json
 import os
 import random
+import re
 import statistics
 import subprocess
 import sys
 import tempfile
+import threading
 import time
 
 from ..bench.common import report
@@ -28,14 +36,73 @@ from . import argument_parser, command_line, stop
 from .lockstep import SCENE, _exe
 
 RATE = 100.0  # control rate [Hz]: the instants the states are stamped with
-MODES = ('ASYNCHRONOUS', 'SYNCHRONOUS')
+# (publication mode, command taken as, transports, loop): floor()'s and _measure's
+CONFIGS = (('ASYNCHRONOUS', 'message', 'default', 'executor'),
+           ('ASYNCHRONOUS', 'bytes', 'default', 'executor'),
+           ('SYNCHRONOUS', 'message', 'default', 'executor'),
+           ('SYNCHRONOUS', 'bytes', 'default', 'executor'),
+           ('SYNCHRONOUS', 'bytes', 'shm', 'executor'),
+           ('SYNCHRONOUS', 'bytes', 'default', 'waitset'),
+           ('SYNCHRONOUS', 'bytes', 'shm', 'waitset'))
 
 
-def _measure(periods: int, raw: bool) -> dict:
-    """In this process (its environment chose the publication mode): the figures."""
+def _config(text: str) -> tuple:
+    """--config's MODE:TAKEN:TRANSPORT:LOOP, checked."""
+    parts = tuple(text.split(':'))
+    choices = (('ASYNCHRONOUS', 'SYNCHRONOUS'), ('message', 'bytes'), ('default', 'shm'),
+               ('executor', 'waitset'))
+    if len(parts) != 4 or any(p not in c for p, c in zip(parts, choices)):
+        raise argparse.ArgumentTypeError(
+            f'{text!r}: expected MODE:TAKEN:TRANSPORT:LOOP, each one of '
+            + ' / '.join('|'.join(c) for c in choices))
+    return parts
+
+
+def _threads() -> list:
+    """(name, CPU clock id) of each other thread of this process, by its name (Fast DDS
+    names its threads: dds.shm.<port>, dds.udp.<port>, dds.ev.<n>, ...)."""
+    out = []
+    for tid in os.listdir('/proc/self/task'):
+        if int(tid) == threading.get_native_id():
+            continue
+        try:
+            with open(f'/proc/self/task/{tid}/comm') as f:
+                name = re.sub(r'[.\d]+$', '', f.read().strip())
+        except OSError:  # ended meanwhile
+            continue
+        # the thread's CPU clock (Linux: MAKE_THREAD_CPUCLOCK(tid, CPUCLOCK_SCHED))
+        out.append((name, (~int(tid) << 3) | 6))
+    return out
+
+
+def _clocks(threads) -> list:
+    """Each of ``threads``' CPU seconds so far (0 for one that ended)."""
+    out = []
+    for _, clock in threads:
+        try:
+            out.append(time.clock_gettime(clock))
+        except OSError:
+            out.append(0.0)
+    return out
+
+
+def _per_thread(threads, before, after, main: float, periods: int) -> dict:
+    """µs per exchange spent in each kind of thread between the two readings; this
+    thread's (``main``, its own CPU seconds) as 'main'."""
+    out = {'main': 1e6 * main / periods}
+    for (name, _), c0, c1 in zip(threads, before, after):
+        out[name] = out.get(name, 0.0) + 1e6 * max(c1 - c0, 0.0) / periods
+    return {k: round(v, 1) for k, v in sorted(out.items()) if v >= 0.05}
+
+
+def _measure(periods: int, raw: bool, loop: str = 'executor') -> dict:
+    """In this process (its environment chose the publication mode and the transports):
+    the figures. ``loop``: 'executor' turns the events executor until the command has
+    been taken; 'waitset' takes it from an rcl wait set of the one subscription."""
     import rclpy
     from geometry_msgs.msg import QuaternionStamped, Vector3Stamped
     from rclpy.experimental import EventsExecutor
+    from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
     from rclpy.serialization import serialize_message
     from ..nodes.common import qos_profile
     from ..nodes.spacecraft import STATE_DEPTH
@@ -53,17 +120,21 @@ def _measure(periods: int, raw: bool) -> dict:
         attitude = node.create_publisher(QuaternionStamped, 'attitude', state)
         rate = node.create_publisher(Vector3Stamped, 'angular_velocity', state)
         got = []
-        node.create_subscription(Vector3Stamped, 'torque_command', got.append,
-                                 qos_profile('reliable'), raw=raw)
+        sub = node.create_subscription(Vector3Stamped, 'torque_command', got.append,
+                                       qos_profile('reliable'), raw=raw)
         executor = EventsExecutor(context=node.context)
-        executor.add_node(node)
+        if loop == 'executor':
+            executor.add_node(node)
         q, w = QuaternionStamped(), Vector3Stamped()
         q.header.frame_id, w.header.frame_id, q.quaternion.w = 'world', 'base_link', 1.0
         deadline = time.monotonic() + 60.0
-        while min(attitude.get_subscription_count(), rate.get_subscription_count()) < 1:
+        # the controller's command writer matched too: a command it sent before would be
+        # lost for this volatile subscription (1 run in about 10 waited 10 s for instant 0)
+        while min(attitude.get_subscription_count(), rate.get_subscription_count(),
+                  sub.get_publisher_count()) < 1:
             if time.monotonic() > deadline:
-                raise RuntimeError('the controller did not subscribe within 60 s')
-            executor.spin_once(timeout_sec=0.05)
+                raise RuntimeError('the controller did not subscribe and publish within 60 s')
+            executor.spin_once(timeout_sec=0.05) if loop == 'executor' else time.sleep(0.05)
         # states for every instant, serialised before the measurement (ours cost nothing)
         period = round(1e9 / RATE)
         frames = []
@@ -71,21 +142,40 @@ def _measure(periods: int, raw: bool) -> dict:
             q.header.stamp.sec, q.header.stamp.nanosec = divmod(k * period, 10**9)
             w.header.stamp = q.header.stamp
             frames.append((serialize_message(q), serialize_message(w)))
+        send_q, send_w = attitude.handle.publish_raw, rate.handle.publish_raw
+        wait_set = _rclpy.WaitSet(1, 0, 0, 0, 0, 0, node.context.handle)
+        take, handle = sub.handle.take_message, sub.handle
 
-        def exchange(k):
-            attitude.publish(frames[k][0])
-            rate.publish(frames[k][1])
+        def by_executor(k):
             n, until = len(got), time.monotonic() + 10.0
             while len(got) == n:
                 if time.monotonic() > until:
                     raise RuntimeError(f'no command for instant {k} within 10 s')
                 executor.spin_once(timeout_sec=1.0)
+
+        def by_wait_set(k):
+            until = time.monotonic() + 10.0
+            while take(Vector3Stamped, raw) is None:
+                if time.monotonic() > until:
+                    raise RuntimeError(f'no command for instant {k} within 10 s')
+                wait_set.clear_entities()
+                wait_set.add_subscription(handle)
+                wait_set.wait(1_000_000_000)
+        answer = by_executor if loop == 'executor' else by_wait_set
+
+        def exchange(k):
+            send_q(frames[k][0])
+            send_w(frames[k][1])
+            answer(k)
         for k in range(100):  # discovery settled, caches warm
             exchange(k)
+        threads = _threads()
+        before = _clocks(threads)
         c0, t0, w0 = time.process_time(), time.thread_time(), time.monotonic()
         for k in range(100, 100 + periods):
             exchange(k)
         c1, t1, w1 = time.process_time(), time.thread_time(), time.monotonic()
+        threads = _per_thread(threads, before, _clocks(threads), t1 - t0, periods)
         executor.shutdown()
         node.destroy_node()
     finally:
@@ -94,28 +184,37 @@ def _measure(periods: int, raw: bool) -> dict:
         os.unlink(f.name)
     return {'cpu_per_exchange_us': 1e6 * (c1 - c0) / periods,
             'thread_cpu_per_exchange_us': 1e6 * (t1 - t0) / periods,
-            'wall_per_exchange_us': 1e6 * (w1 - w0) / periods}
+            'wall_per_exchange_us': 1e6 * (w1 - w0) / periods,
+            'threads_us': threads}
 
 
-def floor(mode: str, raw: bool, periods: int, runs: int) -> dict:
-    """``runs`` runs of one configuration, each in a process of its own: the medians."""
+def floor(mode: str, raw: bool, periods: int, runs: int, transport: str = 'default',
+          loop: str = 'executor') -> dict:
+    """``runs`` runs of one configuration, each in a process of its own: the medians.
+    ``transport``: Fast DDS's built-in transports (FASTDDS_BUILTIN_TRANSPORTS: 'default'
+    is UDPv4 and shared memory, 'shm' shared memory only), for both processes."""
     env = dict(os.environ, RMW_FASTRTPS_PUBLICATION_MODE=mode,
                ROS_DOMAIN_ID=os.environ.get('ROS_DOMAIN_ID', str(random.randint(101, 200))))
+    if transport == 'shm':
+        env['FASTDDS_BUILTIN_TRANSPORTS'] = 'SHM'
     if mode == 'SYNCHRONOUS' and not env.get('FASTRTPS_DEFAULT_PROFILES_FILE'):
         from ..nodes.process import heartbeat_profile  # as the nodes publish in lockstep
         env['FASTRTPS_DEFAULT_PROFILES_FILE'] = heartbeat_profile()
     got = []
     for _ in range(runs):
-        out = subprocess.run([sys.executable, '-m', __spec__.name, '--one', str(periods)]
-                             + (['--raw'] if raw else []), env=env, capture_output=True,
-                             text=True, timeout=600)
+        out = subprocess.run([sys.executable, '-m', __spec__.name, '--one', str(periods),
+                              '--loop', loop] + (['--raw'] if raw else []), env=env,
+                             capture_output=True, text=True, timeout=600)
         if out.returncode != 0:
-            raise RuntimeError(f'floor run ({mode}, raw {raw}) exited {out.returncode}:\n'
-                               + out.stderr[-2000:])
+            raise RuntimeError(f'floor run ({mode}, raw {raw}, {transport}, {loop}) exited '
+                               f'{out.returncode}:\n' + out.stderr[-2000:])
         got.append(json.loads(out.stdout.strip().splitlines()[-1]))
     row = {'publication_mode': mode, 'command_taken_as': 'bytes' if raw else 'message',
-           'exchanges': periods}
+           'transport': transport, 'loop': loop, 'exchanges': periods}
     for key in got[0]:
+        if key == 'threads_us':
+            row[key + '_runs'] = [g[key] for g in got]
+            continue
         row[key] = statistics.median(g[key] for g in got)
         row[key + '_runs'] = [g[key] for g in got]
     return row
@@ -128,20 +227,26 @@ def main(argv=None):
     parser.add_argument('--out', help='directory for lockstep_floor.json (e.g. docs/bench)')
     parser.add_argument('--one', type=int, help=argparse.SUPPRESS)
     parser.add_argument('--raw', action='store_true', help=argparse.SUPPRESS)
+    parser.add_argument('--loop', default='executor', help=argparse.SUPPRESS)
+    parser.add_argument('--config', type=_config, action='append', help='only this '
+                        'configuration, MODE:TAKEN:TRANSPORT:LOOP (e.g. '
+                        'SYNCHRONOUS:bytes:shm:waitset); repeatable')
     args = parser.parse_args(argv)
     if args.one:  # one run, in this process (floor() starts these)
-        print(json.dumps(_measure(args.one, args.raw)))
+        print(json.dumps(_measure(args.one, args.raw, args.loop)))
         return 0
     rows = []
-    for mode in MODES:
-        for raw in (False, True):
-            r = floor(mode, raw, args.periods, args.runs)
-            rows.append(r)
-            print(f'{mode}, command as {r["command_taken_as"]}: process CPU '
-                  f'{r["cpu_per_exchange_us"]:.0f} µs per exchange (runs '
-                  f'{", ".join(f"{v:.0f}" for v in r["cpu_per_exchange_us_runs"])}), its '
-                  f'thread {r["thread_cpu_per_exchange_us"]:.0f} µs, wall '
-                  f'{r["wall_per_exchange_us"]:.0f} µs', flush=True)
+    for mode, taken, transport, loop in args.config or CONFIGS:
+        r = floor(mode, taken == 'bytes', args.periods, args.runs, transport, loop)
+        rows.append(r)
+        print(f'{mode}, command as {taken}, {transport} transports, {loop}: process CPU '
+              f'{r["cpu_per_exchange_us"]:.0f} µs per exchange (runs '
+              f'{", ".join(f"{v:.0f}" for v in r["cpu_per_exchange_us_runs"])}), its '
+              f'thread {r["thread_cpu_per_exchange_us"]:.0f} µs (runs '
+              f'{", ".join(f"{v:.0f}" for v in r["thread_cpu_per_exchange_us_runs"])}), '
+              f'wall {r["wall_per_exchange_us"]:.0f} µs; threads (first run): '
+              + ', '.join(f'{k} {v:.0f}' for k, v in r['threads_us_runs'][0].items()),
+              flush=True)
     if args.out:
         report({'command': command_line(__spec__, argv), 'control_rate_hz': RATE,
                 'rows': rows}, args.out, 'lockstep_floor.json')
