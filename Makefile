@@ -56,14 +56,10 @@ test: venv bytecode kernels
 	  --no-loadscope-reorder $(PYTEST_ARGS)
 
 # Only the files that mark tests fast are collected (-m still picks the tests): collecting
-# the ROS files too cost each worker 4 CPU-s of imports for tests it deselects. A test over
-# ~0.3 CPU-s is also marked slow (CONTRIBUTING.md): ~28 CPU-s in all, where a worker's
-# start-up and collection are ~2 each. loadfile: a file's kernels are loaded by one worker
-# only (27.7 against 28.7 CPU-s, median of 3 and 2 runs).
+# the ROS files too cost each worker 4 CPU-s of imports for tests it deselects.
 CHECK_PATHS ?= $(shell grep -l 'mark\.fast' test/test_*.py)
 check: venv bytecode
-	PYTHONDONTWRITEBYTECODE= $(PY) -m pytest -q -n 2 --dist loadfile -m 'fast and not slow' \
-	  $(PYTEST_ARGS) $(CHECK_PATHS)
+	PYTHONDONTWRITEBYTECODE= $(PY) -m pytest -q -n 2 -m 'fast and not slow' $(PYTEST_ARGS) $(CHECK_PATHS)
 
 # The README's tour: one thumbnail per phenomenon of free rotation, into docs/tour.
 tour: venv
