@@ -49,7 +49,10 @@ def _single_runs(name, dyn, q, m, h, n, torque):
     return out_q, out_m
 
 
-@pytest.mark.parametrize('name,model,torque', CASES)
+# splitting6 with the double bracket (1.1 CPU-s for its three): make test runs it
+@pytest.mark.parametrize('name,model,torque', [
+    pytest.param(*case, marks=pytest.mark.slow) if case[:2] == ('splitting6', 'double_bracket')
+    else case for case in CASES])
 def test_batch_run_equals_single_body_runs(name, model, torque):
     """150 bodies (two full blocks and a partial one), 200 steps of 0.01 s."""
     q0, m0, tau = _bodies(2 * splitting_batch_kernel.BLOCK + 22, 3)

@@ -13,7 +13,6 @@ from rigid_body_sim.bench import basilisk_gg as bg
 from rigid_body_sim.physics import rotation
 from rigid_body_sim.physics.orbit import kernel
 
-pytestmark = pytest.mark.fast
 ATTITUDES = ([0.1, 0.2, 0.3, 0.927], [0.3, -0.5, 0.2, 0.787], [-0.9, 0.1, 0.3, -0.3],
              [0.6, 0.7, -0.2, 0.1])  # the last two: |σ| > 1 before the short set is taken
 

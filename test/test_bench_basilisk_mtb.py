@@ -8,7 +8,6 @@ import pytest
 from rigid_body_sim.bench import basilisk_gg as bg, basilisk_mtb as bm
 from rigid_body_sim.physics import rotation
 
-pytestmark = pytest.mark.fast
 MU0_OVER_4PI = 1e-7
 # IGRF-14's degree 1 at 2025.0 (nT), as the harness takes them (T)
 G10, G11, H11 = -29350.0e-9, -1410.3e-9, 4545.5e-9

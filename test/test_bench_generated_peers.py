@@ -8,8 +8,6 @@ import pytest
 from rigid_body_sim.bench import generated, generated_peers as gp, oracle
 from rigid_body_sim.physics import rotation
 
-pytestmark = pytest.mark.fast
-
 
 def _first(kind, quick=True):
     """The scene of ``kind`` that turns the least among the first 40 (the cheapest)."""

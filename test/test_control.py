@@ -292,9 +292,9 @@ def test_detumble_saturated_still_converges():
 FULL_TENSOR = [2.0, 0.3, 0.1, 0.3, 1.5, -0.2, 0.1, -0.2, 2.5]
 
 
-@pytest.mark.parametrize('inertia, gyro, max_torque', [
-    (INERTIA, True, 0.3), (INERTIA, False, 0.3), (FULL_TENSOR, False, 0.0),
-    (FULL_TENSOR, True, 0.3)])
+@pytest.mark.parametrize('inertia, gyro, max_torque', [  # make check: the first and last
+    (INERTIA, True, 0.3), pytest.param(INERTIA, False, 0.3, marks=pytest.mark.slow),
+    pytest.param(FULL_TENSOR, False, 0.0, marks=pytest.mark.slow), (FULL_TENSOR, True, 0.3)])
 def test_random_slews_from_tumbling_converge(inertia, gyro, max_torque):
     rng = np.random.default_rng(7)
     cfg = C.ControlConfig(inertia=inertia, natural_frequency=WN, gyroscopic_compensation=gyro,

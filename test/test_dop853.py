@@ -4,13 +4,10 @@ It must take scipy's steps on the same right-hand side, reach order 8, continue 
 calls without restarting, agree with its uncompiled run, and name method, step and time
 when it fails. Standard scene (Hairer–Lubich–Wanner VII.5) as in test_integrators.
 """
-import os
-import subprocess
-import sys
 
 import numpy as np
 import pytest
-from jit_modes import run_both
+from jit_modes import run_both, run_in_mode
 from scipy.integrate import solve_ivp
 
 from rigid_body_sim.physics import (Dissipation, Dynamics, IntegrationError, create,
@@ -168,16 +165,13 @@ for state, torque in (((q, m * np.nan), None), ((q, m), np.array([1e306, 0.0, 0.
 '''
 
 
-@pytest.mark.parametrize('disable_jit', ['0', '1'])
+@pytest.mark.parametrize('disable_jit', ['0', pytest.param('1', marks=pytest.mark.slow)])
 def test_failures_name_method_step_and_time_in_both_modes(disable_jit):
     """A non-finite state fails at once; a torque that overflows the state makes every
     step fail until the step underflows. Both raise IntegrationError within the call's
     interval [5, 6] s."""
-    out = subprocess.run([sys.executable, '-W', 'ignore', '-c', _FAIL], capture_output=True,
-                         text=True, env=dict(os.environ, NUMBA_DISABLE_JIT=disable_jit),
-                         timeout=600)
-    assert out.returncode == 0, out.stderr[-3000:]
-    assert out.stdout.split('\n')[:2] == ['dop853 True True state', 'dop853 True True step']
+    out = run_in_mode(_FAIL, disable_jit == '1')
+    assert out.split('\n')[:2] == ['dop853 True True state', 'dop853 True True step']
 
 
 def test_a_non_finite_state_is_reported_with_method_step_and_time():

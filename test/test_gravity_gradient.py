@@ -63,8 +63,11 @@ def fitted_frequencies(t, signals, guesses):
     return fit.x, math.sqrt(np.mean(fit.fun ** 2) / np.mean(signals ** 2))
 
 
-@pytest.mark.parametrize('method,step', [('splitting4', 20.0), ('rk4', 20.0),
-                                         ('splitting2', 2.0), ('dop853', 60.0)])
+# splitting4's libration in make check; the other methods' (0.6 CPU-s each) in make test
+@pytest.mark.parametrize('method,step', [
+    ('splitting4', 20.0), pytest.param('rk4', 20.0, marks=pytest.mark.slow),
+    pytest.param('splitting2', 2.0, marks=pytest.mark.slow),
+    pytest.param('dop853', 60.0, marks=pytest.mark.slow)])
 def test_small_pitch_libration_at_its_frequency(method, step):
     ix, iy, iz = INERTIA
     expected = N * math.sqrt(3 * (ix - iz) / iy)
@@ -82,6 +85,7 @@ def test_small_pitch_libration_at_its_frequency(method, step):
     assert abs(w / expected - 1) < 1e-4, (w / expected - 1)
 
 
+@pytest.mark.slow
 def test_roll_yaw_libration_at_the_roots_of_the_quartic():
     ix, iy, iz = INERTIA
     k_r, k_y = (iy - iz) / ix, (iy - ix) / iz
@@ -276,6 +280,7 @@ ISS = ['1 25544U 98067A   19343.69339541  .00001764  00000-0  38792-4 0  9991',
        '2 25544  51.6439 211.2001 0007417  17.6667  85.6398 15.50103472202482']
 
 
+@pytest.mark.slow
 def test_sgp4_orbit_drives_the_gradient_and_its_failure_stops_the_run():
     """SGP4's osculating conic, re-anchored at every interval: the splitting agrees with
     dop853 on it; a propagation failure stops the run with the time and SGP4's code."""

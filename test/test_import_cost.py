@@ -11,9 +11,6 @@ import json
 import subprocess
 import sys
 
-import pytest
-
-pytestmark = pytest.mark.fast
 
 _STEPS = r'''
 import contextlib, io, json, sys

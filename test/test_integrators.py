@@ -50,7 +50,9 @@ def test_registry_has_required_methods_with_one_interface():
         assert q.shape == (4,) and m.shape == (3,)
 
 
-@pytest.mark.parametrize('name', ['splitting2', 'splitting4', 'splitting6'])
+# splitting2's 10^5 steps (1 CPU-s): make test runs them, make check the other two
+@pytest.mark.parametrize('name', [pytest.param('splitting2', marks=pytest.mark.slow),
+                                  'splitting4', 'splitting6'])
 def test_splitting_keeps_momentum_norm_and_bounded_energy(name):
     """|L| to 1e-12 relative over 10⁵ steps of h = 0.1; energy error bounded (no drift)."""
     dyn = Dynamics(I_STD)
@@ -276,7 +278,10 @@ def test_symmetric_top_body_precession_rate():
     assert w[2] == pytest.approx(1.0, rel=1e-14)
 
 
-@pytest.mark.parametrize('name', ['splitting2', 'splitting4', 'implicit_midpoint', 'rk4', 'exact',
+# implicit_midpoint and rk4 step 4,000 times in Python (2.3 CPU-s): make test only
+@pytest.mark.parametrize('name', ['splitting2', 'splitting4',
+                                  pytest.param('implicit_midpoint', marks=pytest.mark.slow),
+                                  pytest.param('rk4', marks=pytest.mark.slow), 'exact',
                                   'splitting2_lstable'])
 def test_double_bracket_goes_to_major_axis_keeping_momentum_norm(name):
     """|L| const (1e-10; explicit rk4 only to its error), T monotone, T → |L|²/(2 I3)."""

@@ -5,13 +5,10 @@ The compiled loops must agree with the uncompiled run of the same functions
 and must report a diverging step with its method, step size and time in both modes.
 """
 import json
-import os
-import subprocess
-import sys
 
 import numpy as np
 import pytest
-from jit_modes import run_both
+from jit_modes import run_both, run_in_mode
 
 from rigid_body_sim import control
 from rigid_body_sim.physics import Dissipation, Dynamics, IntegrationError, create, jit
@@ -58,7 +55,12 @@ def test_compiled_and_plain_python_agree():
         assert nfev == nfev2, key
 
 
-@pytest.mark.parametrize('name,model', CASES)
+# the numpy batch path's 300 steps of splitting4/6 with the double bracket take 1.7 CPU-s:
+# make test runs them
+@pytest.mark.parametrize('name,model', [
+    pytest.param(*case, marks=pytest.mark.slow)
+    if case in (('splitting4', 'double_bracket'), ('splitting6', 'double_bracket')) else case
+    for case in CASES])
 def test_compiled_loop_matches_the_numpy_batch_path(name, model):
     """300 steps of one body through the kernel vs a batch of two through numpy."""
     d = Dissipation(model, 0.0 if model == 'none' else 0.2)
@@ -105,15 +107,11 @@ print(json.dumps(out))
 '''
 
 
-@pytest.mark.parametrize('disable_jit', [False, True])
+@pytest.mark.parametrize('disable_jit', [False, pytest.param(True, marks=pytest.mark.slow)])
 def test_implicit_midpoint_newton_failure_is_the_numpy_paths_in_both_modes(disable_jit):
     """A Newton iteration capped too low: the compiled loop retries on halved steps and
     fails at h/16 with the same step, time, reason and evaluation count as the numpy path."""
-    env = dict(os.environ, NUMBA_DISABLE_JIT='1' if disable_jit else '0')
-    out = subprocess.run([sys.executable, '-c', _NEWTON_FAILS], env=env,
-                         capture_output=True, text=True, timeout=600)
-    assert out.returncode == 0, out.stderr[-3000:]
-    rows = json.loads(out.stdout)
+    rows = json.loads(run_in_mode(_NEWTON_FAILS, disable_jit))
     assert len(rows) == 4
     for kernel, numpy_path in (rows[0:2], rows[2:4]):
         assert kernel[0] == 'kernel' and numpy_path[0] == 'numpy'
@@ -123,13 +121,9 @@ def test_implicit_midpoint_newton_failure_is_the_numpy_paths_in_both_modes(disab
     assert rows[2][2:4] == [0.3 / 16, 1.0 + 0.3 / 16]
 
 
-@pytest.mark.parametrize('disable_jit', [False, True])
+@pytest.mark.parametrize('disable_jit', [False, pytest.param(True, marks=pytest.mark.slow)])
 def test_divergence_raises_integration_error_in_both_modes(disable_jit):
-    env = dict(os.environ, NUMBA_DISABLE_JIT='1' if disable_jit else '0')
-    out = subprocess.run([sys.executable, '-W', 'ignore', '-c', _DIVERGE], env=env,
-                         capture_output=True, text=True, timeout=600)
-    assert out.returncode == 0, out.stderr[-3000:]
-    assert out.stdout.split() == ['rk4', '0.05', 'True', 'True']
+    assert run_in_mode(_DIVERGE, disable_jit).split() == ['rk4', '0.05', 'True', 'True']
 
 
 def test_a_non_positive_step_is_refused_before_the_loop():

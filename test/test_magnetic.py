@@ -75,6 +75,7 @@ def test_the_models_range_is_read_from_the_file_as_ppigrf_reads_it():
     assert (first.year, last.year) == (1900, 2030)
 
 
+@pytest.mark.slow  # a fresh interpreter: make test
 def test_loading_an_igrf_scene_leaves_ppigrf_and_pandas_unimported():
     """A fresh process loads bdot_detumble (IGRF) and builds its configuration, the epoch
     checked: ppigrf and pandas (~0.5 CPU-s) wait until the field is evaluated."""

@@ -30,6 +30,7 @@ def slope(tau, sigma):
     return float(np.polyfit(np.log(tau), np.log(sigma), 1)[0])
 
 
+@pytest.mark.slow  # Allan statistics on long series: make test
 def test_angle_random_walk_allan_slope_minus_half_and_level_n():
     """White rate noise of ARW N: slope −1/2 ± 0.02 over τ = 0.1…100 s, σ(τ) = N/√τ
     within 3 % at every τ (σ(1 s) = N)."""
@@ -42,6 +43,7 @@ def test_angle_random_walk_allan_slope_minus_half_and_level_n():
     assert np.std(rate) == pytest.approx(arw / math.sqrt(H), rel=0.01)
 
 
+@pytest.mark.slow  # Allan statistics on long series: make test
 def test_rate_random_walk_allan_slope_plus_half_and_level_k():
     """Bias random walk of RRW K: slope +1/2 ± 0.06 over τ = 1…300 s, σ(τ) = K·√(τ/3)
     within 15 % (RRW's Allan estimate has few independent clusters at long τ)."""
@@ -53,6 +55,7 @@ def test_rate_random_walk_allan_slope_plus_half_and_level_k():
     np.testing.assert_allclose(sigma, rrw * np.sqrt(tau / 3.0), rtol=0.15)
 
 
+@pytest.mark.slow  # Allan statistics on long series: make test
 def test_bias_instability_gauss_markov_peak_is_the_flicker_floor():
     """Gauss–Markov bias for B with T_c = 10 s: the Allan deviation follows the closed form
     within 12 % at τ = 1…100 s, peaks near 1.89 T_c at 0.664 B (within 8 %), and its
@@ -71,6 +74,7 @@ def test_bias_instability_gauss_markov_peak_is_the_flicker_floor():
     assert np.std(rate) == pytest.approx(g.sigma_gm, rel=0.1)
 
 
+@pytest.mark.slow  # Allan statistics on long series: make test
 def test_combined_processes_add_in_allan_variance():
     """ARW + RRW + turn-on bias together: the Allan variance is the sum N²/τ + K²τ/3 (the
     constant bias adds nothing) within 8 %, and its minimum lies between the two slopes."""

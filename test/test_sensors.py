@@ -199,6 +199,7 @@ def test_gyro_at_its_own_rate_reads_the_closed_form_truth():
                                rtol=0, atol=1e-12)
 
 
+@pytest.mark.slow  # the pointing tool, not the inner loop: make test
 def test_prediction_command_prints_the_prediction_and_refuses_what_it_does_not_model(capsys):
     """`python -m rigid_body_sim.tools.pointing SCENE` prints the per-axis RMS the test
     above checks; a gyro slower than the control rate is outside the model: exit 2 with

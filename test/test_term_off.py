@@ -30,6 +30,7 @@ def test_the_free_bodys_loops_name_none_of_the_term():
         assert 'gravity_gradient' in on and 'eccentric_anomaly' in on, name
 
 
+@pytest.mark.slow  # compiles a kernel of its own (0.5 CPU-s): make test
 def test_a_loop_that_pays_for_the_term_when_it_is_off_is_caught():
     found = term_off.inspect_code([('always', _always_pays,
                                     (np.array([0.0, 0.0, 0.0, 1.0]), 1.0))])
