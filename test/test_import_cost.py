@@ -114,3 +114,16 @@ def test_loading_kernels_imports_neither_scipy_linalg_nor_coverage():
     assert compiled and signatures > 0, (compiled, signatures)
     assert loaded == {'scipy.linalg': False, 'coverage': False}, loaded
     assert dot_ok
+
+
+def test_the_figures_module_leaves_scipy_optimize_to_orbit_scenes():
+    """Every run that writes figures imports ``rigid_body_sim.plots``; scipy.optimize and
+    scipy.spatial (0.3 CPU-s) are imported only where an orbit scene's figure fits or
+    rotates (plots/orbit.py); test_plots draws those."""
+    code = ('import json, sys; import rigid_body_sim.plots; '
+            'print(json.dumps(sorted(m for m in sys.modules if m.startswith('
+            '("scipy.optimize", "scipy.spatial")))))')
+    out = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True,
+                         timeout=120)
+    assert out.returncode == 0, out.stderr
+    assert json.loads(out.stdout.strip().splitlines()[-1]) == []
