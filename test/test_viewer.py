@@ -369,10 +369,11 @@ def test_explorer1_energy_ellipsoid_shrinks_as_energy_dissipates(client_js):
 def test_demo_starts_the_viewer_and_prints_its_url(client_js, tmp_path):
     port = _free_port()
     cli = os.path.join(os.path.dirname(sys.executable), 'rigid-body-sim')
-    # 4 s of sim time: the client below listens 20 s from the port's opening, so it sees
-    # samples from t = 0 on whether or not the run outlasts it (each second more of the
-    # four nodes' graph cost ~0.5 CPU-s and asserted nothing more)
-    demo = subprocess.Popen([cli, 'demo', '--duration', '4', '--out', str(tmp_path),
+    # 10 s of sim time: the client below listens 20 s from the port's opening, so it sees
+    # samples from t = 0 on whether or not the run outlasts it (the graph's 15 s more of
+    # real time cost ~13 CPU-s and asserted nothing more; 4 s was too short at load 12: the
+    # client, starting after the port opened, connected after the run had ended)
+    demo = subprocess.Popen([cli, 'demo', '--duration', '10', '--out', str(tmp_path),
                              '--viewer-port', str(port), '--no-plots'], stdout=subprocess.PIPE,
                             stderr=subprocess.STDOUT, text=True, start_new_session=True)
     try:
@@ -385,7 +386,7 @@ def test_demo_starts_the_viewer_and_prints_its_url(client_js, tmp_path):
     assert demo.returncode == 0, out[-3000:]
     # the whole run, not one cut short (the module's own simulator, in another namespace,
     # once gave the demo its time origin: it stopped at its first sample with 0)
-    assert 'ended at t = 4.00 s' in out, out[-3000:]
+    assert 'ended at t = 10.00 s' in out, out[-3000:]
     assert f'open ws://127.0.0.1:{port} in Foxglove' in out
     assert s['counts'].get('/tf', 0) > 0 and s['counts'].get('/state', 0) > 0, s['counts']
     log = (tmp_path / 'viewer.log').read_text()
