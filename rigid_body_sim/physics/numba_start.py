@@ -39,6 +39,8 @@ def _blas_check_without_import():
     if getattr(linalg.ensure_blas, 'rigid_body_sim', False) or 'numba.np.arraymath' in \
             sys.modules:  # done, or too late to matter
         return
+    if not hasattr(linalg, '_check_lapack_int_width'):  # another numba than the pinned one:
+        return  # its own check, as it is
 
     def ensure_blas():
         scipy = importlib.util.find_spec('scipy')
