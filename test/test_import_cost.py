@@ -8,6 +8,7 @@ engine/actuator_specs.py); this keeps them there. One fresh interpreter runs the
 order and names the first that loaded numba.
 """
 import json
+import os
 import subprocess
 import sys
 
@@ -81,3 +82,45 @@ def test_help_and_scene_parsing_do_not_import_numba():
     assert tools >= 15 and len(steps) == 16 + tools, steps
     first = next((name for name, loaded in steps if loaded), None)
     assert first is None, f'{first} imported numba'
+
+
+_KERNELS = r'''
+import json, sys
+import numpy as np
+from rigid_body_sim.engine import Engine, EngineConfig
+from rigid_body_sim.physics import jit
+for _ in Engine(EngineConfig.from_parameters({'duration': 0.05})).run():
+    pass
+loaded = {name: name in sys.modules for name in ('scipy.linalg', 'coverage')}
+import numba  # numba's BLAS still works when a kernel asks for it (compiled here, not cached)
+dot = numba.njit(lambda a, b: np.dot(a, b))
+a = np.arange(9.0).reshape(3, 3)
+print(json.dumps([jit.COMPILED, jit.signatures(), loaded, bool(np.array_equal(dot(a, a), a @ a))]))
+'''
+
+
+def test_loading_kernels_imports_neither_scipy_linalg_nor_coverage():
+    """numba's start-up without ``import coverage`` (no coverage run in the process) and
+    without ``import scipy.linalg`` for its BLAS check (physics/numba_start.py): 0.22 of
+    the ~0.7 CPU-s numba cost each simulator and CLI run. np.dot still compiles and runs."""
+    env = {k: v for k, v in os.environ.items() if not k.startswith(('COVERAGE', 'NUMBA_D'))}
+    out = subprocess.run([sys.executable, '-c', _KERNELS], capture_output=True, text=True,
+                         timeout=300, env=env)
+    assert out.returncode == 0, out.stderr
+    compiled, signatures, loaded, dot_ok = json.loads(out.stdout.strip().splitlines()[-1])
+    assert compiled and signatures > 0, (compiled, signatures)
+    assert loaded == {'scipy.linalg': False, 'coverage': False}, loaded
+    assert dot_ok
+
+
+def test_the_figures_module_leaves_scipy_optimize_to_orbit_scenes():
+    """Every run that writes figures imports ``rigid_body_sim.plots``; scipy.optimize and
+    scipy.spatial (0.3 CPU-s) are imported only where an orbit scene's figure fits or
+    rotates (plots/orbit.py); test_plots draws those."""
+    code = ('import json, sys; import rigid_body_sim.plots; '
+            'print(json.dumps(sorted(m for m in sys.modules if m.startswith('
+            '("scipy.optimize", "scipy.spatial")))))')
+    out = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True,
+                         timeout=120)
+    assert out.returncode == 0, out.stderr
+    assert json.loads(out.stdout.strip().splitlines()[-1]) == []

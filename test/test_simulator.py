@@ -1,7 +1,8 @@
 """The attitude_simulator node: real node processes, real messages through rclpy.
 
 Each test starts its own simulator in a unique namespace (``namespace`` fixture) through
-``ros_process`` (always stopped) and observes it with the ``rclpy_node`` probe.
+``ros_process`` (always stopped) and observes it with the ``rclpy_node`` probe; the tests
+that only read its topics share one (``reading_simulator``).
 """
 import math
 import re
@@ -13,7 +14,7 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from ros_helpers import spin_until, venv_exe
+from ros_helpers import NodeProcess, spin_until, unique_namespace, venv_exe
 
 from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
@@ -49,15 +50,36 @@ def _fmt(value):
     return str(value)
 
 
-def start_simulator(ros_process, namespace, **params):
-    """Start the installed simulator executable in ``namespace``; params: name=value
-    ('.' as '__')."""
+def simulator_cmd(namespace, **params):
+    """The installed simulator executable in ``namespace``; params: name=value ('.' as
+    '__')."""
     cmd = [venv_exe('simulator'), '--ros-args', '-r', f'__ns:={namespace}']
     assert '__' not in namespace, ('use the namespace fixture of this module '
                                    '(ROS names forbid "__")')
     for key, value in params.items():
         cmd += ['-p', f'{key.replace("__", ".")}:={_fmt(value)}']
-    return ros_process(*cmd)
+    return cmd
+
+
+def start_simulator(ros_process, namespace, **params):
+    """Start the simulator (:func:`simulator_cmd`) through ``ros_process``."""
+    return ros_process(*simulator_cmd(namespace, **params))
+
+
+@pytest.fixture(scope='module')
+def reading_simulator():
+    """One simulator (splitting2, 50 Hz, a body frame of its own) for the tests that only
+    read its topics, each with its own probe: none commands, reconfigures or stops it, so
+    one start (~1 CPU-s) serves them all. Stopped (SIGINT, then SIGKILL) at the module's
+    end."""
+    ns = re.sub('_+', '_', unique_namespace('sim_reading'))
+    body = ns.strip('/') + '_body'  # /tf is global: our frame tells our messages
+    proc = NodeProcess(simulator_cmd(ns, integrator='splitting2', publish_rate=50.0,
+                                     child_frame_id=body))
+    try:
+        yield {'ns': ns, 'body': body, 'proc': proc}
+    finally:
+        proc.stop()
 
 
 class Probe:
@@ -481,12 +503,11 @@ def test_duration_ends_the_run(ros_process, namespace):
     assert 'duration 2 s reached' in proc.output() and 'Traceback' not in proc.output()
 
 
-def test_imu_is_the_state_with_message_conventions(ros_process, namespace, rclpy_node):
+def test_imu_is_the_state_with_message_conventions(reading_simulator, rclpy_node):
     """sensor_msgs/Imu on ``imu``: in the body frame (child_frame_id), the orientation and
     rate of the attitude/angular_velocity samples with the same stamp, truth covariances
     on the diagonal, and no acceleration (covariance[0] = -1, the message's convention)."""
-    start_simulator(ros_process, namespace, integrator='splitting2', publish_rate=50.0,
-                    child_frame_id='craft')
+    namespace, body = reading_simulator['ns'], reading_simulator['body']
     probe = Probe(rclpy_node, namespace, topics=('imu', 'attitude', 'angular_velocity'),
                   diagnostics=False)
     def by_stamp(topic):
@@ -500,7 +521,7 @@ def test_imu_is_the_state_with_message_conventions(ros_process, namespace, rclpy
     common = common_stamps()
     for t in common:
         m = imu[t]
-        assert m.header.frame_id == 'craft'
+        assert m.header.frame_id == body
         assert np.array_equal(quat(m.orientation), quat(att[t].quaternion))
         v = rate[t].vector
         assert [m.angular_velocity.x, m.angular_velocity.y, m.angular_velocity.z] == \
@@ -509,6 +530,7 @@ def test_imu_is_the_state_with_message_conventions(ros_process, namespace, rclpy
         for cov in (m.orientation_covariance, m.angular_velocity_covariance):
             assert np.all(np.diag(np.reshape(cov, (3, 3))) > 0.0)
             assert np.all(np.reshape(cov, (3, 3))[~np.eye(3, dtype=bool)] == 0.0)
+    assert reading_simulator['proc'].poll() is None, reading_simulator['proc'].output()
 
 
 def test_missed_deadlines_mean_what_they_say(ros_process, namespace, rclpy_node):
@@ -536,13 +558,11 @@ def test_missed_deadlines_mean_what_they_say(ros_process, namespace, rclpy_node)
     assert all(b - a == 20_000_000 for a, b in zip(stamps, stamps[1:]) if b - a < 1e9)
 
 
-def test_tf_carries_the_attitude(ros_process, namespace, rclpy_node):
+def test_tf_carries_the_attitude(reading_simulator, rclpy_node):
     """/tf (tf2_msgs, built into the venv by make venv; apt's on a full install): world →
     body transform per sample, rotation = the attitude sample with the same stamp."""
     from tf2_msgs.msg import TFMessage
-    body = namespace.strip('/') + '_body'  # /tf is global: our frame tells our messages
-    start_simulator(ros_process, namespace, integrator='splitting2', publish_rate=50.0,
-                    child_frame_id=body)
+    namespace, body = reading_simulator['ns'], reading_simulator['body']
     tf = []
     rclpy_node.create_subscription(
         TFMessage, '/tf', lambda m: tf.extend(t for t in m.transforms
@@ -555,3 +575,4 @@ def test_tf_carries_the_attitude(ros_process, namespace, rclpy_node):
     assert common and all(t.header.frame_id == 'world' for t in tf)
     for t in common:
         assert np.array_equal(quat(t.transform.rotation), quat(att[stamp_s(t)].quaternion))
+    assert reading_simulator['proc'].poll() is None, reading_simulator['proc'].output()

@@ -32,7 +32,8 @@ def signatures() -> int:
 
 
 try:
-    from numba import njit
+    from .numba_start import import_numba  # without what no process of ours uses
+    njit = import_numba().njit
     # error_model='numpy': a division by zero gives inf/NaN (the loops' finiteness checks
     # report it) instead of raising. The python model's checks kept the small rate functions
     # from being optimised: rk4_run 610 → 120 ns per step, results bitwise unchanged.
@@ -40,7 +41,7 @@ try:
     # small helpers taking several arrays: called out of line, each call pays a reference
     # count round trip per array (≈ 0.15 µs, 5× a body's whole step); inlined, none
     inline = _kept(njit(cache=True, nogil=True, error_model='numpy', inline='always'))
-    COMPILED = not getattr(__import__('numba').config, 'DISABLE_JIT', False)
+    COMPILED = not getattr(sys.modules['numba'].config, 'DISABLE_JIT', False)
 except Exception as exc:  # noqa: BLE001 - numba missing, or broken (a numpy it refuses)
     def jit(function):
         return function

@@ -12,8 +12,6 @@
 import math
 
 import numpy as np
-from scipy.optimize import least_squares
-from scipy.spatial.transform import Rotation
 
 from .. import bdot
 from ..physics import analytic
@@ -23,6 +21,9 @@ from .common import pyplot, save
 
 def lvlh_angles(t, attitude, orbit):
     """(N, 3) rotation vectors of the body from LVLH (roll, pitch, yaw about LVLH x, y, z)."""
+    # scipy's optimize and spatial here, not at the top: every run that writes figures
+    # imports this module, and only orbit scenes draw these (0.3 CPU-s a run)
+    from scipy.spatial.transform import Rotation
     out = np.empty((len(t), 3))
     for k, (tk, q) in enumerate(zip(t, attitude)):
         r, v = orbit.state(float(tk))
@@ -48,6 +49,7 @@ def fitted_frequencies(t, signals, guesses):
     by least squares from ``guesses``."""
     def residual(w):
         return (sinusoids(t, signals, w) - signals).ravel()
+    from scipy.optimize import least_squares  # orbit scenes only (lvlh_angles: why)
     scale = max(guesses)
     fit = least_squares(residual, guesses, x_scale=scale, xtol=1e-14, ftol=1e-14, gtol=1e-14)
     return [float(w) for w in fit.x]
