@@ -115,14 +115,16 @@ def test_ctrl_c_while_a_node_is_still_starting_ends_it_quietly(ros_process, name
 
 
 GROUP_PARENT = r'''
-import signal, subprocess, sys
+import os, signal, subprocess, sys
 # like `ros2 launch`: one parent process, the nodes its children in the parent's process
 # group; Ctrl-C in a terminal signals the whole group. The parent only waits: it handles
 # SIGINT by doing nothing, so it outlives its children as launch does while it shuts them
 # down (a handler, not SIG_IGN: an ignored SIGINT would be inherited by the nodes).
 signal.signal(signal.SIGINT, lambda *_: None)
 procs = [subprocess.Popen(cmd.split('\x1f')) for cmd in sys.argv[1:]]
-sys.exit(max(abs(p.wait()) for p in procs))
+# os._exit: a Ctrl-C that lands while the interpreter finalizes (its handlers reset to the
+# default) would kill the parent with -2 after every node had exited 0
+os._exit(max(abs(p.wait()) for p in procs))
 '''
 
 
@@ -134,7 +136,7 @@ def test_a_launch_style_process_group_stops_on_ctrl_c(ros_process, namespace, rc
     once, or twice as `timeout -s INT` plus an impatient user do) → every node exits 0
     within 2 s (5 s allowed on a loaded machine), no traceback, no process left in the
     group, and the bag reads without recover."""
-    from geometry_msgs.msg import Vector3Stamped
+    from geometry_msgs.msg import QuaternionStamped, Vector3Stamped
     from rigid_body_sim.launch_plan import plan
     bag = tmp_path / 'bag'
     nodes, _ = plan('slew', output=str(bag))
@@ -142,10 +144,15 @@ def test_a_launch_style_process_group_stops_on_ctrl_c(ros_process, namespace, rc
     cmds = ['\x1f'.join([venv_exe(n.executable), *n.ros_arguments(namespace)])
             for n in reversed(nodes)]
     parent = ros_process(sys.executable, '-c', GROUP_PARENT, *cmds)
-    torques = []
+    torques, attitudes = [], []
     rclpy_node.create_subscription(Vector3Stamped, f'{namespace}/torque_command',
                                    torques.append, 100)
-    assert spin_until(rclpy_node, lambda: len(torques) > 20, 90.0), parent.output()[-3000:]
+    # the controller commands zero torque before any state: the loop runs once the
+    # simulator publishes too (on a loaded machine it starts last)
+    rclpy_node.create_subscription(QuaternionStamped, f'{namespace}/attitude',
+                                   attitudes.append, 100)
+    assert spin_until(rclpy_node, lambda: len(torques) > 20 and len(attitudes) > 20, 90.0), \
+        parent.output()[-3000:]
     t0 = time.monotonic()
     for sig in SEQUENCES[sequence]:
         parent.signal(sig)       # os.killpg: the whole group, as a terminal's Ctrl-C
