@@ -223,3 +223,21 @@ def test_pilot_on_a_run_short_against_its_polhode_period_costs_less_than_the_run
     assert 'could save 10× its pilot' in sel.reason
     assert sel.planned_cost <= 0.1 * prior.predicted_cost
     assert sel.predicted_cost < 0.1 * prior.predicted_cost
+
+
+def test_an_in_process_law_s_instants_cost_what_the_compiled_loop_pays():
+    """Slew over 15 s (the selection bench's horizon): the cheapest fixed choice meeting its
+    1e-6 rad is rk4 at the control period; auto took splitting4 (1.5× its CPU) because it
+    costed every control instant at a Python round trip (17.5 µs), 40× what the compiled
+    closed loop pays (model.LAW_EVENT), so the methods' step costs did not count, and a
+    geometric method within 10 % won. The law's instants now cost what that loop pays, and
+    the choice still meets the budget (against dop853 at rtol 1e-12)."""
+    scene = load('slew')
+    result = simulate(scene, duration=15.0)
+    assert result.integrator == 'rk4', result.reason
+    ref = simulate(scene, duration=15.0, integrator='dop853',
+                   integrator_options={'rtol': 1e-12, 'atol': 1e-15})
+    from rigid_body_sim.physics import rotation
+    err = float(np.max(rotation.angle_between(result.samples['attitude'],
+                                              ref.samples['attitude'])))
+    assert err <= scene.simulator['accuracy'], (err, result.reason)
