@@ -108,8 +108,11 @@ def test_rk4_pilot_with_its_measured_drift_bounds_its_error_at_long_horizons():
 
 @pytest.mark.parametrize('name', ['slew', 'detumble', 'default'])
 def test_controlled_scenes_choose_a_priori_at_the_control_period(name):
-    """Commanded torque: no pilot (it cannot know the commands); a splitting at the control
-    period or half of it, not the scene's 2 ms step; choosing costs well under a ms."""
+    """Commanded torque: no pilot (it cannot know the commands); a fixed-step method at the
+    control period or half of it, not the scene's 2 ms step; choosing costs well under a
+    ms. (It was a splitting while every control instant was costed at a Python round trip;
+    with the compiled loop's cost rk4, the cheapest fixed choice the selection bench
+    finds on these three, costs least.)"""
     scene = load(name)
     engine = engine_for(scene, duration=scene.simulator['duration'])
     engine.advance(engine.end_ns)  # the law's first torque triggers the choice
@@ -117,7 +120,8 @@ def test_controlled_scenes_choose_a_priori_at_the_control_period(name):
         engine.advance(engine.end_ns)
     sel = engine.selected
     period = 1.0 / scene.controller['control_rate']
-    assert sel is not None and sel.pilot_steps == 0 and sel.name.startswith('splitting')
+    assert sel is not None and sel.pilot_steps == 0
+    assert sel.name in ('rk4', 'splitting4', 'splitting6'), sel.reason
     assert period / 2 <= sel.step <= period and 'a priori' in sel.reason
     assert sel.predicted_error <= scene.simulator['accuracy']
     assert engine.selection_cpu < 0.01
