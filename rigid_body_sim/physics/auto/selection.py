@@ -268,6 +268,11 @@ def selecting(body: RigidBody, dissipation: Dissipation, attitude, angular_veloc
                 why.append(f'{c.name} at rtol {rtol:.2g} instead: its measured error '
                            f'{MEASURED_K:g}·rtol·ΩT at the budget (E≤{err:.2g} by the bound; '
                            'not a promise)')
+            if s.measured_law_holds(rtol):  # competes on cost with the fixed methods'
+                why.append(f'{c.name}: under the control law its measured law stands as its '
+                           'prediction (rtol clear of its floor, restarts the minor '
+                           'term), as the fixed methods\' measured constants do')
+                err = accuracy
         tolerances[c.name] = rtol
         if (_better(c, cost, best, accuracy) if err <= accuracy
                 else best[3] > accuracy and err < best[3]):

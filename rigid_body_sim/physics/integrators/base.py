@@ -66,12 +66,12 @@ class Candidate:
         errors do not line up, so they add as a random walk, ROUNDOFF_RANDOM·stages·√N·ΩT;
         ``auto.model``, under a control law: ``RunModel.roundoff``).
     torque: (k₁, k₂) the error constants under a control law (the 'torque' kind: a held
-        torque re-set at every control instant), measured on generated detumble scenes:
-        E ≤ k₁·(hΩ)^p·ΩT + k₂·(hΩ)^(p+1)·(ΩT)² (k₂: an energy drift ∝ h^(p+1), RK4's:
-        its amplification |R(ihω)|² = 1 − (hω)⁶/72 per step), in place of ``k`` and
-        ``growth``, which are worst cases of free bodies over 30 turns and over-read such
-        runs 10²–10⁵×; the controlled runs take the a-priori choice (no pilot), so this is
-        where it counts. None: ``k`` and ``growth`` there too.
+        torque re-set at every control instant, no environment torques), measured on
+        generated detumble scenes: E ≤ k₁·(hΩ)^p·ΩT + k₂·(hΩ)^(p+1)·(ΩT)² (k₂: an energy
+        drift ∝ h^(p+1), RK4's: its amplification |R(ihω)|² = 1 − (hω)⁶/72 per step), in
+        place of ``k`` and ``growth``, which are worst cases of free bodies over 30 turns
+        and over-read such runs 10²–10⁵×; the controlled runs take the a-priori choice (no
+        pilot), so this is where it counts. None: ``k`` and ``growth`` there too.
     """
     cost: Tuple[float, float]
     k: float
