@@ -77,7 +77,10 @@ class MethodChoice:
                   restarting=self.orbit_anchored or bool(terms) and c.environment.magnetorquers,
                   # where the gravity gradient acts: auto tests the equilibrium it starts near
                   orbit_state=c.environment.orbit.state(self.t_ns / NS)
-                  if terms and c.environment.gravity_gradient else None)
+                  if terms and c.environment.gravity_gradient else None,
+                  # the law's instants in the compiled closed loop (Engine.advance)
+                  law_in_loop=self._law is not None and self._compiled_samples
+                  and not self.orbit_anchored)
         state = (self.body, c.dissipation, self.attitude, self.angular_velocity)
         if not torque and not c.dissipation.active:
             sel = select(*state, **kw)

@@ -149,7 +149,8 @@ def selecting(body: RigidBody, dissipation: Dissipation, attitude, angular_veloc
               torque: bool, accuracy: float, duration: float, max_step: float,
               torque_rate: float = 0.0, prior_only: bool = False,
               dynamics: Dynamics = None, environment: tuple = (), forced: bool = False,
-              restarting: bool = False, orbit_state: tuple = None):
+              restarting: bool = False, orbit_state: tuple = None,
+              law_in_loop: bool = False):
     """Generator form of :func:`select`: yields often (every few ms of pilot work) so that a
     caller can interleave the selection with its own work; its return value is the Selection.
 
@@ -187,6 +188,9 @@ def selecting(body: RigidBody, dissipation: Dissipation, attitude, angular_veloc
             any error (seed 7's orbit scenes 21 and 28: dop853 and rk4 within their bounds
             erred 4.6× and 700× the budget). auto cannot know that error and takes the most
             accurate, as for ``forced``. Without commands only.
+        law_in_loop: the commands are an in-process control law's, evaluated inside the
+            engine's compiled closed loop: an event costs what the calibration measured
+            there (``model.LAW_EVENT``), not a Python round trip.
     """
     commanded, torque = torque, torque or bool(environment)
     if not (accuracy > 0 and math.isfinite(accuracy)):
@@ -201,7 +205,8 @@ def selecting(body: RigidBody, dissipation: Dissipation, attitude, angular_veloc
     # the attitude matters to the pilot only (set below): the a-priori pass skips its cost
     s = RunModel(dynamics or Dynamics(moments, dissipation), None, m, accuracy, horizon,
                  max_step, torque_rate, environment=environment,
-                 commanded=commanded or restarting, controlled=commanded)
+                 commanded=commanded or restarting, controlled=commanded,
+                 law_in_loop=law_in_loop and commanded and not restarting)
     if s.omega == 0.0:
         return Selection('splitting2', max_step, 'body at rest, no torque: any step is exact',
                          0.0, s.run_cost(CANDIDATES[0], max_step))
@@ -263,6 +268,11 @@ def selecting(body: RigidBody, dissipation: Dissipation, attitude, angular_veloc
                 why.append(f'{c.name} at rtol {rtol:.2g} instead: its measured error '
                            f'{MEASURED_K:g}·rtol·ΩT at the budget (E≤{err:.2g} by the bound; '
                            'not a promise)')
+            if s.measured_law_holds(rtol):  # competes on cost with the fixed methods'
+                why.append(f'{c.name}: under the control law its measured law stands as its '
+                           'prediction (rtol clear of its floor, restarts the minor '
+                           'term), as the fixed methods\' measured constants do')
+                err = accuracy
         tolerances[c.name] = rtol
         if (_better(c, cost, best, accuracy) if err <= accuracy
                 else best[3] > accuracy and err < best[3]):

@@ -61,6 +61,17 @@ class Candidate:
         ``exact`` evaluates a closed form at each step: no repeated rotation, 0.
     call: µs per engine interval around the compiled loop (the compositions check the
         damping's stiffness in Python on every call).
+    rounding: 'systematic' (exact axis rotations: the same rotation rounds alike every
+        step, ROUNDOFF·stages·N·ΩT, above) or 'random' (a polynomial step: its rounding
+        errors do not line up, so they add as a random walk, ROUNDOFF_RANDOM·stages·√N·ΩT;
+        ``auto.model``, under a control law: ``RunModel.roundoff``).
+    torque: (k₁, k₂) the error constants under a control law (the 'torque' kind: a held
+        torque re-set at every control instant, no environment torques), measured on
+        generated detumble scenes: E ≤ k₁·(hΩ)^p·ΩT + k₂·(hΩ)^(p+1)·(ΩT)² (k₂: an energy
+        drift ∝ h^(p+1), RK4's: its amplification |R(ihω)|² = 1 − (hω)⁶/72 per step), in
+        place of ``k`` and ``growth``, which are worst cases of free bodies over 30 turns
+        and over-read such runs 10²–10⁵×; the controlled runs take the a-priori choice (no
+        pilot), so this is where it counts. None: ``k`` and ``growth`` there too.
     """
     cost: Tuple[float, float]
     k: float
@@ -77,6 +88,8 @@ class Candidate:
     stages: float = 0.0
     environment: bool = False  # the class's ``environment``: auto asks it with those torques
     environment_evals: float = 0.0  # the class's ``environment_evaluations`` (its cost there)
+    rounding: str = 'systematic'
+    torque: Optional[Tuple[float, float]] = None
 
 
 # The kinds of dynamics a method's order is stated for (``Integrator.orders``), as the tests
