@@ -96,7 +96,8 @@ from rigid_body_sim.scene import load
 out = {"compiled": kernels.COMPILED}
 for name, overrides, sets in json.loads(sys.argv[1]):
     for compiled_loop in (False, True):
-        engine = engine_for(load(name, sets), **overrides)
+        # landing on every sample, as in _samples: the event path's own samples
+        engine = engine_for(load(name, sets), interpolate_samples=False, **overrides)
         engine._compiled_samples = compiled_loop
         b = SampleBlock.concatenate(list(engine.run()))
         arrays = [b.t_ns, b.q, b.m, b.torque]

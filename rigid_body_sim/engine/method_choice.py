@@ -78,9 +78,11 @@ class MethodChoice:
                   # where the gravity gradient acts: auto tests the equilibrium it starts near
                   orbit_state=c.environment.orbit.state(self.t_ns / NS)
                   if terms and c.environment.gravity_gradient else None,
-                  # the law's instants in the compiled closed loop (Engine.advance)
-                  law_in_loop=self._law is not None and self._compiled_samples
-                  and not self.orbit_anchored)
+                  # commands priced as the compiled closed loop's instants (Engine.advance),
+                  # whoever makes them: the choice is the scene's, not the path's, so the
+                  # event-by-event loop, the live node and lockstep (the law in another
+                  # process) choose as the offline run does and their samples stay equal
+                  law_in_loop=not self.orbit_anchored)
         state = (self.body, c.dissipation, self.attitude, self.angular_velocity)
         if not torque and not c.dissipation.active:
             sel = select(*state, **kw)
