@@ -7,7 +7,10 @@ import sys
 
 def test_the_floor_tool_measures_a_bare_publisher_of_the_state_topics():
     proc = subprocess.run([sys.executable, '-m', 'rigid_body_sim.tools.live_floor',
-                           '--runs', '1', '--seconds', '1'],
+                           # 3 s: a wait for acknowledgements may take its whole 1 s
+                           # timeout on a loaded machine (sim_acks.ACK_TIMEOUT), and a 1 s
+                           # window then saw no message on a topic (make test, load 4)
+                           '--runs', '1', '--seconds', '3'],
                           capture_output=True, text=True, timeout=300)
     assert proc.returncode == 0, proc.stderr[-3000:]
     run, summary = [json.loads(line) for line in proc.stdout.strip().splitlines()[-2:]]
