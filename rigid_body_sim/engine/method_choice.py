@@ -82,7 +82,8 @@ class MethodChoice:
                   # whoever makes them: the choice is the scene's, not the path's, so the
                   # event-by-event loop, the live node and lockstep (the law in another
                   # process) choose as the offline run does and their samples stay equal
-                  law_in_loop=not self.orbit_anchored)
+                  # (selecting leaves out restarting runs, an orbit's among them)
+                  law_in_loop=True)
         state = (self.body, c.dissipation, self.attitude, self.angular_velocity)
         if not torque and not c.dissipation.active:
             sel = select(*state, **kw)
