@@ -37,8 +37,7 @@ from geometry_msgs.msg import Vector3Stamped, WrenchStamped
 from std_srvs.srv import Trigger
 
 from ..engine import NS, fleet, lockstep, specs
-from ..engine.warm import warm_live
-from ..physics import IntegrationError, jit
+from ..physics import IntegrationError
 from ..scene import SceneError, params_files_record
 from .commands import CommandFilter
 from .common import (check_overrides, declare_parameters,
@@ -52,6 +51,7 @@ from .sim_acks import Acknowledgements
 from .sim_holds import Holds
 from .sim_lockstep import Exchange
 from .sim_publish import Publishing
+from .sim_warm import Warming
 from .sim_status import summary
 
 NODE_NAME = 'attitude_simulator'
@@ -63,7 +63,7 @@ MAX_LAG_S = 1.0              # behind the wall-clock target by more: drop the ba
 PILOT_SLICE_S = 0.002        # least time for auto's pilot per loop turn (as fast as possible)
 
 
-class Simulator(Control, Fleet, Holds, Exchange, Publishing, Node):
+class Simulator(Control, Fleet, Holds, Exchange, Publishing, Warming, Node):
     """The ``attitude_simulator`` node.
 
     Build, then call :meth:`run` (or drive :meth:`run_once`).
@@ -313,7 +313,7 @@ class Simulator(Control, Fleet, Holds, Exchange, Publishing, Node):
             self._wait_for_subscribers(executor)
             self._base_stamp(self.get_clock().now().nanoseconds)
             self._started = True
-            self._kernels_at_t0 = jit.signatures()
+            self._mark_t0()
             self._anchor()  # pace from the first turn of the loop, not from construction
             while self.context.ok() and not self.finished and not (
                     self._quit_at is not None and time.monotonic() >= self._quit_at):
@@ -323,28 +323,6 @@ class Simulator(Control, Fleet, Holds, Exchange, Publishing, Node):
                 # was waited for must get them before this process takes its writers away
                 self._wait_acked()
                 self._log.info(self._acks.summary())
-
-    def _warm(self):
-        """Load every kernel the spacecraft will use before t = 0 (``warm_live``): one
-        spacecraft per kind of model, since a fleet's alike share their kernels."""
-        kinds = {}
-        for craft in self._crafts.values():
-            c = craft.engine.config
-            kinds.setdefault((c.integrator, c.dissipation.model, c.actuators is None,
-                              c.sensors is None, c.environment is None), craft)
-        start = time.monotonic()
-        for craft in kinds.values():
-            try:
-                warm_live(craft.engine)
-            except Exception as exc:  # noqa: BLE001 - the run itself reports its failure
-                self._log.warning(f'{craft.prefix}kernels not loaded before t = 0: '
-                                  f'{type(exc).__name__}: {exc}')
-        self._log.info(f'kernels loaded in {time.monotonic() - start:.3g} s '
-                       f'({jit.signatures()} compiled versions)')
-
-    def kernels_after_t0(self) -> int:
-        """Compiled versions loaded (or compiled) since t = 0: each stalled the loop."""
-        return jit.signatures() - self._kernels_at_t0 if self._started else 0
 
     @property
     def finished(self) -> bool:
