@@ -259,9 +259,12 @@ def test_another_simulator_in_the_domain_does_not_end_the_demo(tmp_path, ros_pro
                          timeout=240)
     assert out.returncode == 0, out.stdout[-3000:] + out.stderr[-3000:]
     assert 'ended at t = 4.00 s' in out.stdout, out.stdout[-3000:]
-    # the summary's time origin, from the bag's diagnostics, is its simulator's too
+    # the summary's time origin, from the bag's diagnostics, is its simulator's too: the
+    # other simulator's put the free phase tens of seconds long. Within the 4 s run, not
+    # under 1 s: the slew's free phase ends at the controller's first command, which a
+    # loaded machine starts late (1.42 s in a fresh-clone run)
     free = re.search(r'free until ([0-9.]+) s', out.stdout)
-    assert free and float(free.group(1)) < 1.0, out.stdout[-3000:]
+    assert free and float(free.group(1)) < 4.0, out.stdout[-3000:]
     assert other.poll() is None
 
 
