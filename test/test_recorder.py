@@ -150,17 +150,24 @@ def test_sigkill_then_recover(ros_process, namespace, rclpy_node, tmp_path):
     flush = 0.3
     rec = start_recorder(ros_process, namespace, bag, f'flush_period:={flush}')
     seen = []
+    counts = {topic: 0 for topic in TOPICS}
+
+    def count(topic):
+        def on_message(_):
+            counts[topic] += 1
+        return on_message
     rclpy_node.create_subscription(Float64, f'{namespace}/kinetic_energy',
                                    lambda m: seen.append(m.data), QoSProfile(depth=1000))
     for topic in ('attitude', 'odometry'):  # the publisher waits for 2 subscribers on each
         rclpy_node.create_subscription(message_class(TOPICS[topic]), f'{namespace}/{topic}',
-                                       lambda _: None, QoSProfile(depth=1000), raw=True)
+                                       count(topic), QoSProfile(depth=1000), raw=True)
     # depth 1000, as the README advises for high-rate publishers: with 10, a recorder
     # stalled by a loaded machine for 20 ms loses messages before any SIGKILL
     start_publisher(ros_process, namespace, rate=500, duration=4, subscribers=2, depth=1000)
     assert spin_until(rclpy_node, lambda: len(seen) >= 1000, 30, spinner(rclpy_node))
     rec.signal(signal.SIGKILL)
-    received_at_kill = len(seen)
+    counts['kinetic_energy'] = len(seen)
+    received = dict(counts)
     rec.wait(10)
     assert not is_finished(str(bag / 'killed_0.mcap'))
 
@@ -176,12 +183,15 @@ def test_sigkill_then_recover(ros_process, namespace, rclpy_node, tmp_path):
     res = subprocess.run(command, capture_output=True, text=True, timeout=60)
     assert res.returncode == 0, res.stderr
     values = rosbags_values(tmp_path / 'fixed', namespace)
-    energy = values['kinetic_energy']
-    assert energy == [float(i) for i in range(len(energy))]   # a gap-free prefix
-    # Lost at most the last flush period (plus the flush timer's granularity).
-    assert received_at_kill - len(energy) <= 500 * flush * 1.5 + 50, (received_at_kill,
-                                                                      len(energy))
-    assert all(abs(len(v) - len(energy)) <= 3 for v in values.values())
+    assert sorted(values) == sorted(TOPICS)
+    # Each topic: a gap-free prefix (the publisher writes i into each message) that lost at
+    # most the last flush period, plus the flush timer's granularity. The topics are not
+    # compared with one another: under load the recorder's executor can be some messages
+    # behind on one topic when the kill lands, and those it had not taken were never its own.
+    for topic, got in values.items():
+        assert got == [float(i) for i in range(len(got))], topic
+        assert received[topic] - len(got) <= 500 * flush * 1.5 + 50, (topic, received,
+                                                                       len(got))
 
     # Once recovered, a recorder starting beside it no longer warns (the file is untouched)
     assert rec2.stop() == 0, rec2.output()
