@@ -29,6 +29,9 @@ CASES = [('slew', {'duration': 6.0}, ['publish_rate=100.0']),
          # slew), splitting2_lstable (its own damping code) and exact's split steps
          ('explorer1', {'duration': 3.37, 'integrator': 'dop853'}, ['publish_rate=100.0']),
          ('slew', {'duration': 4.37, 'integrator': 'dop853'}, ['publish_rate=100.0']),
+         # ~1 s steps of dop853, 100 samples inside each (sample_kernel.dense_samples)
+         ('tennis_racket', {'duration': 5.37, 'integrator': 'dop853'},
+          ['publish_rate=100.0', 'dissipation.model=viscous', 'dissipation.coefficient=0.01']),
          ('explorer1', {'duration': 3.0, 'integrator': 'splitting2_lstable', 'step': 1e-3},
           ['publish_rate=100.0']),
          ('explorer1', {'duration': 3.0, 'integrator': 'exact', 'step': 1e-3},
@@ -357,6 +360,77 @@ def test_dop853_samples_inside_a_step_do_not_call_its_advance():
     out = json.loads(proc.stdout.strip().splitlines()[-1])
     assert out['samples'] == 501
     assert 0 < out['calls'] < 50, out  # ~1 s steps: the steps' calls, not the samples'
+
+
+_DENSE_CALLS = """
+import json
+from rigid_body_sim.offline import engine_for
+from rigid_body_sim.physics.integrators import dop853_dense
+from rigid_body_sim.scene import load
+calls = {'_interpolated': 0, 'advance': 0}
+def counted(name):
+    function = getattr(dop853_dense, name)
+    def call(*args):
+        calls[name] += 1
+        return function(*args)
+    setattr(dop853_dense, name, call)
+counted('_interpolated')
+counted('advance')
+engine = engine_for(load('tennis_racket', ['publish_rate=100.0', 'dissipation.model=viscous',
+                                           'dissipation.coefficient=0.01']),
+                    duration=5.0, integrator='dop853')
+samples = sum(len(b) for b in engine.run())
+print(json.dumps({'samples': samples, **calls}))
+"""
+
+
+def test_dop853_samples_inside_a_step_are_one_loop_not_one_call_each():
+    """The samples inside dop853's step in progress come from one loop
+    (sample_kernel.dense_samples), not a call of dop853_dense._interpolated each: the
+    call's checks and the event loop's work around it cost ~65 of a sample's ~95 ns.
+    Counted as plain Python, where the loop calls the module's functions."""
+    import os
+    import subprocess
+    import sys
+    proc = subprocess.run([sys.executable, '-c', _DENSE_CALLS], capture_output=True,
+                          text=True, env=dict(os.environ, NUMBA_DISABLE_JIT='1'), timeout=600)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    out = json.loads(proc.stdout.strip().splitlines()[-1])
+    assert out['samples'] == 501
+    # where a step ends: the loop's call and advance's own first test (before: one a
+    # sample, 500 and more)
+    assert 0 < out['advance'] < 50 and out['_interpolated'] <= 2 * out['advance'] + 2, out
+
+
+def test_dense_samples_are_interpolated_calls_bit_for_bit():
+    """sample_kernel.dense_samples gives the rows, the state and the memory that calling
+    dop853_dense._interpolated once a sample gives, bit for bit, and stops at the step's
+    end; a state other than the last output's (or another torque) writes nothing."""
+    from rigid_body_sim.engine import sample_kernel
+    from rigid_body_sim.physics.integrators import dop853_dense
+    moments, tau = np.array([1.0, 2.0, 3.0]), np.zeros(3)
+    q0 = np.array([0.1, -0.2, 0.3, 0.9]) / np.linalg.norm([0.1, -0.2, 0.3, 0.9])
+    m0 = np.array([0.03, 0.05, -0.04])  # a slow body: ~0.1 s steps at rtol 1e-6
+    memory = np.zeros(dop853_dense.MEMORY)
+    q, m = q0.copy(), m0.copy()
+    dop853_dense.advance(q, m, 0.005, tau, memory, moments, 1, 0.01, 1e-6, 1e-8, 0.0, None)
+    h_step = memory[dop853_dense._CLOCK + 1]
+    count = int(h_step / 0.005) + 5  # more than the step holds
+    slow_memory, qs, ms, expected = memory.copy(), q.copy(), m.copy(), []
+    while dop853_dense._interpolated(qs, ms, 0.005, tau, slow_memory):
+        expected.append(np.concatenate([qs, ms]))
+    assert 5 < len(expected) < count
+    t, qo, mo, to = (np.zeros(count, np.int64), np.zeros((count, 4)), np.zeros((count, 3)),
+                     np.zeros((count, 3)))
+    written = sample_kernel.dense_samples(q, m, tau, memory, 0.005, 0.005, count,
+                                          5 * 10**6, 5 * 10**6, t, qo, mo, to, tau, 0)
+    assert written == len(expected)
+    np.testing.assert_array_equal(np.hstack([qo, mo])[:written], np.array(expected))
+    np.testing.assert_array_equal(t[:written], 5 * 10**6 * np.arange(1, written + 1))
+    np.testing.assert_array_equal(memory, slow_memory)
+    q, m = qo[written - 1].copy(), mo[written - 1].copy()  # the last output's state
+    assert sample_kernel.dense_samples(q, m, tau + 1e-3, memory, 1e-9, 1e-9, count, 0,
+                                       1, t, qo, mo, to, tau, 0) == 0
 
 
 def test_auto_runs_the_free_phase_in_the_compiled_loop(monkeypatch):

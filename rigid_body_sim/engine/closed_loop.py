@@ -163,6 +163,33 @@ def closed_loop_run(state, ticks, reals, spec, body, law, block, out):
             if seg_end >= limit_ns:
                 break
             at_limit = False  # the limit ends the loop before it is stepped to
+            if method == DOP853 and sample_ns < control_ns:
+                # the samples before the next law instant that fall inside the step in
+                # progress, in one loop (sample_kernel.dense_samples): each the output the
+                # call below would give, its output step split as below
+                room = min(capacity - row - rows,
+                           (min(control_ns, limit_ns) - 1 - sample_ns) // sample_period_ns + 1)
+                span = sample_ns - t
+                n = max(1, int(math.ceil(span / (h_max * 1e9) - 1e-9)))
+                h = span / (n * 1e9)
+                n_p = max(1, int(math.ceil(sample_period_ns / (h_max * 1e9) - 1e-9)))
+                h_p = sample_period_ns / (n_p * 1e9)
+                written = sample_kernel.dense_samples(
+                    q, m, tau_p, memory, h * n, h_p * n_p, room, sample_ns, sample_period_ns,
+                    t_out, q_out, m_out, tau_out, tau_body, row + rows)
+                if written > 0:
+                    r = row + rows + written - 1
+                    for i in range(4):
+                        q[i] = q_out[r, i]
+                    for i in range(3):
+                        m[i] = m_out[r, i]
+                    steps += n + (written - 1) * n_p
+                    if written > 1:
+                        h = h_p
+                    rows += written
+                    t = sample_ns + (written - 1) * sample_period_ns
+                    sample_ns = t + sample_period_ns
+                    continue
         span = seg_end - t
         # equal steps no longer than h_max, split as Engine._integrate splits them
         n = max(1, int(math.ceil(span / (h_max * 1e9) - 1e-9)))
