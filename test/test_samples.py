@@ -402,31 +402,34 @@ def test_dop853_samples_inside_a_step_are_one_loop_not_one_call_each():
     assert 0 < out['advance'] < 50 and out['_interpolated'] <= 2 * out['advance'] + 2, out
 
 
-def test_dense_samples_are_interpolated_calls_bit_for_bit():
+@pytest.mark.parametrize('span_ns', [5 * 10**6, 10**6])  # within one CHUNK; across two
+def test_dense_samples_are_interpolated_calls_bit_for_bit(span_ns):
     """sample_kernel.dense_samples gives the rows, the state and the memory that calling
     dop853_dense._interpolated once a sample gives, bit for bit, and stops at the step's
     end; a state other than the last output's (or another torque) writes nothing."""
     from rigid_body_sim.engine import sample_kernel
     from rigid_body_sim.physics.integrators import dop853_dense
+    span = span_ns / 1e9
     moments, tau = np.array([1.0, 2.0, 3.0]), np.zeros(3)
     q0 = np.array([0.1, -0.2, 0.3, 0.9]) / np.linalg.norm([0.1, -0.2, 0.3, 0.9])
     m0 = np.array([0.03, 0.05, -0.04])  # a slow body: ~0.1 s steps at rtol 1e-6
     memory = np.zeros(dop853_dense.MEMORY)
     q, m = q0.copy(), m0.copy()
-    dop853_dense.advance(q, m, 0.005, tau, memory, moments, 1, 0.01, 1e-6, 1e-8, 0.0, None)
+    dop853_dense.advance(q, m, span, tau, memory, moments, 1, 0.01, 1e-6, 1e-8, 0.0, None)
     h_step = memory[dop853_dense._CLOCK + 1]
-    count = int(h_step / 0.005) + 5  # more than the step holds
+    count = int(h_step / span) + 5  # more than the step holds
+    assert span_ns > 10**6 or count > 1.5 * sample_kernel.CHUNK
     slow_memory, qs, ms, expected = memory.copy(), q.copy(), m.copy(), []
-    while dop853_dense._interpolated(qs, ms, 0.005, tau, slow_memory):
+    while dop853_dense._interpolated(qs, ms, span, tau, slow_memory):
         expected.append(np.concatenate([qs, ms]))
     assert 5 < len(expected) < count
     t, qo, mo, to = (np.zeros(count, np.int64), np.zeros((count, 4)), np.zeros((count, 3)),
                      np.zeros((count, 3)))
-    written = sample_kernel.dense_samples(q, m, tau, memory, 0.005, 0.005, count,
-                                          5 * 10**6, 5 * 10**6, t, qo, mo, to, tau, 0)
+    written = sample_kernel.dense_samples(q, m, tau, memory, span, span, count,
+                                          span_ns, span_ns, t, qo, mo, to, tau, 0)
     assert written == len(expected)
     np.testing.assert_array_equal(np.hstack([qo, mo])[:written], np.array(expected))
-    np.testing.assert_array_equal(t[:written], 5 * 10**6 * np.arange(1, written + 1))
+    np.testing.assert_array_equal(t[:written], span_ns * np.arange(1, written + 1))
     np.testing.assert_array_equal(memory, slow_memory)
     q, m = qo[written - 1].copy(), mo[written - 1].copy()  # the last output's state
     assert sample_kernel.dense_samples(q, m, tau + 1e-3, memory, 1e-9, 1e-9, count, 0,
