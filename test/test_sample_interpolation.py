@@ -192,3 +192,58 @@ def test_a_step_failing_between_samples_stops_the_run_in_both_jit_modes():
         assert interpolated == [1]  # one call of the loop, interpolating
         assert message == mode['events'][0] and mode['events'][2] == []
         assert 'euler failed at t = 11.5 s with step h = 0.5 s' in message and fault
+
+
+def _hermite_reference(herm, h, theta):
+    """The cubic Hermite interpolant sample by sample, as the loop evaluated it before
+    hermite_run (plain floats: the same IEEE operations in the same order)."""
+    t2 = theta * theta
+    t3 = t2 * theta
+    a0 = 2.0 * t3 - 3.0 * t2 + 1.0
+    a1 = 1.0 - a0
+    b0 = (t3 - 2.0 * t2 + theta) * h
+    b1 = (t3 - t2) * h
+    q = [a0 * herm[0, i] + b0 * herm[2, i] + a1 * herm[4, i] + b1 * herm[6, i]
+         for i in range(4)]
+    norm = 0.0
+    for v in q:
+        norm += v * v
+    norm = norm ** 0.5
+    m = [a0 * herm[1, i] + b0 * herm[3, i] + a1 * herm[5, i] + b1 * herm[7, i]
+         for i in range(3)]
+    return [v / norm for v in q] + m
+
+
+def test_a_chunk_of_samples_is_the_interpolant_sample_by_sample_bit_for_bit():
+    """sample_kernel.hermite_run (the samples inside one step, a chunk at a time) gives the
+    interpolant of each sample bit for bit, stops at CHUNK, at the step's end and at the
+    segment's end, and reports a sample that is not finite with the rows before it."""
+    from rigid_body_sim.engine import sample_kernel
+    rng = np.random.default_rng(5)
+    herm = rng.normal(size=(8, 4))
+    h, n, span, held, period = 0.25, 4, 10**9, 1, 2 * 10**6  # step 1: [0.25, 0.5) s
+    rows = 200
+    t, q, m, tau = (np.zeros(rows, np.int64), np.zeros((rows, 4)), np.zeros((rows, 3)),
+                    np.zeros((rows, 3)))
+    torque = np.array([1.0, 2.0, 3.0])
+    lanes = np.empty((13, sample_kernel.CHUNK))
+    s, row, ends = 252 * 10**6, 0, []
+    while True:
+        written, finite = sample_kernel.hermite_run(herm, h, 0, 10**9, n, span, held, s,
+                                                    period, lanes, t, q, m, tau, torque, row)
+        assert finite
+        if not written:
+            break
+        ends.append(written)
+        row, s = row + written, s + written * period
+    assert ends == [sample_kernel.CHUNK, 124 - sample_kernel.CHUNK]  # 0.252 … 0.498 s
+    np.testing.assert_array_equal(t[:row], 252 * 10**6 + period * np.arange(row))
+    expected = [_hermite_reference(herm, h, (ti * (n / span)) - 1) for ti in t[:row]]
+    np.testing.assert_array_equal(np.hstack([q, m])[:row], np.array(expected))
+    np.testing.assert_array_equal(tau[:row], np.tile(torque, (row, 1)))
+    # the segment ends first (b_ns): only the samples before it
+    assert sample_kernel.hermite_run(herm, h, 0, 260 * 10**6, n, span, held, 252 * 10**6,
+                                     period, lanes, t, q, m, tau, torque, 0) == (4, True)
+    herm[5, 1] = np.inf  # m's end: every interpolated m[1] is not finite
+    assert sample_kernel.hermite_run(herm, h, 0, 10**9, n, span, held, 252 * 10**6, period,
+                                     lanes, t, q, m, tau, torque, 0) == (0, False)

@@ -138,6 +138,7 @@ def closed_loop_run(state, ticks, reals, spec, body, law, block, out):
     interpolate = ticks[INTERPOLATE] != 0
     need_room = False
     herm = np.empty((8, 4))  # a step's two ends and derivatives (sample_kernel.segment)
+    lanes = np.empty((13, sample_kernel.CHUNK))  # its samples' scratch (hermite_run)
     while row + rows < capacity:
         if interpolate:
             # the steps split only the intervals between law instants (and the limit, a
@@ -220,7 +221,7 @@ def closed_loop_run(state, ticks, reals, spec, body, law, block, out):
                 failed, e, written = sample_kernel.segment(
                     method, q, m, t, seg_end, n, sample_ns, sample_period_ns, weights,
                     split_axes, moments, tau_p, tau_body, has_tau, model, coefficient, inner,
-                    scratch, q_flow, m_flow, env, herm, t_out, q_out, m_out, tau_out,
+                    scratch, q_flow, m_flow, env, herm, lanes, t_out, q_out, m_out, tau_out,
                     row + rows)
                 rows += written
                 sample_ns += written * sample_period_ns
