@@ -94,6 +94,17 @@ def _beta(moments, m):
                0.5 * math.pi - BETA_LIMIT)
 
 
+def turning(dynamics, m0, horizon: float) -> float:
+    """|β(T) − β(0)| (rad): how far the dissipation turns the momentum in the body over the
+    run, along its path (tan β ∝ exp(κ t), :func:`path_rate`). On a symmetric body that is
+    the whole of the damping's turning: there its rate is (κ/2)·sin 2β, whose integral is
+    Δβ (the Gudermannian of κt)."""
+    beta0 = _beta(dynamics.moments, m0)
+    u = math.log(math.tan(beta0)) + path_rate(dynamics, math.sqrt(
+        sum(float(x) ** 2 for x in m0))) * horizon
+    return abs(math.atan(math.exp(min(u, 700.0))) - beta0)
+
+
 def levels(dynamics, q0, m0, horizon: float, rate: float, periods: bool = True):
     """The pilot states for a run of ``horizon`` s from (q0, m0): the initial state, then
     plane states spaced by e in tan β up to where the dissipation takes β by the end.
