@@ -80,10 +80,17 @@ def path_rate(dynamics, momentum_norm: float) -> float:
     return d.coefficient * spread  # viscous: m_i ∝ exp(−c t / I_i)
 
 
+def _floats(x) -> list:
+    if isinstance(x, list):
+        return x
+    return x.tolist() if isinstance(x, np.ndarray) else [float(v) for v in x]
+
+
 def _beta(moments, m):
     """β of the plane state with the energy of m (same |m|)."""
     # plain floats: asked once per selection, where numpy's per-call cost would dominate
-    moments, m = list(map(float, moments)), list(map(float, m))
+    # (tolist, not map(float, …): that makes a numpy scalar of each element first)
+    moments, m = _floats(moments), _floats(m)
     i_a, i_c = min(moments), max(moments)
     G2 = sum(x * x for x in m)
     if i_c - i_a <= 1e-12 * i_c or G2 == 0.0:
@@ -99,9 +106,10 @@ def turning(dynamics, m0, horizon: float) -> float:
     run, along its path (tan β ∝ exp(κ t), :func:`path_rate`). On a symmetric body that is
     the whole of the damping's turning: there its rate is (κ/2)·sin 2β, whose integral is
     Δβ (the Gudermannian of κt)."""
-    beta0 = _beta(dynamics.moments, m0)
+    m0 = _floats(m0)
+    beta0 = _beta(_floats(dynamics.moments), m0)
     u = math.log(math.tan(beta0)) + path_rate(dynamics, math.sqrt(
-        sum(float(x) ** 2 for x in m0))) * horizon
+        sum(x * x for x in m0))) * horizon
     return abs(math.atan(math.exp(min(u, 700.0))) - beta0)
 
 

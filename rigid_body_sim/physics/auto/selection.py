@@ -43,6 +43,7 @@ Adding a method needs nothing here: its class states its ``auto`` facts (a ``Can
 cost per step, error constant, …), which :mod:`.model` (the a-priori model: time scales,
 costs, errors) collects from the registry.
 """
+import functools
 import math
 from dataclasses import dataclass
 
@@ -53,7 +54,7 @@ from ..body import RigidBody
 from ..dynamics import Dissipation, Dynamics
 from . import libration, pilot
 from ..integrators import Candidate, get_integrator
-from .model import CANDIDATES, MEASURED_K, RTOL_RANGE, RunModel, is_symmetric
+from .model import CANDIDATES, MEASURED_K, RTOL_RANGE, RUN_COST, RunModel, is_symmetric
 
 __all__ = ['CANDIDATES', 'Candidate', 'Selection', 'select', 'selecting']
 
@@ -252,6 +253,12 @@ def selecting(body: RigidBody, dissipation: Dissipation, attitude, angular_veloc
         why.append(f'{c.name} h={h:.3g}')
         if best is None or _better(c, cost, best, accuracy):
             best = (c, h, cost, s.prior_error(c, h))
+    # an adaptive candidate is not asked where its run's fixed part alone (building and
+    # events, no step) could not save what asking costs (Explorer 1 over 1 s: exact at the
+    # sample period, one step per event, where its tolerance was a tenth of the selection)
+    asking = [c for c in adaptive if best is None or best[3] > accuracy or
+              _better(c, RUN_COST + s.events * s.per_event(c) + PRIOR_EACH, best, accuracy)]
+    unasked += [c.name for c in adaptive if c not in asking]
     if unasked:
         why.append('not asked (could not save what asking costs): ' + ', '.join(unasked))
     prior_cost = _prior_cost(asked)
@@ -262,7 +269,7 @@ def selecting(body: RigidBody, dissipation: Dissipation, attitude, angular_veloc
         why.append(f'none meets the budget; the most accurate: {c.name} h={h:.3g} '
                    f'(E={err:.2g}, round-off included)')
     tolerances = {}
-    for c in adaptive:  # a tolerance a priori (RunModel.tolerance): bounded, never piloted
+    for c in asking:  # a tolerance a priori (RunModel.tolerance): bounded, never piloted
         rtol, cost, err = s.tolerance(c)
         why.append(f'{c.name} rtol={rtol:.2g} (E≤{err:.2g})')
         if err > accuracy:
@@ -283,7 +290,7 @@ def selecting(body: RigidBody, dissipation: Dissipation, attitude, angular_veloc
         if (_better(c, cost, best, accuracy) if err <= accuracy
                 else best[3] > accuracy and err < best[3]):
             best = (c, max_step, cost, err)
-    head = (f'{effects(commanded, dissipation, environment)} → cheapest method meeting '
+    head = (f'{what} → cheapest method meeting '
             f'{accuracy:g} rad over '
             f'{horizon:g} s; Ω = {s.omega:.3g} rad/s; {s.costs.source}')
     prior = 'a priori (k·(hΩ)^p·ΩT): ' + ', '.join(why)
@@ -302,10 +309,12 @@ def selecting(body: RigidBody, dissipation: Dissipation, attitude, angular_veloc
                      steps, spent, prior_cost, _options(c, tolerances, s.G))
 
 
-def _free_flow_exact(c) -> bool:
-    """Whether c's free flow has no stepping error (``orders['torque_free']`` None: exact),
-    so that under dissipation alone only its splitting with the damping errs."""
-    orders = get_integrator(c.name).orders
+@functools.lru_cache(maxsize=None)
+def _free_flow_exact(name) -> bool:
+    """Whether method ``name``'s free flow has no stepping error (``orders['torque_free']``
+    None: exact), so that under dissipation alone only its splitting with the damping errs
+    (cached: a registry lookup per candidate is a share of a short run's selection)."""
+    orders = get_integrator(name).orders
     return 'torque_free' in orders and orders['torque_free'] is None
 
 
@@ -324,7 +333,7 @@ def _symmetric_split(s, usable, why):
     than it is and kept auto on dop853 at 2.8× its CPU there."""
     best, asked = None, 0
     for c in usable:
-        if not _free_flow_exact(c):
+        if not _free_flow_exact(c.name):
             continue
         asked += 1
         err = SPLIT_K * pilot.turning(s.dyn, s.m, s.horizon)
