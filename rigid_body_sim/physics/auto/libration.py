@@ -34,6 +34,7 @@ NEAR_ANGLE = 0.5   # rad from the equilibrium attitude
 NEAR_RATE = 0.5    # × the orbit rate n, relative to the orbit frame
 MARGIN = 1e-9      # relative: an inequality closer than this is marginal (unknown)
 AXES = 'xyz'
+PERMUTATIONS = tuple(itertools.permutations(range(3)))
 
 
 @dataclass(frozen=True)
@@ -112,8 +113,8 @@ def nearest(moments, principal_attitude, angular_velocity, r, v) -> Optional[Equ
     lvlh = (_cross(y, z), y, z)
     principal = _axes(q)                                 # principal axes, inertial frame
     m = [[_dot(lvlh[i], principal[j]) for j in range(3)] for i in range(3)]
-    perm = max(itertools.permutations(range(3)),
-               key=lambda p: sum(abs(m[i][p[i]]) for i in range(3)))
+    a = [[abs(c) for c in row] for row in m]
+    perm = max(PERMUTATIONS, key=lambda p: a[0][p[0]] + a[1][p[1]] + a[2][p[2]])
     # the signed permutation nearest m, a proper rotation (det +1): flip the weakest axis
     signs = [math.copysign(1.0, m[i][perm[i]]) for i in range(3)]
     inversions = sum(perm[i] > perm[j] for i in range(3) for j in range(i + 1, 3))

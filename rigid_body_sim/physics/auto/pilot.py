@@ -90,12 +90,12 @@ def _beta(moments, m):
     """β of the plane state with the energy of m (same |m|)."""
     # plain floats: asked once per selection, where numpy's per-call cost would dominate
     # (tolist, not map(float, …): that makes a numpy scalar of each element first)
-    moments, m = _floats(moments), _floats(m)
-    i_a, i_c = min(moments), max(moments)
-    G2 = sum(x * x for x in m)
+    (i0, i1, i2), (m0, m1, m2) = _floats(moments), _floats(m)
+    i_a, i_c = min(i0, i1, i2), max(i0, i1, i2)
+    G2 = m0 * m0 + m1 * m1 + m2 * m2
     if i_c - i_a <= 1e-12 * i_c or G2 == 0.0:
         return BETA_LIMIT
-    two_t = sum(x * x / i for x, i in zip(m, moments))
+    two_t = m0 * m0 / i0 + m1 * m1 / i1 + m2 * m2 / i2
     s2 = (1.0 / i_a - two_t / G2) / (1.0 / i_a - 1.0 / i_c)
     return min(max(math.asin(math.sqrt(min(max(s2, 0.0), 1.0))), BETA_LIMIT),
                0.5 * math.pi - BETA_LIMIT)
@@ -106,10 +106,10 @@ def turning(dynamics, m0, horizon: float) -> float:
     run, along its path (tan β ∝ exp(κ t), :func:`path_rate`). On a symmetric body that is
     the whole of the damping's turning: there its rate is (κ/2)·sin 2β, whose integral is
     Δβ (the Gudermannian of κt)."""
-    m0 = _floats(m0)
-    beta0 = _beta(_floats(dynamics.moments), m0)
-    u = math.log(math.tan(beta0)) + path_rate(dynamics, math.sqrt(
-        sum(x * x for x in m0))) * horizon
+    a, b, c = m0 = _floats(m0)
+    beta0 = _beta(dynamics.moments, m0)
+    u = math.log(math.tan(beta0)) + path_rate(dynamics, math.sqrt(a * a + b * b + c * c)) \
+        * horizon
     return abs(math.atan(math.exp(min(u, 700.0))) - beta0)
 
 

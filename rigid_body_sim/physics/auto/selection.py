@@ -331,12 +331,12 @@ def _symmetric_split(s, usable, why):
     multiples of its 0.5 s period) erred 0.93–1.0·Δβ over 30–690 s, at h = 0.37 s 2000×
     less. The earlier facts (no a-priori bound, 18 µs a step, hΩ ≤ 2) made it 30× dearer
     than it is and kept auto on dop853 at 2.8× its CPU there."""
-    best, asked = None, 0
+    best, asked, err = None, 0, None
     for c in usable:
         if not _free_flow_exact(c.name):
             continue
         asked += 1
-        err = SPLIT_K * pilot.turning(s.dyn, s.m, s.horizon)
+        err = SPLIT_K * pilot.turning(s.dyn, s.m, s.horizon) if err is None else err
         why.append(f'{c.name} h={s.max_step:.3g} (symmetric body: E ≤ {SPLIT_K:g}·Δβ = '
                    f'{err:.2g}, the damping\'s turning, at any step)')
         if err <= s.accuracy:
