@@ -54,7 +54,8 @@ from ..body import RigidBody
 from ..dynamics import Dissipation, Dynamics
 from . import libration, pilot
 from ..integrators import Candidate, get_integrator
-from .model import CANDIDATES, MEASURED_K, RTOL_RANGE, RUN_COST, RunModel, is_symmetric
+from .model import (CANDIDATES, H_OMEGA_PRIOR, MEASURED_K, RTOL_RANGE, RUN_COST, RunModel,
+                    is_symmetric)
 
 __all__ = ['CANDIDATES', 'Candidate', 'Selection', 'select', 'selecting']
 
@@ -240,7 +241,10 @@ def selecting(body: RigidBody, dissipation: Dissipation, attitude, angular_veloc
     # cheapest first by the least each could cost (at its largest step); one that could not
     # save more than asking it costs is not asked: on a short run the fixed part of the run
     # dominates every candidate's cost, and the a-priori pass would be its largest share
-    least = sorted((s.least_cost(c), i, c) for i, c in enumerate(usable) if math.isfinite(c.k))
+    least = [] if _none_could_pay(s, usable, best, accuracy) else \
+        sorted((s.least_cost(c), i, c) for i, c in enumerate(usable) if math.isfinite(c.k))
+    if not least and best is not None:
+        unasked += [c.name for c in usable if math.isfinite(c.k)]
     for floor, _, c in least:
         if not _worth_asking(c, floor, best, accuracy, asked):
             unasked.append(c.name)
@@ -254,10 +258,12 @@ def selecting(body: RigidBody, dissipation: Dissipation, attitude, angular_veloc
         if best is None or _better(c, cost, best, accuracy):
             best = (c, h, cost, s.prior_error(c, h))
     # an adaptive candidate is not asked where its run's fixed part alone (building and
-    # events, no step) could not save what asking costs (Explorer 1 over 1 s: exact at the
-    # sample period, one step per event, where its tolerance was a tenth of the selection)
-    asking = [c for c in adaptive if best is None or best[3] > accuracy or
-              _better(c, RUN_COST + s.events * s.per_event(c) + PRIOR_EACH, best, accuracy)]
+    # events, no step), then its run at its loosest rtol, could not save what asking costs
+    # (Explorer 1 over 1–100 s: exact at the sample period, one step per event, where its
+    # tolerance was a tenth of the selection)
+    asking = [c for c in adaptive if best is None or best[3] > accuracy or (
+        _better(c, RUN_COST + s.events * s.per_event(c) + PRIOR_EACH, best, accuracy) and
+        _better(c, s.at_tolerance(c, RTOL_RANGE[1])[0] + PRIOR_EACH, best, accuracy))]
     unasked += [c.name for c in adaptive if c not in asking]
     if unasked:
         why.append('not asked (could not save what asking costs): ' + ', '.join(unasked))
@@ -316,6 +322,21 @@ def _free_flow_exact(name) -> bool:
     (cached: a registry lookup per candidate is a share of a short run's selection)."""
     orders = get_integrator(name).orders
     return 'torque_free' in orders and orders['torque_free'] is None
+
+
+def _none_could_pay(s, usable, best, accuracy) -> bool:
+    """Whether no step-based candidate could save what asking it costs, by one bound for
+    all (each one's ``least_cost`` asked for nothing; Explorer 1 over 1 s, exact at the
+    sample period): the fewest steps any takes (hΩ ≤ H_OMEGA_PRIOR, at most the event
+    spacing) at the least cost per step and per event of all, beside the run's fixed part."""
+    if best is None or best[3] > accuracy or not usable:
+        return False
+    h = min(H_OMEGA_PRIOR / s.omega, s.max_step)
+    per_step = min(min(s.costs.cost(c)) + s.term_cost * c.environment_evals for c in usable)
+    floor = RUN_COST + s.events * min(s.per_event(c) for c in usable) \
+        + s.horizon / h * per_step * 1e-6
+    # as _worth_asking, for a geometric candidate (the preference can only favour it)
+    return floor + PRIOR_EACH >= best[2] * (1.0 if best[0].geometric else 1.0 + PREFER)
 
 
 def _symmetric_split(s, usable, why):
