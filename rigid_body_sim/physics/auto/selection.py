@@ -316,12 +316,12 @@ def selecting(body: RigidBody, dissipation: Dissipation, attitude, angular_veloc
 
 
 @functools.lru_cache(maxsize=None)
-def _free_flow_exact(name) -> bool:
-    """Whether method ``name``'s free flow has no stepping error (``orders['torque_free']``
-    None: exact), so that under dissipation alone only its splitting with the damping errs
-    (cached: a registry lookup per candidate is a share of a short run's selection)."""
-    orders = get_integrator(name).orders
-    return 'torque_free' in orders and orders['torque_free'] is None
+def _free_flow_exact() -> frozenset:
+    """The candidates whose free flow has no stepping error (``orders['torque_free']``
+    None: exact), so that under dissipation alone only their splitting with the damping
+    errs (once: a registry lookup per candidate is a share of a short run's selection)."""
+    return frozenset(c.name for c in CANDIDATES
+                     if get_integrator(c.name).orders.get('torque_free', 0) is None)
 
 
 def _none_could_pay(s, usable, best, accuracy) -> bool:
@@ -352,12 +352,12 @@ def _symmetric_split(s, usable, why):
     multiples of its 0.5 s period) erred 0.93–1.0·Δβ over 30–690 s, at h = 0.37 s 2000×
     less. The earlier facts (no a-priori bound, 18 µs a step, hΩ ≤ 2) made it 30× dearer
     than it is and kept auto on dop853 at 2.8× its CPU there."""
-    best, asked, err = None, 0, None
+    best, asked, err, exact = None, 0, None, _free_flow_exact()
     for c in usable:
-        if not _free_flow_exact(c.name):
+        if c.name not in exact:
             continue
         asked += 1
-        err = SPLIT_K * pilot.turning(s.dyn, s.m, s.horizon) if err is None else err
+        err = SPLIT_K * pilot.turning(s.dyn, s.m, s.horizon, s.G) if err is None else err
         why.append(f'{c.name} h={s.max_step:.3g} (symmetric body: E ≤ {SPLIT_K:g}·Δβ = '
                    f'{err:.2g}, the damping\'s turning, at any step)')
         if err <= s.accuracy:
