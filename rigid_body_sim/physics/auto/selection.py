@@ -76,6 +76,7 @@ PREFER = 0.1              # a geometric method within 10 % of the cheapest wins
 ROUNDS = 4
 GUARD_FROM = 100.0        # pilot readings within this factor of the budget bound later ones
 SPLIT_K = 2.0             # × Δβ: exact's split error bound on a symmetric body (measured ≤ 1.0)
+SPLIT_NOTE = f'symmetric body: E ≤ {SPLIT_K:g}·Δβ'
 MAX_SHRINK = 4.0          # a pilot's step at most this far below the previous one
 DEFAULT_HORIZON = 600.0   # s: the budget horizon for open-ended (duration 0) runs
 
@@ -304,10 +305,12 @@ def selecting(body: RigidBody, dissipation: Dissipation, attitude, angular_veloc
         c, h, cost, err = best
         return Selection(c.name, h, f'{head}; {prior}', err, cost, prior_cost=prior_cost,
                          options=_options(c, tolerances, s.G))
-    found = yield from _piloted(
-        s, usable, best, lambda: body.attitude_to_principal(rotation.validated(attitude)),
-        prior_cost)
-    c, h, cost, err, steps, spent, notes = found
+    if _no_round_fits(s, best, prior_cost):  # the pilot's first question, asked here
+        (c, h, cost, err), steps, spent, notes = best, 0, 0.0, [NO_ROUND]
+    else:
+        c, h, cost, err, steps, spent, notes = yield from _piloted(
+            s, usable, best, lambda: body.attitude_to_principal(rotation.validated(attitude)),
+            prior_cost)
     if err > accuracy:
         notes.append(f'no method can be shown to meet {accuracy:g} rad here; the most '
                      f'accurate predicted ({err:.2g} rad)')
@@ -358,8 +361,8 @@ def _symmetric_split(s, usable, why):
             continue
         asked += 1
         err = SPLIT_K * pilot.turning(s.dyn, s.m, s.horizon, s.G) if err is None else err
-        why.append(f'{c.name} h={s.max_step:.3g} (symmetric body: E ≤ {SPLIT_K:g}·Δβ = '
-                   f'{err:.2g}, the damping\'s turning, at any step)')
+        why.append(f'{c.name} h={s.max_step:.3g} ({SPLIT_NOTE} = {err:.2g}, the damping\'s '
+                   'turning, at any step)')
         if err <= s.accuracy:
             best = (c, s.max_step, s.run_cost(c, s.max_step), err)
     return best, asked
@@ -404,6 +407,16 @@ def _budget(strict, fallback, saving, spend, prior_cost):
     return strict
 
 
+NO_ROUND = f'none (a round would cost over {SELECTION_SHARE:.0%} of the run)'
+
+
+def _no_round_fits(s, best, prior_cost) -> bool:
+    """Whether ``best`` meets the budget and no pilot round fits in the selection's share
+    of its run (a short run's fixed cost dominates it)."""
+    return best[3] <= s.accuracy and (SELECTION_SHARE * best[2] - prior_cost
+                                      < LEVELS_COST + ROUND_COST + 8 * PILOT_CALL)
+
+
 def _piloted(s, usable, best, principal_attitude, prior_cost):
     """Generator: refine ``best`` (candidate, h, cost, error), the a-priori choice, by pilots
     within the budget; returns (candidate, h, cost, error, pilot steps, pilot cost, notes).
@@ -414,11 +427,9 @@ def _piloted(s, usable, best, principal_attitude, prior_cost):
     plausible step, then at the step its last pilot extrapolates to; the lowest is piloted
     next, until none could beat the best verified choice or the budget is spent."""
     spent, steps, notes = 0.0, 0, []
-    if best[3] <= s.accuracy and (SELECTION_SHARE * best[2] - prior_cost
-                                  < LEVELS_COST + ROUND_COST + 8 * PILOT_CALL):
-        c, h, cost, err = best  # no pilot round fits in the selection's share of this run
-        return c, h, cost, err, 0, 0.0, [f'none (a round would cost over '
-                                         f'{SELECTION_SHARE:.0%} of the run)']
+    if _no_round_fits(s, best, prior_cost):
+        c, h, cost, err = best
+        return c, h, cost, err, 0, 0.0, [NO_ROUND]
     levels, safety = None, SAFETY_LOCAL
     measured = {}  # method → (step, error) of its last pilot
     queue = [(s.run_cost(c, h), i, c, h, 0)
