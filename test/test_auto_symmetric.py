@@ -89,3 +89,17 @@ def test_exact_is_not_taken_a_priori_where_its_turning_exceeds_the_budget():
     assert 'symmetric body: E ≤' in long.reason  # asked, and out of the budget
     triaxial = _explorer(30.0, moments=np.array([0.04, 0.2, 0.21]))
     assert 'symmetric body' not in triaxial.reason
+
+
+def test_over_one_second_nothing_else_is_asked_once_exact_takes_one_step_per_sample():
+    """Explorer 1 over 1 s (a run of one sample interval): exact at the sample period takes
+    the fewest steps any method can, so the a-priori pass asks no step method
+    (one bound for all) and not dop853 (its run without a step could not pay for asking):
+    the selection is a share of the run's fixed cost there."""
+    sel = _explorer(1.0)
+    assert (sel.name, sel.step) == ('exact', 1.0), sel.reason
+    unasked = sel.reason.split('not asked (could not save what asking costs): ')[1]
+    assert {'rk4', 'splitting4', 'splitting6', 'dop853'} <= set(
+        unasked.split(';')[0].split(', ')), sel.reason
+    assert 'rtol=' not in sel.reason and sel.prior_cost == pytest.approx(
+        selection.PRIOR_BASE + selection.PRIOR_EACH)
