@@ -86,6 +86,12 @@ def validated(q, name='quaternion'):
     quaternion written with few digits; zero, NaN or Inf can't be a rotation.
     """
     q = np.asarray(q, float)
+    if q.shape == (4,):  # one quaternion in plain floats: numpy's per-call cost was most of it
+        values = q.tolist()
+        if all(map(math.isfinite, values)):
+            norm = math.sqrt(sum(v * v for v in values))
+            if 1e-6 <= norm < math.inf:  # else the general path says why
+                return q / norm
     if q.shape[-1] != 4:
         raise ValueError(f'{name} must have 4 components (x, y, z, w), got shape {q.shape}')
     if not np.all(np.isfinite(q)):

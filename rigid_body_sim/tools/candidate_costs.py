@@ -49,7 +49,7 @@ def run(steps=STEPS, log=print):
                        else Dissipation())
         for c in CANDIDATES:
             if c.name == 'exact':
-                continue  # Python per step (a closed form built from each state)
+                continue  # its cost is 5× higher on a triaxial body: calibration.EXACT_MOMENTS
             integ = create(c.name, dyn)
             integ.run(Q0, M0, STEP, 10)  # compiled (or loaded) before timing
             nfev = integ.nfev

@@ -26,8 +26,6 @@ from typing import Optional
 
 import numpy as np
 
-from .. import rotation
-from ..orbit import frames
 
 # "near": the generated orbit family starts its librations 0.01–0.3 rad from LVLH at
 # 0.01–0.3 n relative to it; beyond these the motion is no small libration of one
@@ -36,6 +34,7 @@ NEAR_ANGLE = 0.5   # rad from the equilibrium attitude
 NEAR_RATE = 0.5    # × the orbit rate n, relative to the orbit frame
 MARGIN = 1e-9      # relative: an inequality closer than this is marginal (unknown)
 AXES = 'xyz'
+PERMUTATIONS = tuple(itertools.permutations(range(3)))
 
 
 @dataclass(frozen=True)
@@ -76,32 +75,60 @@ def stability(ix: float, iy: float, iz: float):
     return pitch, roll_yaw
 
 
+def _cross(a, b):
+    return [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
+
+
+def _dot(a, b) -> float:
+    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+
+
+def _axes(q):
+    """The columns of the rotation matrix of q = (x, y, z, w): the principal axes in the
+    inertial frame."""
+    x, y, z, w = q
+    return ([1 - 2 * (y * y + z * z), 2 * (x * y + z * w), 2 * (x * z - y * w)],
+            [2 * (x * y - z * w), 1 - 2 * (x * x + z * z), 2 * (y * z + x * w)],
+            [2 * (x * z + y * w), 2 * (y * z - x * w), 1 - 2 * (x * x + y * y)])
+
+
 def nearest(moments, principal_attitude, angular_velocity, r, v) -> Optional[Equilibrium]:
     """The LVLH equilibrium the body starts near, None if it is near none (NEAR_ANGLE,
     NEAR_RATE). ``principal_attitude``: principal frame → inertial (x, y, z, w);
     ``angular_velocity``: rad/s in principal axes; r, v: the orbit's state (m, m/s) in the
-    inertial frame at that instant."""
-    moments = np.asarray(moments, float)
-    lvlh = frames.lvlh_axes(r, v)                       # LVLH → inertial (columns)
-    principal = rotation.rotate(principal_attitude, np.eye(3)).T  # principal → inertial
-    m = lvlh.T @ principal      # m[i, j]: cosine of LVLH axis i and principal axis j
-    perm = max(itertools.permutations(range(3)),
-               key=lambda p: sum(abs(m[i, p[i]]) for i in range(3)))
-    # the signed permutation nearest m, a proper rotation (det +1): flip the weakest axis
-    signs = np.array([math.copysign(1.0, m[i, perm[i]]) for i in range(3)])
-    e = np.zeros((3, 3))
-    e[range(3), perm] = signs
-    if np.linalg.det(e) < 0:
-        weakest = min(range(3), key=lambda i: abs(m[i, perm[i]]))
-        e[weakest, perm[weakest]] *= -1.0
-    cos_angle = min(1.0, max(-1.0, (float(np.trace(e.T @ m)) - 1.0) / 2.0))
-    angle = math.acos(cos_angle)
-    n = float(np.linalg.norm(frames.lvlh_rate(r, v)))
-    if n <= 0.0:
+    inertial frame at that instant. In plain floats: asked once per selection, where
+    numpy's per-call cost on 3-vectors was most of a short run's selection (the generated
+    gravity-gradient scenes: ~40 % of it)."""
+    moments = [float(x) for x in np.asarray(moments, float).tolist()]
+    r, v = np.asarray(r, float).tolist(), np.asarray(v, float).tolist()
+    q = np.asarray(principal_attitude, float).tolist()
+    norm = math.sqrt(sum(c * c for c in q))
+    q = [c / norm for c in q]
+    h = _cross(r, v)
+    r2, h_norm = _dot(r, r), math.sqrt(_dot(h, h))
+    if r2 <= 0.0 or h_norm <= 0.0:
         return None
-    relative = np.asarray(angular_velocity, float) - principal.T @ frames.lvlh_rate(r, v)
-    rate = float(np.linalg.norm(relative)) / n
+    z = [-c / math.sqrt(r2) for c in r]                  # LVLH axes in the inertial frame
+    y = [-c / h_norm for c in h]
+    lvlh = (_cross(y, z), y, z)
+    principal = _axes(q)                                 # principal axes, inertial frame
+    m = [[_dot(lvlh[i], principal[j]) for j in range(3)] for i in range(3)]
+    a = [[abs(c) for c in row] for row in m]
+    perm = max(PERMUTATIONS, key=lambda p: a[0][p[0]] + a[1][p[1]] + a[2][p[2]])
+    # the signed permutation nearest m, a proper rotation (det +1): flip the weakest axis
+    signs = [math.copysign(1.0, m[i][perm[i]]) for i in range(3)]
+    inversions = sum(perm[i] > perm[j] for i in range(3) for j in range(i + 1, 3))
+    if (-1.0) ** inversions * signs[0] * signs[1] * signs[2] < 0:
+        weakest = min(range(3), key=lambda i: abs(m[i][perm[i]]))
+        signs[weakest] = -signs[weakest]
+    trace = sum(signs[i] * m[i][perm[i]] for i in range(3))
+    angle = math.acos(min(1.0, max(-1.0, (trace - 1.0) / 2.0)))
+    rate_vector = [c / r2 for c in h]                    # LVLH's rate, inertial frame
+    n = math.sqrt(_dot(rate_vector, rate_vector))
+    w = np.asarray(angular_velocity, float).tolist()
+    relative = [w[j] - _dot(principal[j], rate_vector) for j in range(3)]
+    rate = math.sqrt(_dot(relative, relative)) / n
     if angle > NEAR_ANGLE or rate > NEAR_RATE:
         return None
-    ix, iy, iz = (float(moments[perm[i]]) for i in range(3))
+    ix, iy, iz = (moments[perm[i]] for i in range(3))
     return Equilibrium((ix, iy, iz), angle, rate, *stability(ix, iy, iz))

@@ -84,7 +84,8 @@ SPREAD = 30.0             # non-geometric methods err at least k/SPREAD (calibra
 
 
 def is_symmetric(moments, rtol=1e-12):
-    a, b, c = np.sort(moments)
+    # plain floats: asked once per selection, where np.sort's per-call cost is a share of it
+    a, b, c = sorted(moments.tolist() if isinstance(moments, np.ndarray) else moments)
     return abs(b - a) <= rtol * c or abs(c - b) <= rtol * c
 
 

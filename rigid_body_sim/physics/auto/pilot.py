@@ -80,18 +80,38 @@ def path_rate(dynamics, momentum_norm: float) -> float:
     return d.coefficient * spread  # viscous: m_i ∝ exp(−c t / I_i)
 
 
+def _floats(x) -> list:
+    if isinstance(x, list):
+        return x
+    return x.tolist() if isinstance(x, np.ndarray) else [float(v) for v in x]
+
+
 def _beta(moments, m):
     """β of the plane state with the energy of m (same |m|)."""
     # plain floats: asked once per selection, where numpy's per-call cost would dominate
-    moments, m = list(map(float, moments)), list(map(float, m))
-    i_a, i_c = min(moments), max(moments)
-    G2 = sum(x * x for x in m)
+    # (tolist, not map(float, …): that makes a numpy scalar of each element first)
+    (i0, i1, i2), (m0, m1, m2) = _floats(moments), _floats(m)
+    i_a, i_c = min(i0, i1, i2), max(i0, i1, i2)
+    G2 = m0 * m0 + m1 * m1 + m2 * m2
     if i_c - i_a <= 1e-12 * i_c or G2 == 0.0:
         return BETA_LIMIT
-    two_t = sum(x * x / i for x, i in zip(m, moments))
+    two_t = m0 * m0 / i0 + m1 * m1 / i1 + m2 * m2 / i2
     s2 = (1.0 / i_a - two_t / G2) / (1.0 / i_a - 1.0 / i_c)
     return min(max(math.asin(math.sqrt(min(max(s2, 0.0), 1.0))), BETA_LIMIT),
                0.5 * math.pi - BETA_LIMIT)
+
+
+def turning(dynamics, m0, horizon: float, momentum_norm: float = None) -> float:
+    """|β(T) − β(0)| (rad): how far the dissipation turns the momentum in the body over the
+    run, along its path (tan β ∝ exp(κ t), :func:`path_rate`). On a symmetric body that is
+    the whole of the damping's turning: there its rate is (κ/2)·sin 2β, whose integral is
+    Δβ (the Gudermannian of κt). ``momentum_norm``: |m0| if the caller has it."""
+    a, b, c = m0 = _floats(m0)
+    beta0 = _beta(dynamics.moments, m0)
+    if momentum_norm is None:
+        momentum_norm = math.sqrt(a * a + b * b + c * c)
+    u = math.log(math.tan(beta0)) + path_rate(dynamics, momentum_norm) * horizon
+    return abs(math.atan(math.exp(min(u, 700.0))) - beta0)
 
 
 def levels(dynamics, q0, m0, horizon: float, rate: float, periods: bool = True):

@@ -12,6 +12,9 @@
   are not capped by the scene's ``step``. With each candidate's CPU per step and per
   event this predicts the run's cost; the cheapest meeting the budget wins (a geometric
   method within 10 %).
+* **Symmetric body, dissipation alone → ``exact`` a priori** where 2·Δβ (the damping's
+  turning of the momentum over the run) meets the budget, at the event spacing: its split
+  error is at most Δβ at any step (:func:`_symmetric_split`).
 * **Pilot, only where needed:** k is a worst case; a body spinning near a principal axis
   (Explorer 1) errs 10⁴× less with a splitting. For torque-free dissipative runs the
   pilot (:mod:`.pilot`: step doubling at the initial state and at states along the
@@ -40,6 +43,7 @@ Adding a method needs nothing here: its class states its ``auto`` facts (a ``Can
 cost per step, error constant, …), which :mod:`.model` (the a-priori model: time scales,
 costs, errors) collects from the registry.
 """
+import functools
 import math
 from dataclasses import dataclass
 
@@ -49,8 +53,9 @@ from .. import rotation
 from ..body import RigidBody
 from ..dynamics import Dissipation, Dynamics
 from . import libration, pilot
-from ..integrators import Candidate
-from .model import CANDIDATES, MEASURED_K, RTOL_RANGE, RunModel, is_symmetric
+from ..integrators import Candidate, get_integrator
+from .model import (CANDIDATES, H_OMEGA_PRIOR, MEASURED_K, RTOL_RANGE, RUN_COST, RunModel,
+                    is_symmetric)
 
 __all__ = ['CANDIDATES', 'Candidate', 'Selection', 'select', 'selecting']
 
@@ -70,6 +75,8 @@ SAFETY_LOCAL, SAFETY_PATH = 1.25, 2.0
 PREFER = 0.1              # a geometric method within 10 % of the cheapest wins
 ROUNDS = 4
 GUARD_FROM = 100.0        # pilot readings within this factor of the budget bound later ones
+SPLIT_K = 2.0             # × Δβ: exact's split error bound on a symmetric body (measured ≤ 1.0)
+SPLIT_NOTE = f'symmetric body: E ≤ {SPLIT_K:g}·Δβ'
 MAX_SHRINK = 4.0          # a pilot's step at most this far below the previous one
 DEFAULT_HORIZON = 600.0   # s: the budget horizon for open-ended (duration 0) runs
 
@@ -230,10 +237,15 @@ def selecting(body: RigidBody, dissipation: Dissipation, attitude, angular_veloc
             return _unknowable(s, adaptive[0], accuracy, horizon, (
                 f'{what}: the body starts {near.describe()} → it leaves it exponentially'))
     best, why, unasked, asked = None, [], [], 0
+    if not torque and is_symmetric(moments):  # exact's split error is known a priori here
+        best, asked = _symmetric_split(s, usable, why)
     # cheapest first by the least each could cost (at its largest step); one that could not
     # save more than asking it costs is not asked: on a short run the fixed part of the run
     # dominates every candidate's cost, and the a-priori pass would be its largest share
-    least = sorted((s.least_cost(c), i, c) for i, c in enumerate(usable) if math.isfinite(c.k))
+    least = [] if _none_could_pay(s, usable, best, accuracy) else \
+        sorted((s.least_cost(c), i, c) for i, c in enumerate(usable) if math.isfinite(c.k))
+    if not least and best is not None:
+        unasked += [c.name for c in usable if math.isfinite(c.k)]
     for floor, _, c in least:
         if not _worth_asking(c, floor, best, accuracy, asked):
             unasked.append(c.name)
@@ -246,6 +258,14 @@ def selecting(body: RigidBody, dissipation: Dissipation, attitude, angular_veloc
         why.append(f'{c.name} h={h:.3g}')
         if best is None or _better(c, cost, best, accuracy):
             best = (c, h, cost, s.prior_error(c, h))
+    # an adaptive candidate is not asked where its run's fixed part alone (building and
+    # events, no step), then its run at its loosest rtol, could not save what asking costs
+    # (Explorer 1 over 1–100 s: exact at the sample period, one step per event, where its
+    # tolerance was a tenth of the selection)
+    asking = [c for c in adaptive if best is None or best[3] > accuracy or (
+        _better(c, RUN_COST + s.events * s.per_event(c) + PRIOR_EACH, best, accuracy) and
+        _better(c, s.at_tolerance(c, RTOL_RANGE[1])[0] + PRIOR_EACH, best, accuracy))]
+    unasked += [c.name for c in adaptive if c not in asking]
     if unasked:
         why.append('not asked (could not save what asking costs): ' + ', '.join(unasked))
     prior_cost = _prior_cost(asked)
@@ -256,7 +276,7 @@ def selecting(body: RigidBody, dissipation: Dissipation, attitude, angular_veloc
         why.append(f'none meets the budget; the most accurate: {c.name} h={h:.3g} '
                    f'(E={err:.2g}, round-off included)')
     tolerances = {}
-    for c in adaptive:  # a tolerance a priori (RunModel.tolerance): bounded, never piloted
+    for c in asking:  # a tolerance a priori (RunModel.tolerance): bounded, never piloted
         rtol, cost, err = s.tolerance(c)
         why.append(f'{c.name} rtol={rtol:.2g} (E≤{err:.2g})')
         if err > accuracy:
@@ -277,7 +297,7 @@ def selecting(body: RigidBody, dissipation: Dissipation, attitude, angular_veloc
         if (_better(c, cost, best, accuracy) if err <= accuracy
                 else best[3] > accuracy and err < best[3]):
             best = (c, max_step, cost, err)
-    head = (f'{effects(commanded, dissipation, environment)} → cheapest method meeting '
+    head = (f'{what} → cheapest method meeting '
             f'{accuracy:g} rad over '
             f'{horizon:g} s; Ω = {s.omega:.3g} rad/s; {s.costs.source}')
     prior = 'a priori (k·(hΩ)^p·ΩT): ' + ', '.join(why)
@@ -285,15 +305,67 @@ def selecting(body: RigidBody, dissipation: Dissipation, attitude, angular_veloc
         c, h, cost, err = best
         return Selection(c.name, h, f'{head}; {prior}', err, cost, prior_cost=prior_cost,
                          options=_options(c, tolerances, s.G))
-    found = yield from _piloted(
-        s, usable, best, lambda: body.attitude_to_principal(rotation.validated(attitude)),
-        prior_cost)
-    c, h, cost, err, steps, spent, notes = found
+    if _no_round_fits(s, best, prior_cost):  # the pilot's first question, asked here
+        (c, h, cost, err), steps, spent, notes = best, 0, 0.0, [NO_ROUND]
+    else:
+        c, h, cost, err, steps, spent, notes = yield from _piloted(
+            s, usable, best, lambda: body.attitude_to_principal(rotation.validated(attitude)),
+            prior_cost)
     if err > accuracy:
         notes.append(f'no method can be shown to meet {accuracy:g} rad here; the most '
                      f'accurate predicted ({err:.2g} rad)')
     return Selection(c.name, h, f'{head}; {prior}; pilot: ' + '; '.join(notes), err, cost,
                      steps, spent, prior_cost, _options(c, tolerances, s.G))
+
+
+@functools.lru_cache(maxsize=None)
+def _free_flow_exact() -> frozenset:
+    """The candidates whose free flow has no stepping error (``orders['torque_free']``
+    None: exact), so that under dissipation alone only their splitting with the damping
+    errs (once: a registry lookup per candidate is a share of a short run's selection)."""
+    return frozenset(c.name for c in CANDIDATES
+                     if get_integrator(c.name).orders.get('torque_free', 0) is None)
+
+
+def _none_could_pay(s, usable, best, accuracy) -> bool:
+    """Whether no step-based candidate could save what asking it costs, by one bound for
+    all (each one's ``least_cost`` asked for nothing; Explorer 1 over 1 s, exact at the
+    sample period): the fewest steps any takes (hΩ ≤ H_OMEGA_PRIOR, at most the event
+    spacing) at the least cost per step and per event of all, beside the run's fixed part."""
+    if best is None or best[3] > accuracy or not usable:
+        return False
+    h = min(H_OMEGA_PRIOR / s.omega, s.max_step)
+    per_step = min(min(s.costs.cost(c)) + s.term_cost * c.environment_evals for c in usable)
+    floor = RUN_COST + s.events * min(s.per_event(c) for c in usable) \
+        + s.horizon / h * per_step * 1e-6
+    # as _worth_asking, for a geometric candidate (the preference can only favour it)
+    return floor + PRIOR_EACH >= best[2] * (1.0 if best[0].geometric else 1.0 + PREFER)
+
+
+def _symmetric_split(s, usable, why):
+    """(best, asked): a method whose free flow is exact, at the event spacing, on a
+    symmetric body under dissipation alone, if SPLIT_K·Δβ meets the budget (else None).
+
+    There the damping commutes with the free flow in the body (both keep the symmetry
+    axis), and the spin rate it sets evolves exactly across the split steps: what errs is
+    the momentum the damping turns in inertial space, sampled at the steps. At a step that
+    is a multiple of the precession period 2π·I_t/|L| every kick lands at the same phase
+    and they add up; elsewhere they cancel. So the error is at most the whole turning,
+    Δβ (:func:`.pilot.turning`), at any step: Explorer 1 at h = 1 s and 0.5 s (both
+    multiples of its 0.5 s period) erred 0.93–1.0·Δβ over 30–690 s, at h = 0.37 s 2000×
+    less. The earlier facts (no a-priori bound, 18 µs a step, hΩ ≤ 2) made it 30× dearer
+    than it is and kept auto on dop853 at 2.8× its CPU there."""
+    best, asked, err, exact = None, 0, None, _free_flow_exact()
+    for c in usable:
+        if c.name not in exact:
+            continue
+        asked += 1
+        err = SPLIT_K * pilot.turning(s.dyn, s.m, s.horizon, s.G) if err is None else err
+        why.append(f'{c.name} h={s.max_step:.3g} ({SPLIT_NOTE} = {err:.2g}, the damping\'s '
+                   'turning, at any step)')
+        if err <= s.accuracy:
+            best = (c, s.max_step, s.run_cost(c, s.max_step), err)
+    return best, asked
 
 
 def effects(commanded, dissipation, environment) -> str:
@@ -335,6 +407,16 @@ def _budget(strict, fallback, saving, spend, prior_cost):
     return strict
 
 
+NO_ROUND = f'none (a round would cost over {SELECTION_SHARE:.0%} of the run)'
+
+
+def _no_round_fits(s, best, prior_cost) -> bool:
+    """Whether ``best`` meets the budget and no pilot round fits in the selection's share
+    of its run (a short run's fixed cost dominates it)."""
+    return best[3] <= s.accuracy and (SELECTION_SHARE * best[2] - prior_cost
+                                      < LEVELS_COST + ROUND_COST + 8 * PILOT_CALL)
+
+
 def _piloted(s, usable, best, principal_attitude, prior_cost):
     """Generator: refine ``best`` (candidate, h, cost, error), the a-priori choice, by pilots
     within the budget; returns (candidate, h, cost, error, pilot steps, pilot cost, notes).
@@ -345,11 +427,9 @@ def _piloted(s, usable, best, principal_attitude, prior_cost):
     plausible step, then at the step its last pilot extrapolates to; the lowest is piloted
     next, until none could beat the best verified choice or the budget is spent."""
     spent, steps, notes = 0.0, 0, []
-    if best[3] <= s.accuracy and (SELECTION_SHARE * best[2] - prior_cost
-                                  < LEVELS_COST + ROUND_COST + 8 * PILOT_CALL):
-        c, h, cost, err = best  # no pilot round fits in the selection's share of this run
-        return c, h, cost, err, 0, 0.0, [f'none (a round would cost over '
-                                         f'{SELECTION_SHARE:.0%} of the run)']
+    if _no_round_fits(s, best, prior_cost):
+        c, h, cost, err = best
+        return c, h, cost, err, 0, 0.0, [NO_ROUND]
     levels, safety = None, SAFETY_LOCAL
     measured = {}  # method → (step, error) of its last pilot
     queue = [(s.run_cost(c, h), i, c, h, 0)
@@ -437,6 +517,8 @@ def _piloted(s, usable, best, principal_attitude, prior_cost):
         if h_new >= h:
             h_new = s.max_step / (round(s.max_step / h) + 1)
         queue.append((s.run_cost(c, min(h_far, h_new)), i, c, h_new, rounds + 1))
+    if not notes:
+        notes.append('none (nothing could beat the a-priori choice)')
     if levels is not None:
         notes.append(f'{len(levels)} state(s): β = ' +
                      ', '.join(f'{lv.beta_deg:.3g}°' for lv in levels))

@@ -28,12 +28,15 @@ class Exact(Splitting2):
     orders = {'torque_free': None, 'double_bracket': 2, 'viscous': 2, 'torque': 2}
     stages = 0.0  # a closed form at each step: no repeated rotation to round
     loop_code = 4  # its split steps (exact_flow_kernel); torque-free, the engine evaluates it
-    # with dissipation or torque each step builds a closed form from its state (~18 µs)
-    # exact keeps hΩ ≤ 2 like the others, though it rotates exactly: at steps that are
-    # multiples of the rotation period its splitting error aliases (Explorer 1 spins at
-    # 10 rev/s; exact at h = 1 s and 0.5 s agree to 1e-6 and are 0.02 rad off after 690 s),
-    # which step doubling cannot see
-    auto = Candidate((18.0, 18.0), math.inf, coupled_only=True)
+    # with dissipation or torque each step builds a closed form from its state in its
+    # compiled loop: 1.6–1.8 µs on a triaxial body in the classes' units (11–12× splitting2's
+    # free step; a symmetric body ~0.25; calibrated on a triaxial one). The earlier 18 µs
+    # was the Python step's. Its pilot keeps hΩ ≤ 2 like the others, though it rotates
+    # exactly: at steps that are multiples of the precession period its splitting error
+    # aliases (Explorer 1: exact at h = 1 s and 0.5 s agree to 1e-6 and are 0.025 rad off
+    # after 690 s), which step doubling cannot see; on a symmetric body auto bounds that a
+    # priori (auto.selection: at most the damping's turning Δβ, at any step)
+    auto = Candidate((1.7, 1.8), math.inf, coupled_only=True)
     kernel_modules = (exact, exact_flow_kernel)
     environment = False  # its split steps kick with the held torque only
     preserves = frozenset({'angular_momentum_norm', 'kinetic_energy', 'unit_quaternion', 'poisson',
