@@ -26,6 +26,9 @@ def install() -> None:
     """Replace ``CallerId``'s construction in this process (idempotent)."""
     import rclpy.logging
     from rclpy.impl import rcutils_logger
+    if not all(hasattr(rcutils_logger, name) for name in (
+            'CallerId', '_internal_callers', '_populate_internal_callers')):
+        return  # another rclpy than the pinned Jazzy wheels: its own walk, as it is
     if getattr(rcutils_logger.CallerId.__new__, 'rigid_body_sim', False):
         return
     if rcutils_logger._populate_internal_callers:  # as rclpy does at its first call
