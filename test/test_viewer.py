@@ -127,6 +127,116 @@ class Probe:
         self.context.try_shutdown()
 
 
+def test_waits_for_the_simulator_then_serves_and_writes_mcap(client_js, tmp_path):
+    ns = unique_namespace('viewer_waits')
+    port = _free_port()
+    path = tmp_path / 'view.mcap'
+    viewer = NodeProcess(_viewer_cmd() + ['--ros-args', '-r', f'__ns:={ns}',
+                                          '-p', f'port:={port}', '-p', f'mcap_output:={path}'])
+    sim = None
+    try:
+        # it says so once, and keeps serving (the count is checked again at the end, after
+        # the simulator's start-up and the client's run)
+        assert wait_output(viewer, 'waiting for the simulator'), viewer.output()
+        assert viewer.output().count('waiting for the simulator') == 1, viewer.output()
+        sim = NodeProcess([venv_exe('simulator'), '--ros-args', '-r', f'__ns:={ns}',
+                           '-p', f'publish_rate:={RATE}'])
+        (s,) = run_client(client_js, port, 12.0, '--subscribe', '/tf,/state')
+        assert s['counts'].get('/tf', 0) > RATE, s['counts']
+        assert s['counts'].get('/state', 0) > RATE, s['counts']
+    finally:
+        if sim is not None:
+            assert sim.stop() == 0
+        assert viewer.stop() == 0, viewer.output()
+    out = viewer.output()
+    assert out.count('waiting for the simulator') == 1 and 'Traceback' not in out
+    # the MCAP, read with the mcap library: the same channels, log time = the state's stamp
+    from mcap.reader import make_reader
+    with open(path, 'rb') as f:
+        reader = make_reader(f)
+        summary = reader.get_summary()
+        topics = {c.topic: summary.schemas[c.schema_id].name
+                  for c in summary.channels.values()}
+        assert topics['/tf'] == 'foxglove.FrameTransform'
+        assert topics['/scene'] == 'foxglove.SceneUpdate'
+        rows = [(m.log_time, json.loads(m.data))
+                for _, c, m in reader.iter_messages(topics=['/state'])]
+        # /diagnostics as ROS 2 CDR, decoded by mcap-ros2-support from the ros2msg schema
+        from mcap_ros2.decoder import DecoderFactory
+        with open(path, 'rb') as g:
+            statuses = [s for _, _, _, msg in make_reader(
+                g, decoder_factories=[DecoderFactory()]).iter_decoded_messages(
+                    topics=['/diagnostics']) for s in msg.status]
+    assert topics['/diagnostics'] == 'diagnostic_msgs/msg/DiagnosticArray'
+    names = {s.name.split(':')[0] for s in statuses}
+    assert {'attitude_viewer', 'attitude_simulator'} <= names, names
+    own = [s for s in statuses if s.name.startswith('attitude_viewer')]
+    assert {kv.key for kv in own[-1].values} >= {'rejected_invalid_message',
+                                                  'rejected_unknown_channel', 'subscriptions'}
+    assert len(rows) > RATE
+    for log_time, row in rows:
+        assert log_time == row['timestamp']['sec'] * 1_000_000_000 + row['timestamp']['nsec']
+
+
+def test_explorer1_energy_ellipsoid_shrinks_as_energy_dissipates(client_js):
+    """Explorer 1 (double-bracket dissipation at 200× real time): T falls at constant |L|,
+    and the ellipsoid's semi-axes follow √(2T/I_i) at each scene update's stamp."""
+    ns = unique_namespace('viewer_explorer1')
+    port = _free_port()
+    scene = os.path.join(os.path.dirname(__file__), '..', 'config', 'explorer1.yaml')
+    sim = NodeProcess([venv_exe('simulator'), '--ros-args', '-r', f'__ns:={ns}',
+                       '--params-file', scene])
+    viewer = NodeProcess(_viewer_cmd() + ['--ros-args', '-r', f'__ns:={ns}',
+                                          '-p', f'port:={port}'])
+    try:
+        _wait_port(port)
+        (s,) = run_client(client_js, port, 14.0, '--subscribe', '/scene,/state',
+                          '--dump', '/scene,/state')
+    finally:
+        sim.stop()
+        viewer.stop()
+    moments = np.array([0.04, 0.2, 0.2])
+    T = {r['timestamp']['sec'] * 1_000_000_000 + r['timestamp']['nsec']: r['kinetic_energy']
+         for r in s['dumped']['/state']}
+    L = [r['angular_momentum_norm'] for r in s['dumped']['/state']]
+    rows = []
+    for update in s['dumped'].get('/scene', []):
+        for e in update['entities']:
+            if e['id'] == 'energy_ellipsoid':
+                size = e['spheres'][0]['size']
+                rows.append((_stamp(e['timestamp']), np.array((size['x'], size['y'],
+                                                               size['z']))))
+    rows = [(t, size) for t, size in rows if t in T]
+    assert len(rows) >= 50, (len(rows), sim.output(), viewer.output())
+    # (size_i/2)² = (2T/I_i)·scale²: size_i²·I_i/T is one constant over axes and time
+    c = np.array([size ** 2 * moments / T[t] for t, size in rows])
+    np.testing.assert_allclose(c, c[0, 0], rtol=1e-9)
+    largest = np.array([size.max() for _, size in rows])
+    assert np.all(np.diff(largest) <= 1e-12 * largest[0])   # T only falls
+    assert largest[-1] < 0.98 * largest[0], (largest[0], largest[-1])
+    assert max(L) - min(L) <= 1e-6 * max(L)                  # |L| kept (double bracket)
+
+
+@pytest.mark.parametrize('override, reason', [
+    ('port:=70000', 'parameter port'), ('portt:=8765', 'unknown parameter'),
+    ('scene_rate:=0.0', 'parameter scene_rate')])
+def test_bad_parameters_stop_the_viewer_with_the_reason(override, reason):
+    proc = NodeProcess(_viewer_cmd() + ['--ros-args', '-r',
+                                        f'__ns:={unique_namespace("viewer_bad")}',
+                                        '-p', override])
+    try:
+        code = proc.wait(60)
+    finally:
+        proc.stop()
+    out = proc.output()
+    assert code == 2 and reason in out and 'Traceback' not in out, out
+
+
+# The tests without the module's graph (`live`) come first: a module fixture lives until
+# the module ends, and the simulator and viewer it runs (50 Hz) cost CPU all along. The
+# demo test stays after the graph's tests, beside its simulator (another graph in the
+# domain, as users have).
+
 @pytest.fixture(scope='module')
 def live():
     """The simulator (default scene at 50 Hz) and the viewer, shared by this module's tests."""
@@ -276,96 +386,6 @@ def test_port_in_use_is_a_clear_error_and_the_simulator_runs_on(live):
     assert live['sim'].poll() is None and live['viewer'].poll() is None
 
 
-def test_waits_for_the_simulator_then_serves_and_writes_mcap(client_js, tmp_path):
-    ns = unique_namespace('viewer_waits')
-    port = _free_port()
-    path = tmp_path / 'view.mcap'
-    viewer = NodeProcess(_viewer_cmd() + ['--ros-args', '-r', f'__ns:={ns}',
-                                          '-p', f'port:={port}', '-p', f'mcap_output:={path}'])
-    sim = None
-    try:
-        # it says so once, and keeps serving (the count is checked again at the end, after
-        # the simulator's start-up and the client's run)
-        assert wait_output(viewer, 'waiting for the simulator'), viewer.output()
-        assert viewer.output().count('waiting for the simulator') == 1, viewer.output()
-        sim = NodeProcess([venv_exe('simulator'), '--ros-args', '-r', f'__ns:={ns}',
-                           '-p', f'publish_rate:={RATE}'])
-        (s,) = run_client(client_js, port, 12.0, '--subscribe', '/tf,/state')
-        assert s['counts'].get('/tf', 0) > RATE, s['counts']
-        assert s['counts'].get('/state', 0) > RATE, s['counts']
-    finally:
-        if sim is not None:
-            assert sim.stop() == 0
-        assert viewer.stop() == 0, viewer.output()
-    out = viewer.output()
-    assert out.count('waiting for the simulator') == 1 and 'Traceback' not in out
-    # the MCAP, read with the mcap library: the same channels, log time = the state's stamp
-    from mcap.reader import make_reader
-    with open(path, 'rb') as f:
-        reader = make_reader(f)
-        summary = reader.get_summary()
-        topics = {c.topic: summary.schemas[c.schema_id].name
-                  for c in summary.channels.values()}
-        assert topics['/tf'] == 'foxglove.FrameTransform'
-        assert topics['/scene'] == 'foxglove.SceneUpdate'
-        rows = [(m.log_time, json.loads(m.data))
-                for _, c, m in reader.iter_messages(topics=['/state'])]
-        # /diagnostics as ROS 2 CDR, decoded by mcap-ros2-support from the ros2msg schema
-        from mcap_ros2.decoder import DecoderFactory
-        with open(path, 'rb') as g:
-            statuses = [s for _, _, _, msg in make_reader(
-                g, decoder_factories=[DecoderFactory()]).iter_decoded_messages(
-                    topics=['/diagnostics']) for s in msg.status]
-    assert topics['/diagnostics'] == 'diagnostic_msgs/msg/DiagnosticArray'
-    names = {s.name.split(':')[0] for s in statuses}
-    assert {'attitude_viewer', 'attitude_simulator'} <= names, names
-    own = [s for s in statuses if s.name.startswith('attitude_viewer')]
-    assert {kv.key for kv in own[-1].values} >= {'rejected_invalid_message',
-                                                  'rejected_unknown_channel', 'subscriptions'}
-    assert len(rows) > RATE
-    for log_time, row in rows:
-        assert log_time == row['timestamp']['sec'] * 1_000_000_000 + row['timestamp']['nsec']
-
-
-def test_explorer1_energy_ellipsoid_shrinks_as_energy_dissipates(client_js):
-    """Explorer 1 (double-bracket dissipation at 200× real time): T falls at constant |L|,
-    and the ellipsoid's semi-axes follow √(2T/I_i) at each scene update's stamp."""
-    ns = unique_namespace('viewer_explorer1')
-    port = _free_port()
-    scene = os.path.join(os.path.dirname(__file__), '..', 'config', 'explorer1.yaml')
-    sim = NodeProcess([venv_exe('simulator'), '--ros-args', '-r', f'__ns:={ns}',
-                       '--params-file', scene])
-    viewer = NodeProcess(_viewer_cmd() + ['--ros-args', '-r', f'__ns:={ns}',
-                                          '-p', f'port:={port}'])
-    try:
-        _wait_port(port)
-        (s,) = run_client(client_js, port, 14.0, '--subscribe', '/scene,/state',
-                          '--dump', '/scene,/state')
-    finally:
-        sim.stop()
-        viewer.stop()
-    moments = np.array([0.04, 0.2, 0.2])
-    T = {r['timestamp']['sec'] * 1_000_000_000 + r['timestamp']['nsec']: r['kinetic_energy']
-         for r in s['dumped']['/state']}
-    L = [r['angular_momentum_norm'] for r in s['dumped']['/state']]
-    rows = []
-    for update in s['dumped'].get('/scene', []):
-        for e in update['entities']:
-            if e['id'] == 'energy_ellipsoid':
-                size = e['spheres'][0]['size']
-                rows.append((_stamp(e['timestamp']), np.array((size['x'], size['y'],
-                                                               size['z']))))
-    rows = [(t, size) for t, size in rows if t in T]
-    assert len(rows) >= 50, (len(rows), sim.output(), viewer.output())
-    # (size_i/2)² = (2T/I_i)·scale²: size_i²·I_i/T is one constant over axes and time
-    c = np.array([size ** 2 * moments / T[t] for t, size in rows])
-    np.testing.assert_allclose(c, c[0, 0], rtol=1e-9)
-    largest = np.array([size.max() for _, size in rows])
-    assert np.all(np.diff(largest) <= 1e-12 * largest[0])   # T only falls
-    assert largest[-1] < 0.98 * largest[0], (largest[0], largest[-1])
-    assert max(L) - min(L) <= 1e-6 * max(L)                  # |L| kept (double bracket)
-
-
 def test_demo_starts_the_viewer_and_prints_its_url(client_js, tmp_path):
     port = _free_port()
     cli = os.path.join(os.path.dirname(sys.executable), 'rigid-body-sim')
@@ -391,18 +411,3 @@ def test_demo_starts_the_viewer_and_prints_its_url(client_js, tmp_path):
     assert s['counts'].get('/tf', 0) > 0 and s['counts'].get('/state', 0) > 0, s['counts']
     log = (tmp_path / 'viewer.log').read_text()
     assert 'Traceback' not in log and 'body: principal moments' in log, log
-
-
-@pytest.mark.parametrize('override, reason', [
-    ('port:=70000', 'parameter port'), ('portt:=8765', 'unknown parameter'),
-    ('scene_rate:=0.0', 'parameter scene_rate')])
-def test_bad_parameters_stop_the_viewer_with_the_reason(override, reason):
-    proc = NodeProcess(_viewer_cmd() + ['--ros-args', '-r',
-                                        f'__ns:={unique_namespace("viewer_bad")}',
-                                        '-p', override])
-    try:
-        code = proc.wait(60)
-    finally:
-        proc.stop()
-    out = proc.output()
-    assert code == 2 and reason in out and 'Traceback' not in out, out

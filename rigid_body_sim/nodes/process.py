@@ -15,6 +15,8 @@ import rclpy.logging
 from rclpy.executors import ExternalShutdownException
 from rclpy.experimental import EventsExecutor
 
+from . import log_caller
+
 
 @contextlib.contextmanager
 def signals_ignored():
@@ -218,6 +220,7 @@ def start_ros(node_name: str, args=None, lockstep: bool = False):
         return 2
     ros_started()
     quiet_interrupted_futures()
+    log_caller.install()  # log calls at ~0.02 ms, not rclpy's 1.5-3 ms (log_caller.py)
     return None
 
 
