@@ -245,6 +245,44 @@ def test_a_controller_that_does_not_answer_pauses_the_simulator(ros_process, nam
     assert stamps == [0, 10_000_000, 20_000_000] and status['lockstep_exchanges'] == '1'
 
 
+def test_the_lockstep_controller_answers_one_odometry_message(ros_process, namespace,
+                                                              rclpy_node):
+    """In lockstep the controller takes the state as one nav_msgs/Odometry (orientation
+    and the twist's body rate), so that the simulator publishes one message per exchange
+    instead of attitude and angular_velocity (before: it subscribed to those two and
+    answered only once both were in). It subscribes to odometry and to neither of them,
+    and answers an odometry state with a command stamped like it, in the body frame."""
+    from geometry_msgs.msg import Vector3Stamped
+    from nav_msgs.msg import Odometry
+    ctl = ros_process(venv_exe('controller'), '--ros-args', '-r', f'__ns:={namespace}',
+                      '-p', 'lockstep:=true', '-p', 'control_rate:=50.0',
+                      '-p', 'mode:=detumble', env={'PYTHONUNBUFFERED': '1'})
+    commands = []
+    rclpy_node.create_subscription(Vector3Stamped, f'{namespace}/torque_command',
+                                   commands.append, 100)
+    pub = rclpy_node.create_publisher(Odometry, f'{namespace}/odometry', 10)
+
+    def subscribed():
+        try:
+            return {name for name, _ in rclpy_node.get_subscriber_names_and_types_by_node(
+                'attitude_controller', namespace)}
+        except Exception:  # noqa: BLE001 - not discovered yet
+            return set()
+    assert spin_until(rclpy_node, lambda: f'{namespace}/odometry' in subscribed() and
+                      pub.get_subscription_count() > 0, 90), (subscribed(), ctl.output()[-2000:])
+    assert not subscribed() & {f'{namespace}/attitude', f'{namespace}/angular_velocity'}
+    msg = Odometry()
+    msg.header.frame_id, msg.child_frame_id = 'world', 'base_link'
+    msg.header.stamp.sec, msg.header.stamp.nanosec = 1, 20_000_000  # a control instant
+    msg.pose.pose.orientation.w = 1.0
+    msg.twist.twist.angular.x = 0.5  # tumbling: detumble answers with a torque against it
+    pub.publish(msg)
+    assert spin_until(rclpy_node, lambda: commands, 60), ctl.output()[-2000:]
+    got = commands[0]
+    assert (got.header.stamp.sec, got.header.stamp.nanosec) == (1, 20_000_000)
+    assert got.header.frame_id == 'base_link' and got.vector.x < 0.0, got
+
+
 @pytest.mark.parametrize('change, reason', [
     ({'publish_clock': False}, 'publish_clock'),
     ({'control_rate': 30.0}, 'must divide publish_rate'),

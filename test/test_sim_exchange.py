@@ -261,6 +261,41 @@ def test_states_decode_from_their_bytes_as_rclpy_does(frame, stamp, quaternion):
         quaternion_stamped(data[:-8])  # truncated: rclpy's own error
 
 
+@pytest.mark.parametrize('frame, child', [
+    ('world', 'base_link'), ('w', 'b'), ('abc', 'leader/base_link'), ('wxyz', 'bcdefgh')])
+def test_odometry_decodes_to_the_state_rclpy_reads(frame, child):
+    """The lockstep controller takes the state as one nav_msgs/Odometry's CDR bytes: the
+    attitude (header, orientation) and the body rate (stamp, child_frame_id, twist's
+    angular) it decodes are rclpy's fields bit for bit, whatever the frame ids' lengths
+    (the doubles' alignment after them); bytes of another layout go to rclpy, which
+    raises for them."""
+    import struct
+    from nav_msgs.msg import Odometry
+    from rclpy.serialization import deserialize_message
+    from rigid_body_sim.nodes.commands import odometry_state
+    msg = Odometry()
+    msg.header.frame_id, msg.child_frame_id = frame, child
+    msg.header.stamp.sec, msg.header.stamp.nanosec = 7, 20_000_000
+    o, w = msg.pose.pose.orientation, msg.twist.twist.angular
+    o.x, o.y, o.z, o.w = 0.1, -0.2, float('nan'), 0.9273618495495704
+    w.x, w.y, w.z = 5e-324, -0.0, 1e308
+    # the fields around them, which must not be read in their place
+    msg.pose.pose.position.z, msg.twist.twist.linear.x = 11.0, 12.0
+    msg.pose.covariance[35], msg.twist.covariance[0] = 13.0, 14.0
+    data = serialize_message(msg)
+    ref = deserialize_message(data, Odometry)
+    attitude, rate = odometry_state(data)
+    assert attitude.header.frame_id == frame and rate.header.frame_id == child
+    assert (attitude.header.stamp.sec, attitude.header.stamp.nanosec) == (7, 20_000_000)
+    assert (rate.header.stamp.sec, rate.header.stamp.nanosec) == (7, 20_000_000)
+    q, r = attitude.quaternion, ref.pose.pose.orientation
+    assert struct.pack('<4d', q.x, q.y, q.z, q.w) == struct.pack('<4d', r.x, r.y, r.z, r.w)
+    v, r = rate.vector, ref.twist.twist.angular
+    assert struct.pack('<3d', v.x, v.y, v.z) == struct.pack('<3d', r.x, r.y, r.z)
+    with pytest.raises(Exception):
+        odometry_state(data[:-8])  # truncated: rclpy's own error
+
+
 @pytest.mark.parametrize('frame', ['', 'b', 'base_link', 'abcdefgh', 'sc1/base_link_long'])
 def test_commands_encode_to_the_bytes_rclpy_reads(frame):
     """The controller publishes its command as CDR bytes it builds itself: rclpy's
