@@ -59,6 +59,32 @@ def test_clock_goes_only_to_subscribers(rclpy_node, simulator):
     assert ticks == sorted(set(ticks)) and ticks[-1] <= sim.t_ns
 
 
+def test_the_loop_reads_the_contexts_state_without_rclpys_wrapper(rclpy_node, simulator):
+    """``run``'s loop checks at every turn that ROS is still up, from the context's handle:
+    rclpy's ``Context.ok`` (its lock, then the handle entered) cost ~10 µs of every
+    lockstep exchange on the loaded machine. The run still turns (at real time, once a
+    sample at least) and ends, and the loop itself never asks ``Context.ok`` (before, at
+    every turn; the executor's own turns still do, once per 20 ms in lockstep)."""
+    import sys
+    sim = simulator(real_time_factor=1.0, publish_rate=100.0, duration=0.3)
+    asked, turns = [], []
+    ok, run_once = sim.context.ok, sim.run_once
+
+    def spy():
+        caller = sys._getframe(1).f_code
+        asked.append((caller.co_name, caller.co_filename.endswith('simulator.py')))
+        return ok()
+    sim.context.ok = spy
+    sim.run_once = lambda: (turns.append(1), run_once())[1]
+    try:
+        sim.run()
+    finally:
+        del sim.context.ok
+    assert sim.finished and sim.t_ns == 300_000_000
+    assert len(turns) >= 30 and asked, (len(turns), asked)  # the executor's turns asked
+    assert ('run', True) not in asked, asked
+
+
 def test_a_held_instant_waits_for_its_command_in_the_same_turn(rclpy_node, simulator):
     """Lockstep as fast as possible: the turn that publishes a control instant's state and
     holds it returns a wait (the executor then blocks until the command arrives), not 0,
