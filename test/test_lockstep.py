@@ -346,6 +346,23 @@ def test_the_floor_tool_measures_a_bare_rclpy_exchange():
     assert sum(threads.values()) <= got['cpu_per_exchange_us'] * 1.01 + 1, got
 
 
+def test_the_parts_tool_times_each_part_of_the_simulators_exchange(capsys):
+    """tools/lockstep_parts.py runs the exchange with the simulator in a process of its own
+    and a controller (real processes) and reports its thread's CPU per exchange and each
+    part's: every part spent something, and the nested ones fit in what holds them."""
+    import re
+    from rigid_body_sim.tools.lockstep_parts import PARTS, main
+    assert main(['--periods', '20', '--runs', '1']) == 0
+    out = capsys.readouterr().out
+    total = float(re.search(r'simulator thread per exchange .*: ([\d.]+) µs', out).group(1))
+    parts = {m.group(1): float(m.group(2))
+             for m in re.finditer(r'^  (\S+) +([-\d.]+) µs', out, re.M)}
+    assert set(parts) == {p[0] for p in PARTS} | {'loop'}, out
+    assert all(v > 0 for k, v in parts.items() if k != 'loop'), out
+    assert parts['publish.bytes'] + parts['publish.write'] <= parts['publish'], out
+    assert parts['take.apply'] <= parts['take'] and parts['run_once'] <= total, out
+
+
 def test_lockstep_nodes_publish_synchronously(tmp_path):
     """The simulator and the controller choose Fast DDS's synchronous publication when
     their ``--ros-args`` set ``lockstep: true`` (a params file section that matches the
