@@ -21,7 +21,8 @@ ACTUATORS = 'actuators (wheels or CMGs)'
 GYRO = 'sensors.gyro'
 STAR_TRACKER = 'sensors.star_tracker'
 SIM_INTERFACES = 'simulation_interfaces installed'
-FEEDBACK_TRUTH = 'feedback: truth'
+FEEDBACK_TRUTH = 'feedback: truth, lockstep: false'
+LOCKSTEP = 'lockstep: true'
 FEEDBACK_SENSORS = 'feedback: sensors'
 ORBIT = 'orbit.model'
 GRAVITY_GRADIENT = 'environment.gravity_gradient'
@@ -162,6 +163,8 @@ CONTROLLER = NodeInterfaces('attitude_controller', 'controller', (
           FEEDBACK_TRUTH),
     Topic('sub', 'angular_velocity', 'geometry_msgs/msg/Vector3Stamped', 'the true body rate',
           FEEDBACK_TRUTH),
+    Topic('sub', 'odometry', 'nav_msgs/msg/Odometry', 'lockstep: the true attitude and body '
+          'rate in one message, instead of attitude and angular_velocity', LOCKSTEP),
     Topic('sub', 'gyro', 'sensor_msgs/msg/Imu', 'measured body rate', FEEDBACK_SENSORS),
     Topic('sub', 'star_tracker', 'geometry_msgs/msg/QuaternionStamped', 'attitude fixes',
           FEEDBACK_SENSORS),

@@ -245,6 +245,44 @@ def test_a_controller_that_does_not_answer_pauses_the_simulator(ros_process, nam
     assert stamps == [0, 10_000_000, 20_000_000] and status['lockstep_exchanges'] == '1'
 
 
+def test_the_lockstep_controller_answers_one_odometry_message(ros_process, namespace,
+                                                              rclpy_node):
+    """In lockstep the controller takes the state as one nav_msgs/Odometry (orientation
+    and the twist's body rate), so that the simulator publishes one message per exchange
+    instead of attitude and angular_velocity (before: it subscribed to those two and
+    answered only once both were in). It subscribes to odometry and to neither of them,
+    and answers an odometry state with a command stamped like it, in the body frame."""
+    from geometry_msgs.msg import Vector3Stamped
+    from nav_msgs.msg import Odometry
+    ctl = ros_process(venv_exe('controller'), '--ros-args', '-r', f'__ns:={namespace}',
+                      '-p', 'lockstep:=true', '-p', 'control_rate:=50.0',
+                      '-p', 'mode:=detumble', env={'PYTHONUNBUFFERED': '1'})
+    commands = []
+    rclpy_node.create_subscription(Vector3Stamped, f'{namespace}/torque_command',
+                                   commands.append, 100)
+    pub = rclpy_node.create_publisher(Odometry, f'{namespace}/odometry', 10)
+
+    def subscribed():
+        try:
+            return {name for name, _ in rclpy_node.get_subscriber_names_and_types_by_node(
+                'attitude_controller', namespace)}
+        except Exception:  # noqa: BLE001 - not discovered yet
+            return set()
+    assert spin_until(rclpy_node, lambda: f'{namespace}/odometry' in subscribed() and
+                      pub.get_subscription_count() > 0, 90), (subscribed(), ctl.output()[-2000:])
+    assert not subscribed() & {f'{namespace}/attitude', f'{namespace}/angular_velocity'}
+    msg = Odometry()
+    msg.header.frame_id, msg.child_frame_id = 'world', 'base_link'
+    msg.header.stamp.sec, msg.header.stamp.nanosec = 1, 20_000_000  # a control instant
+    msg.pose.pose.orientation.w = 1.0
+    msg.twist.twist.angular.x = 0.5  # tumbling: detumble answers with a torque against it
+    pub.publish(msg)
+    assert spin_until(rclpy_node, lambda: commands, 60), ctl.output()[-2000:]
+    got = commands[0]
+    assert (got.header.stamp.sec, got.header.stamp.nanosec) == (1, 20_000_000)
+    assert got.header.frame_id == 'base_link' and got.vector.x < 0.0, got
+
+
 @pytest.mark.parametrize('change, reason', [
     ({'publish_clock': False}, 'publish_clock'),
     ({'control_rate': 30.0}, 'must divide publish_rate'),
@@ -306,6 +344,23 @@ def test_the_floor_tool_measures_a_bare_rclpy_exchange():
     threads = got['threads_us_runs'][0]
     assert 0 < threads['main'] <= got['cpu_per_exchange_us'], got
     assert sum(threads.values()) <= got['cpu_per_exchange_us'] * 1.01 + 1, got
+
+
+def test_the_parts_tool_times_each_part_of_the_simulators_exchange(capsys):
+    """tools/lockstep_parts.py runs the exchange with the simulator in a process of its own
+    and a controller (real processes) and reports its thread's CPU per exchange and each
+    part's: every part spent something, and the nested ones fit in what holds them."""
+    import re
+    from rigid_body_sim.tools.lockstep_parts import PARTS, main
+    assert main(['--periods', '20', '--runs', '1']) == 0
+    out = capsys.readouterr().out
+    total = float(re.search(r'simulator thread per exchange .*: ([\d.]+) µs', out).group(1))
+    parts = {m.group(1): float(m.group(2))
+             for m in re.finditer(r'^  (\S+) +([-\d.]+) µs', out, re.M)}
+    assert set(parts) == {p[0] for p in PARTS} | {'loop'}, out
+    assert all(v > 0 for k, v in parts.items() if k != 'loop'), out
+    assert parts['publish.bytes'] + parts['publish.write'] <= parts['publish'], out
+    assert parts['take.apply'] <= parts['take'] and parts['run_once'] <= total, out
 
 
 def test_lockstep_nodes_publish_synchronously(tmp_path):

@@ -82,6 +82,9 @@ def test_running_nodes_match_the_table(ros_process, rclpy_node, namespace, tmp_p
           '--params-file', str(scene)]),
         (ni.CONTROLLER, ns_truth, (ni.FEEDBACK_TRUTH,),
          [venv_exe('controller'), '--ros-args', '-r', f'__ns:={ns_truth}']),
+        (ni.CONTROLLER, ns_truth + '_lockstep', (ni.LOCKSTEP,),  # the state as odometry
+         [venv_exe('controller'), '--ros-args', '-r', f'__ns:={ns_truth}_lockstep',
+          '-p', 'lockstep:=true']),
         (ni.CONTROLLER, ns_sensors, (ni.FEEDBACK_SENSORS,),
          [venv_exe('controller'), '--ros-args', '-r', f'__ns:={ns_sensors}',
           '--params-file', 'config/gyro_pointing.yaml']),
@@ -121,6 +124,8 @@ def test_running_nodes_match_the_table(ros_process, rclpy_node, namespace, tmp_p
                               f'in the table but not running {sorted(wi - gi)}')
     # and the conditions are real: the truth controller does not listen to the sensors
     assert (f'{ns_truth}/gyro', 'sensor_msgs/msg/Imu') not in got[1][1]
+    assert (f'{ns_truth}_lockstep/attitude', 'geometry_msgs/msg/QuaternionStamped') \
+        not in got[2][1]
 
 
 def test_recorder_parameters_coerce_their_defaults_and_refuse_bad_lists():

@@ -59,6 +59,32 @@ def test_clock_goes_only_to_subscribers(rclpy_node, simulator):
     assert ticks == sorted(set(ticks)) and ticks[-1] <= sim.t_ns
 
 
+def test_the_loop_reads_the_contexts_state_without_rclpys_wrapper(rclpy_node, simulator):
+    """``run``'s loop checks at every turn that ROS is still up, from the context's handle:
+    rclpy's ``Context.ok`` (its lock, then the handle entered) cost ~10 µs of every
+    lockstep exchange on the loaded machine. The run still turns (at real time, once a
+    sample at least) and ends, and the loop itself never asks ``Context.ok`` (before, at
+    every turn; the executor's own turns still do, once per 20 ms in lockstep)."""
+    import sys
+    sim = simulator(real_time_factor=1.0, publish_rate=100.0, duration=0.3)
+    asked, turns = [], []
+    ok, run_once = sim.context.ok, sim.run_once
+
+    def spy():
+        caller = sys._getframe(1).f_code
+        asked.append((caller.co_name, caller.co_filename.endswith('simulator.py')))
+        return ok()
+    sim.context.ok = spy
+    sim.run_once = lambda: (turns.append(1), run_once())[1]
+    try:
+        sim.run()
+    finally:
+        del sim.context.ok
+    assert sim.finished and sim.t_ns == 300_000_000
+    assert len(turns) >= 30 and asked, (len(turns), asked)  # the executor's turns asked
+    assert ('run', True) not in asked, asked
+
+
 def test_a_held_instant_waits_for_its_command_in_the_same_turn(rclpy_node, simulator):
     """Lockstep as fast as possible: the turn that publishes a control instant's state and
     holds it returns a wait (the executor then blocks until the command arrives), not 0,
@@ -259,6 +285,41 @@ def test_states_decode_from_their_bytes_as_rclpy_does(frame, stamp, quaternion):
         assert struct.pack('<4d', q.x, q.y, q.z, q.w) == struct.pack('<4d', r.x, r.y, r.z, r.w)
     with pytest.raises(Exception):
         quaternion_stamped(data[:-8])  # truncated: rclpy's own error
+
+
+@pytest.mark.parametrize('frame, child', [
+    ('world', 'base_link'), ('w', 'b'), ('abc', 'leader/base_link'), ('wxyz', 'bcdefgh')])
+def test_odometry_decodes_to_the_state_rclpy_reads(frame, child):
+    """The lockstep controller takes the state as one nav_msgs/Odometry's CDR bytes: the
+    attitude (header, orientation) and the body rate (stamp, child_frame_id, twist's
+    angular) it decodes are rclpy's fields bit for bit, whatever the frame ids' lengths
+    (the doubles' alignment after them); bytes of another layout go to rclpy, which
+    raises for them."""
+    import struct
+    from nav_msgs.msg import Odometry
+    from rclpy.serialization import deserialize_message
+    from rigid_body_sim.nodes.commands import odometry_state
+    msg = Odometry()
+    msg.header.frame_id, msg.child_frame_id = frame, child
+    msg.header.stamp.sec, msg.header.stamp.nanosec = 7, 20_000_000
+    o, w = msg.pose.pose.orientation, msg.twist.twist.angular
+    o.x, o.y, o.z, o.w = 0.1, -0.2, float('nan'), 0.9273618495495704
+    w.x, w.y, w.z = 5e-324, -0.0, 1e308
+    # the fields around them, which must not be read in their place
+    msg.pose.pose.position.z, msg.twist.twist.linear.x = 11.0, 12.0
+    msg.pose.covariance[35], msg.twist.covariance[0] = 13.0, 14.0
+    data = serialize_message(msg)
+    ref = deserialize_message(data, Odometry)
+    attitude, rate = odometry_state(data)
+    assert attitude.header.frame_id == frame and rate.header.frame_id == child
+    assert (attitude.header.stamp.sec, attitude.header.stamp.nanosec) == (7, 20_000_000)
+    assert (rate.header.stamp.sec, rate.header.stamp.nanosec) == (7, 20_000_000)
+    q, r = attitude.quaternion, ref.pose.pose.orientation
+    assert struct.pack('<4d', q.x, q.y, q.z, q.w) == struct.pack('<4d', r.x, r.y, r.z, r.w)
+    v, r = rate.vector, ref.twist.twist.angular
+    assert struct.pack('<3d', v.x, v.y, v.z) == struct.pack('<3d', r.x, r.y, r.z)
+    with pytest.raises(Exception):
+        odometry_state(data[:-8])  # truncated: rclpy's own error
 
 
 @pytest.mark.parametrize('frame', ['', 'b', 'base_link', 'abcdefgh', 'sc1/base_link_long'])

@@ -316,8 +316,8 @@ def live_section(out):
     floor = _json(out, 'lockstep_floor.json')
     if floor:
         lines.append(f'- **Lockstep floor** (`{floor["command"]}`): a bare rclpy node that '
-                     'publishes the two states the controller answers and takes its command, '
-                     'nothing else, per exchange: ' + '; '.join(
+                     'publishes the one odometry message the lockstep controller answers and '
+                     'takes its command, nothing else, per exchange: ' + '; '.join(
                          f'{r["publication_mode"].lower()} publication, command as '
                          f'{r["command_taken_as"]}{_floor_options(r)}: '
                          f'{_f(r["cpu_per_exchange_us"])} µs CPU '

@@ -4,8 +4,8 @@
 [--config MODE:TAKEN:TRANSPORT:LOOP ...]``
 
 The simulator's side of a lockstep exchange (``tools.lockstep``) with everything of ours
-taken out: a bare rclpy node publishes the two states the controller answers (attitude and
-angular_velocity, CDR bytes made once by rclpy's serialiser: no physics, no message
+taken out: a bare rclpy node publishes the state the controller answers in lockstep (one
+nav_msgs/Odometry, CDR bytes made once by rclpy's serialiser: no physics, no message
 building, no /clock), then waits until the command is taken. What it
 spends per exchange (process CPU, its own thread's, wall) is what rclpy and the middleware
 cost whatever the simulator does. Measured for each Fast DDS publication mode
@@ -100,7 +100,8 @@ def _measure(periods: int, raw: bool, loop: str = 'executor') -> dict:
     the figures. ``loop``: 'executor' turns the events executor until the command has
     been taken; 'waitset' takes it from an rcl wait set of the one subscription."""
     import rclpy
-    from geometry_msgs.msg import QuaternionStamped, Vector3Stamped
+    from geometry_msgs.msg import Vector3Stamped
+    from nav_msgs.msg import Odometry
     from rclpy.experimental import EventsExecutor
     from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
     from rclpy.serialization import serialize_message
@@ -117,21 +118,20 @@ def _measure(periods: int, raw: bool, loop: str = 'executor') -> dict:
     try:
         node = rclpy.create_node('lockstep_floor', namespace=ns)
         state = qos_profile('reliable', STATE_DEPTH)
-        attitude = node.create_publisher(QuaternionStamped, 'attitude', state)
-        rate = node.create_publisher(Vector3Stamped, 'angular_velocity', state)
+        odometry = node.create_publisher(Odometry, 'odometry', state)
         got = []
         sub = node.create_subscription(Vector3Stamped, 'torque_command', got.append,
                                        qos_profile('reliable'), raw=raw)
         executor = EventsExecutor(context=node.context)
         if loop == 'executor':
             executor.add_node(node)
-        q, w = QuaternionStamped(), Vector3Stamped()
-        q.header.frame_id, w.header.frame_id, q.quaternion.w = 'world', 'base_link', 1.0
+        o = Odometry()
+        o.header.frame_id, o.child_frame_id, o.pose.pose.orientation.w = \
+            'world', 'base_link', 1.0
         deadline = time.monotonic() + 60.0
         # the controller's command writer matched too: a command it sent before would be
         # lost for this volatile subscription (1 run in about 10 waited 10 s for instant 0)
-        while min(attitude.get_subscription_count(), rate.get_subscription_count(),
-                  sub.get_publisher_count()) < 1:
+        while min(odometry.get_subscription_count(), sub.get_publisher_count()) < 1:
             if time.monotonic() > deadline:
                 raise RuntimeError('the controller did not subscribe and publish within 60 s')
             executor.spin_once(timeout_sec=0.05) if loop == 'executor' else time.sleep(0.05)
@@ -139,10 +139,9 @@ def _measure(periods: int, raw: bool, loop: str = 'executor') -> dict:
         period = round(1e9 / RATE)
         frames = []
         for k in range(100 + periods):
-            q.header.stamp.sec, q.header.stamp.nanosec = divmod(k * period, 10**9)
-            w.header.stamp = q.header.stamp
-            frames.append((serialize_message(q), serialize_message(w)))
-        send_q, send_w = attitude.handle.publish_raw, rate.handle.publish_raw
+            o.header.stamp.sec, o.header.stamp.nanosec = divmod(k * period, 10**9)
+            frames.append(serialize_message(o))
+        send = odometry.handle.publish_raw
         wait_set = _rclpy.WaitSet(1, 0, 0, 0, 0, 0, node.context.handle)
         take, handle = sub.handle.take_message, sub.handle
 
@@ -164,8 +163,7 @@ def _measure(periods: int, raw: bool, loop: str = 'executor') -> dict:
         answer = by_executor if loop == 'executor' else by_wait_set
 
         def exchange(k):
-            send_q(frames[k][0])
-            send_w(frames[k][1])
+            send(frames[k])
             answer(k)
         for k in range(100):  # discovery settled, caches warm
             exchange(k)
