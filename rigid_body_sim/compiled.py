@@ -2,15 +2,19 @@
 at setup, and a colcon user runs it once after ``colcon build``, so that compile time
 never lands in the middle of a run::
 
-    python3 -c "import rigid_body_sim.compiled as c; c.warm()"
+    python3 -m rigid_body_sim.compiled
 
 Each registered method names its kernel modules (``Integrator.kernel_modules``), each of
 which warms its own kernels; the engine's closed loop is warmed through a short controlled
 run, so it sees the argument types the engine passes (read-only model arrays).
 
+The built-in scenes then run briefly with every method (:func:`warm_scenes`), for the
+loops only a scene's features reach (an orbit's torques, wheels and gimbals, a law).
+
 Run as a module it then calibrates ``auto``'s per-step costs on this machine (once per
 machine and kernel sources: ``physics.auto.calibration``), cached beside the kernels.
 """
+import os
 
 
 def warm() -> bool:
@@ -34,12 +38,80 @@ def warm() -> bool:
     return compiled
 
 
+def warm_scenes() -> int:
+    """Every built-in scene run briefly with every registered method and with ``auto``, the
+    offline way and the live way (the state on each sample): the kernels and argument types
+    that only a scene's features reach (an orbit's environment torques, the gyrostat's
+    wheels and gimbals, dop853 with an environment, the compiled closed loop of each law)
+    compiled here, once, not in a user's first run of that scene (a live node's start, a
+    CLI run's clock) nor in each test worker that first meets them (~30 kernels, 5-30
+    CPU-s each, compiled in parallel by several workers). A combination the scene refuses
+    (a fixed method that cannot take its torques) is skipped: its error is the user's, at
+    its own run. Each runs as far as :func:`engine.warm.warm_for` runs a scene before its
+    clock. Returns how many runs it made."""
+    from . import offline
+    from .physics import INTEGRATORS
+    from .scene import SceneError, list_scenes, load
+    from .engine.specs import AUTO
+    from .engine.warm import warm_span
+    runs = 0
+    for name, _, _ in list_scenes():
+        scene = load(name)
+        if scene.spacecraft:
+            continue  # several spacecraft: the node's fleet, whose bodies run the same loops
+        for method in (AUTO, *INTEGRATORS):
+            for live in (False, True):
+                try:
+                    engine = offline.engine_for(scene, integrator=method,
+                                                interpolate_samples=not live)
+                    until = min(engine.end_ns, engine.t_ns + warm_span(engine.config))
+                    for _ in engine.run(until):
+                        pass
+                except (SceneError, ValueError):
+                    continue
+                runs += 1
+    return runs
+
+
+def _warm_scenes_once() -> None:
+    """:func:`warm_scenes` unless it ran for these sources and this numba already (its
+    stamp beside auto's calibration): ``make test`` calls the setup each time, and the
+    runs cost ~1.5 CPU-s even from a warm cache."""
+    import hashlib
+    import numba
+    from .physics.auto import calibration
+    package = os.path.dirname(os.path.abspath(__file__))
+    digest = hashlib.sha256(f'numba {numba.__version__}'.encode())
+    for root, dirs, files in sorted(os.walk(package)):
+        dirs[:] = sorted(d for d in dirs if d != '__pycache__')
+        for name in sorted(f for f in files if f.endswith(('.py', '.yaml'))):
+            digest.update(name.encode())
+            with open(os.path.join(root, name), 'rb') as f:
+                digest.update(f.read())
+    stamp = os.path.join(calibration.cache_dir(), 'scenes_warmed.sha256')
+    try:
+        with open(stamp, encoding='utf-8') as f:
+            if f.read().strip() == digest.hexdigest():
+                return
+    except OSError:
+        pass
+    warm_scenes()
+    try:
+        os.makedirs(os.path.dirname(stamp), exist_ok=True)
+        with open(stamp, 'w', encoding='utf-8') as f:
+            f.write(digest.hexdigest() + '\n')
+    except OSError:
+        pass  # a read-only install: warmed again next time, nothing lost
+
+
 def setup(log=print) -> bool:
     """What the setup does (``python -m rigid_body_sim.compiled``): :func:`warm`, then
     auto's costs calibrated if missing or stale, with the cost of an event in the engine's
     compiled loop. A benchmark starts with it, so that it measures the choices a user's
     set-up machine makes (where the calibration is stale, auto uses class constants)."""
     compiled = warm()
+    if compiled:
+        _warm_scenes_once()
     from .physics.auto import calibration
     from .engine import event_cost
     # after warm: the loops timed are the ones runs will load

@@ -227,10 +227,11 @@ def test_the_setup_and_the_benchmarks_calibrate_with_the_cost_of_an_event(monkey
     from rigid_body_sim.engine import event_cost
     calls = []
     monkeypatch.setattr(compiled, 'warm', lambda: calls.append('warm') or True)
+    monkeypatch.setattr(compiled, '_warm_scenes_once', lambda: calls.append('scenes'))
     monkeypatch.setattr(calibration, 'ensure',
                         lambda log=print, events=None: calls.append(events))
     assert compiled.setup() is True
-    assert calls == ['warm', event_cost.measure]
+    assert calls == ['warm', 'scenes', event_cost.measure]
     for module in (generated, generated_peers, sampling):
         source = inspect.getsource(module)
         assert 'compiled.setup()' in source and 'compiled.warm()' not in source, module
