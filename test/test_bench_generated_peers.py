@@ -138,3 +138,30 @@ def test_a_peer_capped_below_the_cheapest_met_makes_the_row_a_lower_bound():
     none = gp._row_of(row, [('scipy_dop853', None, 4.0, 0.1), ('scipy_rk45', None, 3.0, 1)],
                       0.01)
     assert none['status'].startswith('lower bound') and none['peer_cpu_s'] == 3.0
+
+
+def test_a_run_stopped_half_way_resumes_from_its_rows(tmp_path):
+    """A share of the run (--from) writes only its rows; the whole run with --resume takes
+    the rows already measured as they are (scene 0's row here is one no run would write)
+    and measures only the scenes missing."""
+    import csv
+    import shutil
+    out = tmp_path / 'bench'
+    shutil.copytree('docs/bench', out)
+    rows = tmp_path / 'rows.csv'
+    assert gp.main(['--quick', '--count', '2', '--from', '1', '--rows', str(rows),
+                    '--out', str(out)]) == 0
+    share = list(csv.DictReader(rows.open()))
+    assert [r['scene'] for r in share] == [generated.draw(generated.SEED, 1, True).name]
+    before = (out / 'generated_peers.csv').read_text()
+    assert before == open('docs/bench/generated_peers.csv').read()  # a share writes no section
+    first = generated.draw(generated.SEED, 0, True)
+    made = {'scene': first.name, 'kind': first.kind, 'budget': first.budget,
+            'rotation': first.rotation, 'status': 'not measured: written by the test'}
+    with rows.open('a', newline='') as f:
+        csv.DictWriter(f, fieldnames=gp.FIELDS, extrasaction='ignore').writerow(made)
+    assert gp.main(['--quick', '--count', '2', '--rows', str(rows), '--resume',
+                    '--out', str(out)]) == 0
+    written = list(csv.DictReader((out / 'generated_peers.csv').open()))
+    assert [r['scene'] for r in written] == [first.name, share[0]['scene']]
+    assert written[0]['status'] == made['status'] and written[1] == share[0]

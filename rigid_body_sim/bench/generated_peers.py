@@ -199,15 +199,17 @@ def _append(path, row):
         w.writerow({k: (f'{v:.6g}' if isinstance(v, float) else v) for k, v in row.items()})
 
 
-def run(quick, log=print, seed=generated.SEED, count=None, rows_file='', resume=()):
-    """(rows, [target row]) on the body family's first ``count`` scenes. ``rows_file``:
-    each row appended there once measured; ``resume``: rows of an earlier run of the
-    same scenes (``generated.read_rows`` of that file), taken as they are."""
+def run(quick, log=print, seed=generated.SEED, count=None, rows_file='', resume=(),
+        start=0):
+    """(rows, [target row]) on the body family's first ``count`` scenes (from index
+    ``start``). ``rows_file``: each row appended there once measured; ``resume``: rows of
+    an earlier run of the same scenes (``generated.read_rows`` of that file), taken as
+    they are."""
     from .. import compiled
     compiled.setup()
     n = generated.COUNTS[quick] if count is None else count
     rows = []
-    for i in range(n):
+    for i in range(start, n):
         scene = generated.draw(seed, i, quick)
         row = next((r for r in resume if _same_scene(r, scene)), None)
         if row is None:
@@ -239,9 +241,15 @@ def main(argv=None):
     parser.add_argument('--resume', action='store_true',
                         help='take the rows already in --rows (a run stopped half way) '
                              'instead of measuring those scenes again')
+    parser.add_argument('--from', dest='start', type=int, default=0, metavar='INDEX',
+                        help='only the scenes from INDEX on, into --rows alone (a share '
+                             'of the run for a second process; the whole run then '
+                             '--resume from the rows of both)')
     args = parser.parse_args(argv)
     if args.count is not None and args.count < 1:
         parser.error(f'--count {args.count}: must be at least 1')
+    if args.start < 0:
+        parser.error(f'--from {args.start}: must be at least 0')
     if args.resume and not os.path.exists(args.rows):
         parser.error(f'--resume: {args.rows} does not exist (no run to resume)')
     os.makedirs(args.out, exist_ok=True)
@@ -249,7 +257,11 @@ def main(argv=None):
     earlier = generated.read_rows(args.rows) if args.resume else []
     if not args.resume and os.path.exists(args.rows):
         os.remove(args.rows)  # a new run: its rows only
-    rows, t_rows = run(args.quick, count=args.count, rows_file=args.rows, resume=earlier)
+    rows, t_rows = run(args.quick, count=args.count, rows_file=args.rows, resume=earlier,
+                       start=args.start)
+    if args.start:  # a share of the run: its rows are in --rows, not a section's files
+        print(f'{len(rows)} rows (scenes from {args.start}) in {args.rows}')
+        return 0
     write_csv(os.path.join(args.out, 'generated_peers.csv'), FIELDS, rows)
     report.replace_targets(args.out, TARGET, t_rows, after='generated',
                            command='python -m rigid_body_sim.bench.generated_peers '
