@@ -75,3 +75,93 @@ def test_the_mujoco_sweep_halves_its_step_to_the_budget():
     assert h is not None and c > 0 and err + ref.error <= scene.budget
     h2, c2, err2 = gm.sweep(replace(scene, budget=1e-16), 'RK4', ref, times, cap=0.05)
     assert h2 is None and c2 > 0 and err2 > 1e-16
+
+
+def _long(kind, rotation):
+    """A cheap scene of ``kind`` stretched to ``rotation`` rad at 50 samples, and a
+    reference the peer cannot meet (identity): one peer run costs far past a 20 ms cap."""
+    scene = _first(kind)
+    span = rotation / float(np.linalg.norm(scene.omega))
+    times = np.linspace(0.0, span, 50)
+    ref = oracle.Reference(np.tile([0.0, 0.0, 0.0, 1.0], (len(times), 1)), 0.0, 'identity')
+    return scene, ref, times
+
+
+def test_the_cpu_limit_stops_a_python_loop_and_restores_the_signal():
+    import signal
+    from rigid_body_sim.bench.common import CpuCapReached, cpu_limit
+    before = signal.getsignal(signal.SIGPROF)
+    with pytest.raises(CpuCapReached), cpu_limit(0.02):
+        while True:
+            sum(range(1000))
+    assert signal.getsignal(signal.SIGPROF) is before
+    assert signal.getitimer(signal.ITIMER_PROF) == (0.0, 0.0)
+    with cpu_limit(10.0):  # a body that ends in time is left alone
+        sum(range(1000))
+
+
+def test_the_scipy_cap_stops_its_first_run(monkeypatch):
+    """The sweep's cap held only between runs: a first run of minutes ran to its end (scene
+    172 of the full run, > 18 CPU-min). Now a run is stopped at the cap: no run finishes
+    (error inf), and the CPU it had spent is the peer's lower bound. (A fine rtol first:
+    a coarse one takes a few big, wrong steps, too cheap to reach any cap.)"""
+    monkeypatch.setattr(gp, 'RTOLS', (1e-10,))
+    scene, ref, times = _long('viscous', 1e3)
+    rtol, bound, err = gp.peer_sweep(scene, 'RK45', ref, times, cap=0.02)
+    assert rtol is None and err == np.inf and bound > 0
+
+
+def test_the_mujoco_cap_stops_its_first_run():
+    from rigid_body_sim.bench import generated_mujoco as gm
+    scene, ref, times = _long('viscous', 3e4)
+    h, bound, err = gm.sweep(scene, 'RK4', ref, times, cap=0.02)
+    assert h is None and err == np.inf and bound > 0
+
+
+def test_a_peer_stops_where_it_cannot_beat_a_cheaper_one(monkeypatch):
+    """Given the CPU of a peer that met the budget (``beat``), a sweep stops there: its
+    bound is at least that CPU, and the row stays the cheaper peer's."""
+    monkeypatch.setattr(gp, 'RTOLS', (1e-11,))
+    scene, ref, times = _long('viscous', 1e3)
+    rtol, bound, err = gp.peer_sweep(scene, 'DOP853', ref, times, cap=10.0, beat=0.02)
+    assert rtol is None and bound >= 0.02
+
+
+def test_a_peer_capped_below_the_cheapest_met_makes_the_row_a_lower_bound():
+    row = {'scene': 's'}
+    met = ('scipy_dop853', 1e-6, 2.0, 1e-7)
+    ok = gp._row_of(row, [met, ('scipy_rk45', None, 3.0, 0.1)], 0.01)
+    assert ok['status'] == 'ok' and ok['peer'] == 'scipy_dop853' and ok['ratio'] == 200.0
+    low = gp._row_of(row, [met, ('mujoco_rk4', None, 0.5, 0.1)], 0.01)
+    assert low['status'].startswith('lower bound') and low['peer'] == 'mujoco_rk4'
+    assert low['ratio'] == 50.0
+    none = gp._row_of(row, [('scipy_dop853', None, 4.0, 0.1), ('scipy_rk45', None, 3.0, 1)],
+                      0.01)
+    assert none['status'].startswith('lower bound') and none['peer_cpu_s'] == 3.0
+
+
+def test_a_run_stopped_half_way_resumes_from_its_rows(tmp_path):
+    """A share of the run (--from) writes only its rows; the whole run with --resume takes
+    the rows already measured as they are (scene 0's row here is one no run would write)
+    and measures only the scenes missing."""
+    import csv
+    import shutil
+    out = tmp_path / 'bench'
+    shutil.copytree('docs/bench', out)
+    rows = tmp_path / 'rows.csv'
+    assert gp.main(['--quick', '--count', '2', '--from', '1', '--rows', str(rows),
+                    '--out', str(out)]) == 0
+    share = list(csv.DictReader(rows.open()))
+    assert [r['scene'] for r in share] == [generated.draw(generated.SEED, 1, True).name]
+    before = (out / 'generated_peers.csv').read_text()
+    assert before == open('docs/bench/generated_peers.csv').read()  # a share writes no section
+    first = generated.draw(generated.SEED, 0, True)
+    made = {'scene': first.name, 'kind': first.kind, 'budget': first.budget,
+            'rotation': first.rotation, 'status': 'not measured: written by the test'}
+    with rows.open('a', newline='') as f:
+        csv.DictWriter(f, fieldnames=gp.FIELDS, extrasaction='ignore').writerow(made)
+    assert gp.main(['--quick', '--count', '2', '--rows', str(rows), '--resume',
+                    '--out', str(out)]) == 0
+    written = list(csv.DictReader((out / 'generated_peers.csv').open()))
+    assert [r['scene'] for r in written] == [first.name, share[0]['scene']]
+    assert written[0]['status'] == made['status'] and written[1] == share[0]

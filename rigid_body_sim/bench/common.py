@@ -1,8 +1,10 @@
 """Timing, error metrics and references shared by the benchmark sections."""
+import contextlib
 import csv
 import json
 import math
 import os
+import signal
 import time
 
 import numpy as np
@@ -33,6 +35,38 @@ def report(result, out=None, name=None):
 def cpu():
     """Process CPU time (s): robust to other load on the machine, counts Python overhead."""
     return time.process_time()
+
+
+class CpuCapReached(Exception):
+    """A run stopped by :func:`cpu_limit`: the CPU it had spent bounds its cost below."""
+
+
+@contextlib.contextmanager
+def cpu_limit(seconds: float):
+    """Raise :class:`CpuCapReached` in this (the main) thread once the process has spent
+    ``seconds`` more CPU, user + system as :func:`cpu` counts it (ITIMER_PROF). A cap that
+    is only checked between runs does not hold: one run of a Python-loop peer (scipy's
+    solve_ivp) may take minutes. The interrupt lands between two bytecodes: inside
+    solve_ivp's loop, in MuJoCo's Python callback or after its C call returns."""
+    if not seconds > 0.0:
+        raise CpuCapReached(f'no CPU left ({seconds:.3g} s)')
+    armed = [True]
+
+    def expire(_signum, _frame):
+        if armed[0]:
+            armed[0] = False
+            raise CpuCapReached(f'past its cap of {seconds:.3g} CPU s')
+
+    previous = signal.signal(signal.SIGPROF, expire)
+    signal.setitimer(signal.ITIMER_PROF, seconds)
+    try:
+        yield
+    finally:
+        try:
+            armed[0] = False  # a later signal is ignored: the body has ended
+        finally:  # restored even if the signal lands on the line above
+            signal.setitimer(signal.ITIMER_PROF, 0.0)
+            signal.signal(signal.SIGPROF, previous)
 
 
 def best_of(run, repeats=5) -> float:

@@ -22,7 +22,7 @@ import numpy as np
 
 from ..physics import rotation
 from . import peers
-from .common import cpu
+from .common import CpuCapReached, cpu, cpu_limit
 
 INTEGRATORS = (('mujoco_rk4', 'RK4'), ('mujoco_euler', 'Euler'))
 START_ROTATION = 0.5  # rad a step: the coarsest step tried
@@ -83,37 +83,49 @@ def run(scene, h, integrator, times):
     return spent, out / np.linalg.norm(out, axis=1, keepdims=True)
 
 
-def sweep(scene, integrator, ref, times, cap):
-    """(h, CPU s, error) of the first step meeting the budget, or (None, CPU s of the last
-    run, its error) when the cap or the ladder ends first."""
+def sweep(scene, integrator, ref, times, cap, beat=math.inf):
+    """(h, CPU s, error) of the first step meeting the budget; else (None, bound, error of
+    its last finished run), as ``generated_peers.peer_sweep``: ``cap`` (CPU s of the
+    sweep) held by an interrupt, ``beat`` the least CPU a peer already run needs."""
     rate = float(np.linalg.norm(scene.omega))
     h = min(float(times[1] - times[0]) if len(times) > 1 else float(times[-1]),
             START_ROTATION / max(rate, 1e-12))
-    spent, last, last_cost = 0.0, (None, math.nan, math.inf), 0.0
+    spent, last_cost, bound, err_last = 0.0, 0.0, 0.0, math.inf
     for _ in range(HALVINGS):
-        if spent + 2.5 * last_cost > cap:
+        left = cap - spent
+        if 2.5 * last_cost > left:
             break  # the next run, at half the step, costs about twice the last
+        limit = min(left, beat)
         c0 = cpu()
         try:
-            c, q = run(scene, h, integrator, times)
+            with cpu_limit(limit):
+                c, q = run(scene, h, integrator, times)
+        except CpuCapReached:
+            spent += cpu() - c0
+            return None, max(bound, cpu() - c0, beat if beat <= left else 0.0), err_last
         except Exception:  # noqa: BLE001 - a run that blows up is one more rung down
             last_cost = cpu() - c0
             spent += last_cost
+            bound = max(bound, last_cost)
             h /= 2.0
             continue
         err = float(np.max(rotation.angle_between(q, ref.attitude)))
-        last_cost = c
-        spent += c
-        last = (None, c, err)
+        last_cost, err_last = c, err
+        spent += cpu() - c0
         if err + ref.error <= scene.budget:
             return h, c, err
+        bound = max(bound, c)
         h /= 2.0
-    return last
+    return None, bound, err_last
 
 
-def runs(scene, ref, times, cap):
-    """[(peer name, h or None, CPU s, error)] for each MuJoCo integrator; [] without it."""
+def runs(scene, ref, times, cap, beat=math.inf):
+    """[(peer name, h or None, CPU s or bound, error)] for each MuJoCo integrator, each
+    stopped where it can no longer set the row (``beat``, or the other's); [] without it."""
     if not available():
         return []
-    return [(name,) + sweep(scene, integrator, ref, times, cap)
-            for name, integrator in INTEGRATORS]
+    out = []
+    for name, integrator in INTEGRATORS:
+        out.append((name,) + sweep(scene, integrator, ref, times, cap, beat))
+        beat = min(beat, out[-1][2])
+    return out

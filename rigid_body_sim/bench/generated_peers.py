@@ -1,6 +1,7 @@
 """Peers on the generated scenes: the best peer's CPU to meet each budget, against auto's.
 
     python -m rigid_body_sim.bench.generated_peers [--quick] [--count N] [--out DIR]
+        [--rows CSV] [--resume]
 
 Issue 29's third generalisation target: against the best peer at the same budget, ours is
 ≥ 10× cheaper on every scene where that peer needs ≥ 10 ms. The scenes are the
@@ -13,7 +14,11 @@ step halved to the budget, the state read at each sample). scipy's rtol goes dow
 decades (atol = 1e-3·rtol) to the first that meets the budget against the scene's
 reference (``oracle.reference``, whose own error bound counts against the peer); that
 run's CPU is the peer's, the least of a few when short. A peer that does not meet the
-budget within its CPU cap gives a lower bound on the ratio, counted apart. auto's CPU is
+budget within its CPU cap gives a lower bound on the ratio, counted apart: the cap is held
+by an interrupt (``common.cpu_limit``), a run past it is stopped and the CPU it had spent
+is the bound. A peer's sweep also stops where it can no longer set the row (past the CPU
+another peer met the budget with or was bounded at), so a scene costs about that CPU a
+peer, not the caps. auto's CPU is
 the run's ``cpu_seconds`` with its selection (``oracle.timed``), as in the generalisation
 suite.
 
@@ -28,7 +33,7 @@ import numpy as np
 
 from ..physics import rotation
 from . import generated, generated_mujoco, oracle, peers, targets
-from .common import cpu, write_csv
+from .common import CpuCapReached, cpu, cpu_limit, write_csv
 
 FIELDS = ('scene', 'kind', 'budget', 'rotation', 'samples', 'auto_method', 'auto_cpu_s',
           'auto_error', 'peer', 'peer_rtol', 'peer_step', 'peer_cpu_s', 'peer_error', 'ratio',
@@ -68,37 +73,72 @@ def peer_run(scene, method, rtol, times):
     return spent, q
 
 
-def _least(run, repeats=3, below=0.05):
+def _least(run, limit, repeats=3, below=0.05):
+    """The least CPU of a few runs while they are short, each stopped past ``limit`` s."""
     best, out = math.inf, None
     for _ in range(repeats):
-        out = run()
+        with cpu_limit(limit):
+            out = run()
         best = min(best, out[0])
         if best > below:
             break
     return best, out[1]
 
 
-def peer_sweep(scene, method, ref, times, cap):
-    """(rtol, CPU s, error) of the first rtol meeting the budget, or (None, CPU s spent on
-    the last run, its error) when the cap or the ladder ends first."""
-    spent, last = 0.0, (None, math.nan, math.inf)
+def peer_sweep(scene, method, ref, times, cap, beat=math.inf):
+    """(rtol, CPU s, error) of the first rtol meeting the budget; else (None, bound, error
+    of its last finished run): bound, the CPU it needs at least (a finer run costs more
+    than the last that missed, and than the CPU a stopped run had spent). ``cap``: CPU s
+    of the whole sweep, held by an interrupt (``cpu_limit``), not only between runs;
+    ``beat``: the least CPU a peer already run needs (met, or its bound), past which this
+    one cannot set the row (stopped there, its bound is at least ``beat``)."""
+    spent, last, bound, err_last = 0.0, math.nan, 0.0, math.inf
     for rtol in RTOLS:
-        if last[1] == last[1] and spent + 3.0 * last[1] > cap:
+        left = cap - spent
+        if 3.0 * last > left:
             break  # the next, finer run would pass the cap (each costs ~1.5-3x the last)
+        limit = min(left, beat)
+        c0 = cpu()
         try:
-            c, q = _least(lambda: peer_run(scene, method, rtol, times))
+            c, q = _least(lambda: peer_run(scene, method, rtol, times), limit)  # noqa: B023
+        except CpuCapReached:
+            spent += cpu() - c0
+            return None, max(bound, cpu() - c0, beat if beat <= left else 0.0), err_last
         except Exception:  # noqa: BLE001 - a run that fails is one more rung down
+            spent += cpu() - c0
+            bound = max(bound, cpu() - c0)
             continue
+        spent += cpu() - c0
         err = float(np.max(rotation.angle_between(q, ref.attitude)))
-        spent += c
-        last = (None, c, err)
+        last, err_last = c, err
         if err + ref.error <= scene.budget:
             return rtol, c, err
-    return last
+        bound = max(bound, c)
+    return None, bound, err_last
+
+
+def _row_of(row, runs, auto_cpu):
+    """The row's peer: the cheapest that met the budget; a lower bound where none met it,
+    or where one stopped at its cap below that cheapest (it might have been cheaper)."""
+    met = [r for r in runs if r[1] is not None]
+    best = min(met, key=lambda r: r[2], default=None)
+    low = min((r for r in runs if r[1] is None), key=lambda r: r[2], default=None)
+    if best is not None and (low is None or low[2] >= best[2]):
+        setting = 'peer_step' if best[0].startswith('mujoco') else 'peer_rtol'
+        return dict(row, peer=best[0], peer_cpu_s=best[2], peer_error=best[3],
+                    ratio=best[2] / auto_cpu, status='ok', **{setting: best[1]})
+    status = ('lower bound: no peer met the budget within its cap' if best is None else
+              f'lower bound: {low[0]} stopped at its cap below {best[0]}\'s '
+              f'{best[2]:.3g} s')
+    return dict(row, peer=low[0], peer_cpu_s=low[2], peer_error=low[3],
+                ratio=low[2] / auto_cpu, status=status)
 
 
 def judge(scene, cap):
-    """One row: auto's CPU and the cheapest peer run meeting the budget."""
+    """One row: auto's CPU and the cheapest peer run meeting the budget. Each peer's sweep
+    stops where it can no longer set the row: past the CPU another peer met the budget
+    with, or was bounded at (DOP853 first: it is usually the row's), so a scene costs about
+    that CPU a peer, not its cap."""
     row = {'scene': scene.name, 'kind': scene.kind, 'budget': scene.budget,
            'rotation': scene.rotation}
     if scene.kind == 'detumble':
@@ -111,18 +151,13 @@ def judge(scene, cap):
     times = auto.samples['t']
     row.update(samples=len(times), auto_method=auto.integrator, auto_cpu_s=auto_cpu,
                auto_error=oracle.error(auto, ref.attitude))
-    runs = [(f'scipy_{method.lower()}',) + peer_sweep(scene, method, ref, times, cap)
-            for method in METHODS] + generated_mujoco.runs(scene, ref, times, cap)
-    met = [r for r in runs if r[1] is not None]
-    if not met:  # neither met it within the cap: its last run's CPU bounds it below
-        lower = min(runs, key=lambda r: r[2] if r[2] == r[2] else math.inf)
-        return dict(row, peer=lower[0], peer_cpu_s=lower[2], peer_error=lower[3],
-                    ratio=lower[2] / auto_cpu,
-                    status='lower bound: no peer met the budget within its cap')
-    best = min(met, key=lambda r: r[2])
-    setting = 'peer_step' if best[0].startswith('mujoco') else 'peer_rtol'
-    return dict(row, peer=best[0], peer_cpu_s=best[2], peer_error=best[3],
-                ratio=best[2] / auto_cpu, status='ok', **{setting: best[1]})
+    runs, beat = [], math.inf
+    for method in METHODS:
+        r = (f'scipy_{method.lower()}',) + peer_sweep(scene, method, ref, times, cap, beat)
+        runs.append(r)
+        beat = min(beat, r[2])
+    runs += generated_mujoco.runs(scene, ref, times, cap, beat)
+    return _row_of(row, runs, auto_cpu)
 
 
 def summary_target(rows, seed):
@@ -146,15 +181,41 @@ def summary_target(rows, seed):
                           note)
 
 
-def run(quick, log=print, seed=generated.SEED, count=None):
-    """(rows, [target row]) on the body family's first ``count`` scenes."""
+def _same_scene(row, scene) -> bool:
+    """A row of an earlier run is this scene's: same name (seed, index), draw and budget."""
+    return (row.get('scene') == scene.name and row.get('budget') == scene.budget
+            and abs(float(row.get('rotation', math.nan)) - scene.rotation)
+            <= 1e-5 * scene.rotation)
+
+
+def _append(path, row):
+    """One measured row onto ``path`` (a run stopped half way resumes from it)."""
+    import csv
+    fresh = not os.path.exists(path) or os.path.getsize(path) == 0
+    with open(path, 'a', newline='', encoding='utf-8') as f:
+        w = csv.DictWriter(f, fieldnames=FIELDS, extrasaction='ignore')
+        if fresh:
+            w.writeheader()
+        w.writerow({k: (f'{v:.6g}' if isinstance(v, float) else v) for k, v in row.items()})
+
+
+def run(quick, log=print, seed=generated.SEED, count=None, rows_file='', resume=(),
+        start=0):
+    """(rows, [target row]) on the body family's first ``count`` scenes (from index
+    ``start``). ``rows_file``: each row appended there once measured; ``resume``: rows of
+    an earlier run of the same scenes (``generated.read_rows`` of that file), taken as
+    they are."""
     from .. import compiled
     compiled.setup()
     n = generated.COUNTS[quick] if count is None else count
     rows = []
-    for i in range(n):
+    for i in range(start, n):
         scene = generated.draw(seed, i, quick)
-        row = judge(scene, CAP[quick])
+        row = next((r for r in resume if _same_scene(r, scene)), None)
+        if row is None:
+            row = judge(scene, CAP[quick])
+            if rows_file:
+                _append(rows_file, row)
         rows.append(row)
         log(f'  {scene.name} {scene.kind} budget {scene.budget:.0e}: {row["status"]}'
             + (f'; auto {row["auto_cpu_s"]:.3g} s, {row["peer"]} {row["peer_cpu_s"]:.3g} s '
@@ -175,11 +236,32 @@ def main(argv=None):
                         help='scenes (default: the generalisation suite\'s count)')
     parser.add_argument('--out', default='out/bench', metavar='DIR',
                         help='output directory (default out/bench)')
+    parser.add_argument('--rows', default='out/generated_peers.rows.csv', metavar='CSV',
+                        help='each row appended here once measured (default %(default)s)')
+    parser.add_argument('--resume', action='store_true',
+                        help='take the rows already in --rows (a run stopped half way) '
+                             'instead of measuring those scenes again')
+    parser.add_argument('--from', dest='start', type=int, default=0, metavar='INDEX',
+                        help='only the scenes from INDEX on, into --rows alone (a share '
+                             'of the run for a second process; the whole run then '
+                             '--resume from the rows of both)')
     args = parser.parse_args(argv)
     if args.count is not None and args.count < 1:
         parser.error(f'--count {args.count}: must be at least 1')
+    if args.start < 0:
+        parser.error(f'--from {args.start}: must be at least 0')
+    if args.resume and not os.path.exists(args.rows):
+        parser.error(f'--resume: {args.rows} does not exist (no run to resume)')
     os.makedirs(args.out, exist_ok=True)
-    rows, t_rows = run(args.quick, count=args.count)
+    os.makedirs(os.path.dirname(args.rows) or '.', exist_ok=True)
+    earlier = generated.read_rows(args.rows) if args.resume else []
+    if not args.resume and os.path.exists(args.rows):
+        os.remove(args.rows)  # a new run: its rows only
+    rows, t_rows = run(args.quick, count=args.count, rows_file=args.rows, resume=earlier,
+                       start=args.start)
+    if args.start:  # a share of the run: its rows are in --rows, not a section's files
+        print(f'{len(rows)} rows (scenes from {args.start}) in {args.rows}')
+        return 0
     write_csv(os.path.join(args.out, 'generated_peers.csv'), FIELDS, rows)
     report.replace_targets(args.out, TARGET, t_rows, after='generated',
                            command='python -m rigid_body_sim.bench.generated_peers '
