@@ -62,8 +62,9 @@ def test_clock_goes_only_to_subscribers(rclpy_node, simulator):
 def test_the_loop_reads_the_contexts_state_without_rclpys_wrapper(rclpy_node, simulator):
     """``run``'s loop checks at every turn that ROS is still up, from the context's handle:
     rclpy's ``Context.ok`` (its lock, then the handle entered) cost ~10 µs of every
-    lockstep exchange on the loaded machine. The run still turns and ends, and the loop itself never asks ``Context.ok`` (before, at
-    every turn; the executor's own turns still do, once per 20 ms in lockstep)."""
+    lockstep exchange on the loaded machine. The run still turns and ends, and the loop
+    itself never asks ``Context.ok`` (before, at every turn; the executor's own turns
+    still do, once per 20 ms in lockstep)."""
     import sys
     sim = simulator(real_time_factor=1.0, publish_rate=100.0, duration=0.3)
     asked, turns = [], []
