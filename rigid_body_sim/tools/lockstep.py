@@ -46,11 +46,9 @@ def _stamp(line):
     return float(m.group(1)) if m else None
 
 
-def exchange(rate: float, rtf: float, duration: float, timeout: float = 600.0) -> dict:
-    """One lockstep run of simulator + controller; the simulator's figures."""
-    env = dict(os.environ, PYTHONUNBUFFERED='1',
-               ROS_DOMAIN_ID=os.environ.get('ROS_DOMAIN_ID', str(random.randint(101, 200))))
-    ns = f'/lockstep_bench_{os.getpid()}_{int(rate)}_{int(rtf)}'
+def overrides(rtf: float, duration: float, rate: float) -> str:
+    """A params file (its path; the caller removes it) putting the simulator and the
+    controller in lockstep at ``rate`` (Hz) for ``duration`` (s) at ``rtf``."""
     with tempfile.NamedTemporaryFile('w', suffix='.yaml', delete=False) as f:
         f.write('/**/attitude_simulator:\n  ros__parameters:\n'
                 f'    real_time_factor: {rtf}\n    publish_clock: true\n'
@@ -60,7 +58,15 @@ def exchange(rate: float, rtf: float, duration: float, timeout: float = 600.0) -
                 '    lockstep_timeout: 30.0\n'
                 '/**/attitude_controller:\n  ros__parameters:\n    lockstep: true\n'
                 f'    control_rate: {rate}\n')
-        over = f.name
+    return f.name
+
+
+def exchange(rate: float, rtf: float, duration: float, timeout: float = 600.0) -> dict:
+    """One lockstep run of simulator + controller; the simulator's figures."""
+    env = dict(os.environ, PYTHONUNBUFFERED='1',
+               ROS_DOMAIN_ID=os.environ.get('ROS_DOMAIN_ID', str(random.randint(101, 200))))
+    ns = f'/lockstep_bench_{os.getpid()}_{int(rate)}_{int(rtf)}'
+    over = overrides(rtf, duration, rate)
     args = ['--ros-args', '-r', f'__ns:={ns}', '--params-file', SCENE, '--params-file', over]
     ctl = subprocess.Popen(_exe('controller') + args, env=env, stdout=subprocess.DEVNULL,
                            stderr=subprocess.DEVNULL, start_new_session=True)

@@ -18,11 +18,10 @@ import random
 import statistics
 import subprocess
 import sys
-import tempfile
 import time
 
 from . import argument_parser, stop
-from .lockstep import SCENE, _exe
+from .lockstep import SCENE, _exe, overrides
 
 # (label, module, class, method): what is timed, in the simulator's process
 PARTS = (('engine', 'rigid_body_sim.engine.core', 'Engine', 'advance'),
@@ -59,15 +58,8 @@ def _measure(periods: int, rate: float) -> dict:
     from ..nodes import simulator
     from ..nodes.process import run_node
     ns = f'/lockstep_parts_{os.getpid()}'
-    with tempfile.NamedTemporaryFile('w', suffix='.yaml', delete=False) as f:
-        f.write('/**/attitude_simulator:\n  ros__parameters:\n    real_time_factor: 0.0\n'
-                f'    publish_clock: true\n    integrator: splitting4\n'
-                f'    duration: {periods / rate}\n    publish_rate: {rate}\n'
-                f'    control_rate: {rate}\n    lockstep: true\n    wait_for_subscribers: 0\n'
-                '    wait_for_subscribers_timeout: 60.0\n    lockstep_timeout: 30.0\n'
-                '/**/attitude_controller:\n  ros__parameters:\n    lockstep: true\n'
-                f'    control_rate: {rate}\n')
-    args = ['--ros-args', '-r', f'__ns:={ns}', '--params-file', SCENE, '--params-file', f.name]
+    over = overrides(0.0, periods / rate, rate)
+    args = ['--ros-args', '-r', f'__ns:={ns}', '--params-file', SCENE, '--params-file', over]
     ctl = subprocess.Popen(_exe('controller') + args, stdout=subprocess.DEVNULL,
                            stderr=subprocess.DEVNULL, start_new_session=True)
     spent = dict.fromkeys((p[0] for p in PARTS), 0)
@@ -92,7 +84,7 @@ def _measure(periods: int, rate: float) -> dict:
                         lockstep=True)
     finally:
         stop(ctl)
-        os.unlink(f.name)
+        os.unlink(over)
     n = got.get('exchanges', 0)
     if code != 0 or n < 2:
         raise RuntimeError(f'the simulator exited {code} after {n} exchanges')
