@@ -10,6 +10,7 @@ from typing import Optional
 
 from ..physics import INTEGRATORS, IntegrationError, create
 from ..physics.auto import select, selecting
+from . import law_pilot
 from .config import NS
 from .specs import AUTO
 
@@ -84,6 +85,9 @@ class MethodChoice:
                   # process) choose as the offline run does and their samples stay equal
                   # (selecting leaves out restarting runs, an orbit's among them)
                   law_in_loop=True)
+        if torque and law_pilot.applies(self):  # the law here: a pilot can measure it
+            kw.update(law_runner=lambda: law_pilot.LawRunner(self).run,
+                      control_period=c.control.period_ns / NS)
         state = (self.body, c.dissipation, self.attitude, self.angular_velocity)
         if not torque and not c.dissipation.active:
             sel = select(*state, **kw)
