@@ -24,33 +24,25 @@ from .samples import BlockBuilder
 from .sources import NEVER
 
 
-def applies(engine) -> bool:
-    """Whether a pilot can run the scene's law in the compiled closed loop from here: an
-    in-process law alone acting (no held command, wheels, sensors, rods or environment
-    torques, no re-anchored orbit)."""
-    law = engine._law
-    return (law is not None and engine._compiled_samples and engine.actuators is None
-            and engine.magnetics is None and not engine.environment_terms
-            and not engine.orbit_anchored and engine.command.torque is None
-            and not law.free)
-
-
 class LawRunner:
-    """Runs a method with the law in the loop from the engine's current state (a copy)."""
+    """Runs a method with the law in the loop from a copy of the engine's state.
 
-    def __init__(self, engine):
-        law = engine._law
+    ``law``: the engine's in-process ControlLaw (read, never written); ``state``: the
+    engine's :class:`~.state.State` now; ``dynamics``, ``body``: the engine's. The engine
+    makes it (``MethodChoice._law_runner``) where the law alone acts on the body."""
+
+    def __init__(self, law, state, dynamics, body):
         ctl, mission, settings = law.controller, law.mission, law.settings
         cfg = ctl.config
-        self.t0, self.control0 = engine.t_ns, law.next_t
-        self.q0, self.m0 = engine._q.copy(), engine._m.copy()
+        self.t0, self.control0 = state.t_ns, law.next_t
+        self.q0, self.m0 = state.q.copy(), state.m.copy()
         self.tau0 = np.zeros(3) if law.torque is None else np.array(law.torque, float)
         self.period = settings.period_ns
-        self.dynamics = engine.dynamics
+        self.dynamics = dynamics
         self.packing = Packing()
-        self.body = self.packing.body(engine.dynamics, engine.body)
+        self.body = self.packing.body(dynamics, body)
         self.law = self.packing.law(ctl)
-        builder = BlockBuilder(engine.body, 1)  # no samples: the kernel needs a block
+        builder = BlockBuilder(body, 1)  # no samples: the kernel needs a block
         self.block = builder.columns(1)
         ticks, reals = self.packing.ticks, self.packing.reals
         ticks[SAMPLE_NS], ticks[SAMPLE_PERIOD_NS], ticks[ROW], ticks[INTERPOLATE] = \
@@ -62,7 +54,7 @@ class LawRunner:
         start = law.next_t / NS if mission.start is None else mission.start
         reals[MISSION_START], reals[FREE_TIME], reals[EXIT_RATE] = \
             start, mission.free_time, mission.detumble_exit_rate
-        reals[COEFFICIENT] = engine.dynamics.dissipation.coefficient
+        reals[COEFFICIENT] = dynamics.dissipation.coefficient
 
     def run(self, name, options, h_max, ends):
         """Generator: ``name`` (with ``options``, at most ``h_max`` s a step) from the
