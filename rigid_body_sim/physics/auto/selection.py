@@ -37,6 +37,9 @@
 * **Commanded torque:** the pilot cannot know future commands, so controlled runs take
   the a-priori choice with the control bandwidth as the torque's rate scale: typically
   a high-order splitting at the control period, whose per-event work dominates the cost.
+  Where the commands are an in-process law's, the law runs in the engine's compiled
+  loop, and a pilot runs the candidates with it from the current state
+  (:mod:`.law_pilot`, ``law_runner``).
 * **Budget below the round-off floor:** no method meets it; auto picks the most
   accurate it can predict and says so in its reason.
 
