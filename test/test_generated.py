@@ -279,3 +279,21 @@ def test_auto_s_rk4_bound_under_a_control_law_holds_and_is_not_1000s_high(monkey
     measured = generated.error(simulate(f, integrator='rk4', step=h), oracle._dop853(f, 1e-12))
     bound = s.prior_error(rk4, h)
     assert measured <= bound <= 300.0 * measured, (measured, bound)
+
+
+def test_kind_judges_only_that_kind_of_scene(monkeypatch):
+    """``--kind detumble`` (auto under a control law) judges the body family's detumble
+    scenes alone, each the scene its index draws, and refuses to replace a family's rows
+    with that share of them."""
+    from rigid_body_sim.bench import generated_judge
+    judged = []
+    monkeypatch.setattr(generated_judge, 'judge', lambda scene, log=None, cap=None: (
+        judged.append(scene.index) or {'scene': scene.name, 'kind': scene.kind,
+                                       'status': 'ok', 'error_ratio': 0.5}))
+    rows, _, _ = generated_judge.run(True, log=lambda *a: None, seed=7, count=30,
+                                     families=('body',), kind='detumble')
+    expected = [i for i in range(30) if generated.draw(7, i, True).kind == 'detumble']
+    assert expected and judged == expected
+    assert {r['kind'] for r in rows} == {'detumble'}
+    with pytest.raises(SystemExit):
+        generated.main(['--kind', 'detumble', '--update', 'docs/bench'])

@@ -44,6 +44,9 @@ def main(argv=None):
                         help='this family only (default: all)')
     parser.add_argument('--only', type=int, default=None, help='just scene INDEX of the seed '
                         '(of --family, default body)')
+    parser.add_argument('--kind', choices=KINDS, default=None,
+                        help='the body family\'s scenes of this kind only (e.g. detumble: '
+                             'auto under a control law); not with --out or --update')
     parser.add_argument('--csv', default='', help='write the rows here')
     parser.add_argument('--out', default='', metavar='DIR', help='with --family: its rows '
                         'and targets into a full run\'s files in DIR (others kept)')
@@ -60,13 +63,17 @@ def main(argv=None):
         row = judge(scene, log=print)
         print(json.dumps(row, indent=1, default=str))
         return 0
+    if args.kind and (args.out or args.update):
+        parser.error('--kind runs a share of a family: its rows cannot replace the '
+                     'family\'s (use --csv)')
     if args.out and not args.family:
         parser.error('--out needs --family (a whole run: rigid-body-sim bench)')
     if args.update and args.from_csv:
         print(update(args.update, read_rows(args.from_csv), args.seed))
         return 0
     families = (args.family,) if args.family else tuple(FAMILIES)
-    rows, t_rows, s = run(args.quick, seed=args.seed, count=args.count, families=families)
+    rows, t_rows, s = run(args.quick, seed=args.seed, count=args.count, families=families,
+                          kind=args.kind)
     for r in t_rows:
         print(f'{r["verdict"]:5s} {r["target"]}: {r["measured"]:.3g} (required '
               f'{r["required"]:g}) {r["note"]}')

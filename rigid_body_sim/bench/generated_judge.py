@@ -124,10 +124,11 @@ def summary(rows) -> dict:
             'cpu_ratio_worst': float(np.max(ratios))}
 
 
-def run(quick, log=print, seed=SEED, count=None, families=tuple(FAMILIES)):
+def run(quick, log=print, seed=SEED, count=None, families=tuple(FAMILIES), kind=None):
     """(rows, target rows, summary of the free-body family) of the generalisation suite:
     ``families`` (FAMILIES' names), ``count`` scenes of the body family or of the one
-    family run (default: each family's own count). Target rows per family (TARGET_NAMES)."""
+    family run (default: each family's own count); ``kind``: only the scenes of that kind
+    (the others drawn, not judged). Target rows per family (TARGET_NAMES)."""
     from .. import compiled
     compiled.setup()  # kernels loaded before any clock starts (else the first run pays)
     rows, t_rows, first = [], [], None
@@ -138,6 +139,8 @@ def run(quick, log=print, seed=SEED, count=None, families=tuple(FAMILIES)):
         mine = []
         for i in range(n):
             scene = draw_scene(seed, i, quick)
+            if kind is not None and scene.kind != kind:
+                continue
             log(f'  {scene.describe()}')
             row = judge(scene, log=None, cap=oracle_mod.SWEEP_CAP[quick])
             mine.append(row)

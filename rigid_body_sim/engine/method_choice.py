@@ -10,6 +10,7 @@ from typing import Optional
 
 from ..physics import INTEGRATORS, IntegrationError, create
 from ..physics.auto import select, selecting
+from . import law_pilot
 from .config import NS
 from .specs import AUTO
 
@@ -84,6 +85,9 @@ class MethodChoice:
                   # process) choose as the offline run does and their samples stay equal
                   # (selecting leaves out restarting runs, an orbit's among them)
                   law_in_loop=True)
+        runner = self._law_runner() if torque else None
+        if runner is not None:  # the law runs here: a pilot can measure it
+            kw.update(law_runner=runner, control_period=c.control.period_ns / NS)
         state = (self.body, c.dissipation, self.attitude, self.angular_velocity)
         if not torque and not c.dissipation.active:
             sel = select(*state, **kw)
@@ -101,6 +105,18 @@ class MethodChoice:
             self._use(sel.name, sel.step, f'auto: provisional a-priori choice while the '
                       f'selection pilot runs: {sel.reason}', **dict(sel.options))
             self._selection = work
+
+    def _law_runner(self):
+        """A maker of the pilot's runner of the law from the current state
+        (``law_pilot.LawRunner``), where the in-process law alone acts in the compiled
+        closed loop (no held command, wheels, sensors, rods, environment torques or
+        re-anchored orbit); else None."""
+        law = self._law
+        if law is None or law.free or not self._compiled_samples or self.actuators is not None \
+                or self.magnetics is not None or self.environment_terms \
+                or self.orbit_anchored or self.command.torque is not None:
+            return None
+        return lambda: law_pilot.LawRunner(law, self._state(), self.dynamics, self.body).run
 
     def _check_method(self):
         """[(verdict, message)] for the fixed method at its step from the current state:

@@ -37,6 +37,9 @@
 * **Commanded torque:** the pilot cannot know future commands, so controlled runs take
   the a-priori choice with the control bandwidth as the torque's rate scale: typically
   a high-order splitting at the control period, whose per-event work dominates the cost.
+  Where the commands are an in-process law's, the law runs in the engine's compiled
+  loop, and a pilot runs the candidates with it from the current state
+  (:mod:`.law_pilot`, ``law_runner``).
 * **Budget below the round-off floor:** no method meets it; auto picks the most
   accurate it can predict and says so in its reason.
 
@@ -53,7 +56,7 @@ import numpy as np
 from .. import rotation
 from ..body import RigidBody
 from ..dynamics import Dissipation, Dynamics
-from . import libration, pilot
+from . import law_pilot, libration, pilot
 from .pilot_search import (NO_ROUND, PAYBACK, PREFER, SELECTION_SHARE, better as _better,
                            no_round_fits, piloted)
 from ..integrators import Candidate, get_integrator
@@ -137,7 +140,7 @@ def selecting(body: RigidBody, dissipation: Dissipation, attitude, angular_veloc
               torque_rate: float = 0.0, prior_only: bool = False,
               dynamics: Dynamics = None, environment: tuple = (), forced: bool = False,
               restarting: bool = False, orbit_state: tuple = None,
-              law_in_loop: bool = False):
+              law_in_loop: bool = False, law_runner=None, control_period: float = 0.0):
     """Generator form of :func:`select`: yields often (every few ms of pilot work) so that a
     caller can interleave the selection with its own work; its return value is the Selection.
 
@@ -178,6 +181,10 @@ def selecting(body: RigidBody, dissipation: Dissipation, attitude, angular_veloc
         law_in_loop: the commands are an in-process control law's, evaluated inside the
             engine's compiled closed loop: an event costs what the calibration measured
             there (``model.LAW_EVENT``), not a Python round trip.
+        law_runner: where that law runs in this process, a callable giving a runner of
+            the closed loop from the current state (``engine.law_pilot``): the a-priori
+            choice is then refined by a pilot with the law in the loop
+            (:mod:`.law_pilot`); ``control_period``: the law's period, s.
     """
     commanded, torque = torque, torque or bool(environment)
     if not (accuracy > 0 and math.isfinite(accuracy)):
@@ -281,6 +288,21 @@ def selecting(body: RigidBody, dissipation: Dissipation, attitude, angular_veloc
             f'{accuracy:g} rad over '
             f'{horizon:g} s; Ω = {s.omega:.3g} rad/s; {s.costs.source}')
     prior = 'a priori (k·(hΩ)^p·ΩT): ' + ', '.join(why)
+    if torque and law_runner is not None and s.law_alone and not prior_only:
+        (c, h, cost, err), spent, steps, notes = yield from law_pilot.refine(
+            s, best, usable, law_runner, control_period)
+        if err > accuracy and adaptive and not c.adaptive:  # nothing promises: weighed
+            (c, h, cost, err), rtol, more, done, said = yield from law_pilot.weigh(
+                s, (c, h, cost, err), adaptive[0], law_runner, control_period)
+            spent, steps, notes = spent + more, steps + done, notes + said
+            if rtol is not None:
+                tolerances[c.name] = rtol
+        if err > accuracy:
+            notes.append(f'no method can be shown to meet {accuracy:g} rad here; the most '
+                         f'accurate predicted ({err:.2g} rad)')
+        return Selection(c.name, h, f'{head}; {prior}; pilot under the law: '
+                         + '; '.join(notes), err, cost, steps, spent, prior_cost,
+                         _options(c, tolerances, s.G))
     if torque or prior_only:
         c, h, cost, err = best
         return Selection(c.name, h, f'{head}; {prior}', err, cost, prior_cost=prior_cost,

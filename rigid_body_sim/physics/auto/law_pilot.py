@@ -1,0 +1,267 @@
+"""``auto``'s pilot under a control law: it measures the scene where the a-priori constants
+can only promise the budget at a step far below what the scene needs.
+
+Under an in-process law the a-priori choice (:mod:`.selection`) rests on the fixed
+methods' error constants measured under laws (``Candidate.torque``), set 3× above their
+largest reading, which spreads 100× from scene to scene. So most scenes got a step
+several times shorter than they need (generated detumble scenes: rk4 at 2.5–3× the CPU of
+the same method at the step that met the budget; splitting6 at 37× rk4's step on one).
+
+The pilot measures instead. From the current state, with the law in the loop (the
+engine's compiled closed loop: its runner, ``engine.law_pilot``, writes nothing of the
+engine), each fixed candidate that could beat the a-priori choice runs at h and h/2 over a
+share H of the run (step doubling: the difference × 2^p/(2^p − 1) is the error at h). The
+error is read at each quarter of H and extrapolated to the run's horizon T by the
+free-body pilot's growth law (:mod:`.pilot`): (T/H)·e(H), or a power law where e(H)/e(H/2)
+exceeds pilot.SUPERLINEAR; then SAFETY and the a-priori round-off. On 15 generated
+detumble scenes (seed 20261125, e(t) at t = T/256 … T) rk4's error grew as t^0.1–t^1.1
+past T/32 on 13 and as t^1.7 at most on two (130, 189): the linear law reads high, the
+quarters' growth law catches the two. From the extrapolation, the step meeting the budget
+follows by h^p, never above the piloted one; where it moved far (VERIFY_SHRINK) it is
+piloted again. Candidates go best first by what they could cost; one is piloted only if
+it could beat the best choice so far.
+
+dop853 is not piloted: its error under a law jumps late in a run (the same 15 scenes,
+r against r/100: 10–100× within the last half of the run on scenes 4 and 107, after
+t^1 before), 27× above a linear extrapolation from T/32 and 1.6× above a power law fitted
+on the pilot's quarters, so a pilot on a share of the run cannot promise it. Its
+a-priori handling stands (``model.RunModel.tolerance``, ``measured_law_holds``).
+
+Where nothing promises the budget a priori (the fixed methods' most accurate step
+predicts more than it), :func:`weigh` runs that step, its half and dop853 at its floor
+rtol side by side over a share of the run and takes dop853 where it errs less and costs
+less, as measured (seed 7 scene 158, seed 8 scene 98, seed 20261125 scene 105: dop853 at
+3e-15 met budgets rk4's most accurate step met at 4–7× its CPU); a guess, not a promise.
+
+What the pilot may cost: SHARE of the a-priori choice's run (the run's cost model), its
+first round FIRST_ROUND of that; H is the longest share of the run that fits, at least
+MIN_PERIODS control periods and pilot.ROTATIONS rotations, else there is no pilot (a
+short run: the a-priori choice stands).
+"""
+import math
+import time
+
+from . import pilot
+from .model import RTOL_FLOOR, RUN_COST
+from .pilot_search import PREFER
+
+SHARE = 0.1          # the pilot at most this share of the a-priori choice's run
+FIRST_ROUND = 0.6    # of that, the first round's (it sets the horizon)
+SAFETY = 2.0         # × the extrapolated error
+MIN_PERIODS = 8      # the pilot's horizon at least this many control periods
+CALL = 1e-5          # s per pilot run part (Python around the compiled loop)
+SETUP = 5e-5         # s: the runner (the law's and the state's arrays)
+VERIFY_SHRINK = 1.5  # a step this much below the piloted one is piloted again
+MAX_PLANS = 3        # candidates piloted at most
+# dop853 weighed where nothing promises: only where its model cost is WEIGH_GAIN× below the
+# fixed method's (where the pilot keeps the fixed method its cost is lost: seed 20261125
+# scenes 13 and 105 went from 2.95× to 3.3× the oracle's CPU), the pilot at most
+# WEIGH_SHARE of that run (at 5 % seed 7 scene 158 and seed 8 scene 98, where dop853 errs
+# 8× less at a fifth of rk4's CPU, read too short to tell and kept rk4)
+WEIGH_GAIN = 3.0
+WEIGH_SHARE = 0.1
+SPREAD = 100.0       # a pilot starts where the a-priori truncation is this × the budget
+
+
+def _extrapolate(errors, horizon, reached):
+    """The error at ``horizon`` s from errors at the quarters of a pilot that reached
+    ``reached`` s: the free-body pilot's growth law (:mod:`.pilot`)."""
+    if not all(map(math.isfinite, errors)):
+        return math.inf
+    m1, m2 = max(errors[:len(errors) // 2]), max(errors)
+    growth = m2 / m1 if m1 > 0.0 else 2.0
+    later = max(1.0, horizon / reached)
+    if growth > pilot.SUPERLINEAR:
+        return m2 * later ** math.log2(growth)
+    return m2 * later
+
+
+def _pilot_cost(s, c, h, share):
+    """Predicted CPU s of a step-doubling pilot of c at h over ``share`` of the run."""
+    per = s.run_cost(c, h) + s.run_cost(c, s.snap(0.5 * h)) - 2 * RUN_COST
+    return share * per + 8 * CALL
+
+
+def _start(s, c):
+    """The step a pilot of c starts from: where its a-priori truncation error is SPREAD
+    times the budget (the least constant measured under laws is ~100× below the bound's),
+    at most its largest plausible step."""
+    h, target = s.cap(c, True), SPREAD * s.accuracy
+    for _ in range(4):  # the order may change with h
+        p = s.order(c, h)
+        error = s._truncation(c, h, p)
+        if error <= target:
+            break
+        h = s.snap(h * (target / error) ** (1.0 / p))
+    return h
+
+
+def _plans(s, best, usable):
+    """[(cost at its largest plausible step, index, candidate, that step)]: the fixed
+    candidates that could beat ``best``, cheapest first (at most MAX_PLANS)."""
+    c0, _, cost0, err0 = best
+    plans = []
+    for i, c in enumerate(usable):
+        if not math.isfinite(c.k) or c.adaptive:
+            continue
+        h = _start(s, c)
+        cost = s.run_cost(c, h)
+        # where its round-off alone (a priori) takes the budget at that step, no pilot can
+        # promise it (generated detumble scenes at 1e-8–1e-9 rad over 10⁴ rad: rk4's
+        # most accurate step, piloted for nothing at 5–7 % of the run)
+        if s.roundoff(c, h) >= s.accuracy / SAFETY:
+            continue
+        if err0 > s.accuracy or cost < cost0:
+            plans.append((cost, i, c, h))
+    return sorted(plans, key=lambda p: p[:2])[:MAX_PLANS]
+
+
+def refine(s, best, usable, make_runner, period):
+    """Generator: ``best`` (candidate, h, cost, error), the a-priori choice under a law,
+    refined by pilots (module docstring). ``usable``: the fixed candidates;
+    ``make_runner()``: made only if a pilot runs, gives ``runner(name, options, h_max,
+    ends)``, a generator that runs the method with the law in the loop
+    (``engine.law_pilot.LawRunner.run``); ``period``: the control period (s).
+    Returns (best, pilot cost s, pilot steps, notes)."""
+    T = s.horizon
+    plans = _plans(s, best, usable)
+    if not plans:
+        return best, 0.0, 0, ['none (no candidate could beat the a-priori choice)']
+    budget = SHARE * best[2]
+    unit = sum(_pilot_cost(s, c, h, 1.0) - 8 * CALL for _, _, c, h in plans)
+    least = max(MIN_PERIODS * period, pilot.ROTATIONS * 2 * math.pi / s.omega)
+    room = FIRST_ROUND * budget - SETUP - 8 * CALL * len(plans)
+    share = min(1.0, room / unit) if unit > 0 else 1.0
+    if share * T < least or least > T:
+        return best, 0.0, 0, [f'none (a pilot over {least:.3g} s would cost over '
+                              f'{SHARE:.0%} of the run)']
+    runner, H = make_runner(), share * T
+    ends = [H * (k + 1) / 4 for k in range(4)]
+    spent, steps, notes = SETUP, 0, []
+    queue = [(cost, i, c, h, 0) for cost, i, c, h in plans]
+    while queue:
+        queue.sort(key=lambda q: q[:2])
+        estimate, i, c, h, rounds = queue.pop(0)
+        if best[3] <= s.accuracy and not _cheaper(c, estimate, best):
+            break  # nothing left can beat the best choice
+        cost = _pilot_cost(s, c, h, share)
+        if spent + cost > budget:
+            notes.append(f'{c.name} h={h:.3g}: over the pilot budget ({budget:.2g} s)')
+            continue
+        order = s.order(c, h)
+        ratio = 2.0 ** order / (2.0 ** order - 1.0)
+        a = yield from runner(c.name, (), h, ends)
+        b = yield from runner(c.name, (), s.snap(0.5 * h), ends)
+        spent += cost
+        if a is None or b is None:
+            notes.append(f'{c.name} h={h:.3g}: failed')
+            continue
+        steps += a[-1][2] + b[-1][2]
+        errors = [pilot.angle(x[1], y[1]) * ratio for x, y in zip(a, b)]
+        floor = s.roundoff(c, h)
+        err = SAFETY * _extrapolate(errors, T, a[-1][0]) + floor
+        notes.append(f'{c.name} h={h:.3g}: E={err:.2g}')
+        if err <= s.accuracy:
+            if best[3] > s.accuracy or _cheaper(c, s.run_cost(c, h), best):
+                best = (c, h, s.run_cost(c, h), err)
+            continue
+        room = s.accuracy - floor
+        if room <= 0.0 or not math.isfinite(err) or rounds >= 1:
+            continue
+        h_new = s.snap(h * 0.9 * (room / (err - floor)) ** (1.0 / order))
+        e_new = (err - floor) * (h_new / h) ** order + s.roundoff(c, h_new)
+        if h_new * VERIFY_SHRINK <= h:  # far from what was measured: pilot it again
+            queue.append((s.run_cost(c, h_new), i, c, h_new, rounds + 1))
+        elif e_new <= s.accuracy and (best[3] > s.accuracy
+                                      or _cheaper(c, s.run_cost(c, h_new), best)):
+            best = (c, h_new, s.run_cost(c, h_new), e_new)
+    notes.append(f'over {H:.3g} s of {T:.3g} s')
+    return best, spent, steps, notes
+
+
+def weigh(s, best, adaptive, make_runner, period):
+    """Generator: where nothing promises the budget (``best``, the fixed method's most
+    accurate step, predicts more), whether dop853 at its most accurate rtol (RTOL_FLOOR)
+    errs less, measured: over a share H of the run the fixed method runs at h (a) and h/2
+    (b), dop853 at the floor (d). a's error is |a − b|·2^p/(2^p − 1); d's at most
+    |d − b| + b's own (|a − b|/(2^p − 1)). dop853 is taken where that bound, extrapolated
+    as a's error is (the growth law of :func:`_extrapolate`; a's rounding as t^1.5), is
+    under a's and it costs less (both costs as the pilot measured them, scaled to the
+    run); it promises nothing (its error jumps late in some runs: module docstring), so
+    its predicted error stays over the budget. Returns (best, rtol or None, pilot cost s,
+    pilot steps, notes)."""
+    c, h, cost0, err0 = best
+    T = s.horizon
+    dop_cost = s.at_tolerance(adaptive, RTOL_FLOOR)[0]
+    if dop_cost * WEIGH_GAIN >= cost0:  # the pilot is paid back only where it switches
+        return best, None, 0.0, 0, []
+    budget = WEIGH_SHARE * cost0
+    unit = _pilot_cost(s, c, h, 1.0) + dop_cost - 3 * RUN_COST - 8 * CALL
+    least = max(MIN_PERIODS * period, pilot.ROTATIONS * 2 * math.pi / s.omega)
+    share = min(1.0, (budget - SETUP - 12 * CALL) / unit) if unit > 0 else 1.0
+    if share * T < least or least > T:
+        return best, None, 0.0, 0, [f'dop853 not weighed (a pilot over {least:.3g} s would '
+                                    f'cost over {WEIGH_SHARE:.0%} of the run)']
+    runner, H = make_runner(), share * T
+    ends = [H * (k + 1) / 4 for k in range(4)]
+    order = s.order(c, h)
+    ratio = 2.0 ** order / (2.0 ** order - 1.0)
+    cpu_a, cpu_d = [0.0], [0.0]
+    a = yield from _timed(runner(c.name, (), h, ends), cpu_a)
+    b = yield from runner(c.name, (), s.snap(0.5 * h), ends)
+    d = yield from _timed(runner(adaptive.name, _floor_options(s), s.max_step, ends), cpu_d)
+    spent = SETUP + share * unit + 12 * CALL
+    if a is None or b is None or d is None:
+        return best, None, spent, 0, ['dop853 not weighed (a pilot run failed)']
+    steps = a[-1][2] + b[-1][2] + d[-1][2]
+    # a's error from step doubling; d's at most its distance from b plus b's own error (b
+    # at twice a's steps: a's over 2^p). (The three-cornered hat, each run's error from
+    # the three distances as independent errors, read 0 for one run as often as not: seed
+    # 20261125 scene 105 kept rk4 where dop853 met the budget at a quarter of its CPU.)
+    own = [pilot.angle(x[1], y[1]) * ratio for x, y in zip(a, b)]
+    dop = [pilot.angle(z[1], y[1]) + e / 2.0 ** order for z, y, e in zip(d, b, own)]
+    e_fixed, e_dop = (_extrapolate(e, T, a[-1][0]) for e in (own, dop))
+    if c.rounding == 'random':
+        # at its most accurate step its rounding rules, and a random walk of rounding
+        # errors in the rate turns the attitude as t^1.5, beyond the linear law (seed 7
+        # scene 158: rk4 at 5.3e-5 s read 1.2e-10 rad by it, 1.1e-9 at the end)
+        e_fixed *= math.sqrt(max(1.0, T / a[-1][0]))
+    note = (f'measured over {H:.3g} s of {T:.3g} s: {c.name} h={h:.3g} E={e_fixed:.2g}, '
+            f'dop853 rtol {RTOL_FLOOR:.0e} E≤{e_dop:.2g}')
+    if not e_dop < e_fixed:
+        return best, None, spent, steps, [note + f'; {c.name} stays']
+    # both runs' costs as the pilot measured them, over the whole run: the model read
+    # dop853's restarts at the law's instants low (seed 20261125 scenes 60 and 132: taken
+    # at a predicted 0.6× rk4's cost, it ran at 1.1–1.3×)
+    run = RUN_COST + cpu_d[0] * T / d[-1][0]
+    if run >= RUN_COST + cpu_a[0] * T / a[-1][0]:
+        return best, None, spent, steps, [note + f'; dop853 no cheaper: {c.name} stays']
+    err = max(SAFETY * e_dop, math.nextafter(s.accuracy, math.inf))
+    return ((adaptive, s.max_step, run, err), RTOL_FLOOR, spent, steps,
+            [note + '; dop853 errs less: taken, a measured guess, not a promise'])
+
+
+def _timed(work, cpu):
+    """Generator: ``work``'s, its CPU (s, between its yields) added into ``cpu[0]``."""
+    start = time.process_time()
+    try:
+        while True:
+            next(work)
+            cpu[0] += time.process_time() - start
+            yield
+            start = time.process_time()
+    except StopIteration as done:
+        cpu[0] += time.process_time() - start
+        return done.value
+
+
+def _floor_options(s):
+    """dop853's options at RTOL_FLOOR, as :func:`.selection._options` gives them."""
+    return (('rtol', RTOL_FLOOR), ('atol', RTOL_FLOOR * 1e-3 * min(1.0, s.G)))
+
+
+def _cheaper(c, cost, best):
+    """Whether c at ``cost`` beats ``best`` (geometric methods preferred, as
+    :func:`.pilot_search.better`)."""
+    return cost * (1.0 if c.geometric else 1.0 + PREFER) < \
+        best[2] * (1.0 if best[0].geometric else 1.0 + PREFER)
