@@ -118,6 +118,36 @@ def test_the_mujoco_cap_stops_its_first_run():
     assert h is None and err == np.inf and bound > 0
 
 
+def test_mujoco_is_imported_before_any_runs_cap():
+    """A scene measured alone (``--from N --count N+1``) imported MuJoCo inside its first
+    run's CPU cap; the import (~0.1 CPU-s) was stopped by it and failed ("initialization
+    failed"), each rung then counted as a diverged run, and the row lost MuJoCo. In a
+    fresh interpreter, every cap of ``runs`` now starts with MuJoCo loaded."""
+    import subprocess
+    import sys
+    code = (
+        'import contextlib, sys\n'
+        'from rigid_body_sim.bench import generated_mujoco as gm\n'
+        'import test_bench_generated_peers as t\n'
+        'seen, limit = [], gm.cpu_limit\n'
+        '@contextlib.contextmanager\n'
+        'def watched(seconds):\n'
+        '    seen.append("mujoco" in sys.modules)\n'
+        '    with limit(seconds):\n'
+        '        yield\n'
+        'gm.cpu_limit = watched\n'
+        'scene, ref, times = t._long("viscous", 1e3)\n'
+        'assert "mujoco" not in sys.modules\n'
+        'gm.runs(scene, ref, times, cap=0.02)\n'
+        'print(len(seen), all(seen))\n')
+    here = __import__('os').path.dirname(__file__)
+    out = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True,
+                         cwd=here, timeout=300)
+    assert out.returncode == 0, out.stderr[-2000:]
+    count, loaded = out.stdout.split()
+    assert int(count) >= 2 and loaded == 'True', out.stdout
+
+
 def test_a_peer_stops_where_it_cannot_beat_a_cheaper_one(monkeypatch):
     """Given the CPU of a peer that met the budget (``beat``), a sweep stops there: its
     bound is at least that CPU, and the row stays the cheaper peer's."""

@@ -124,6 +124,10 @@ def runs(scene, ref, times, cap, beat=math.inf):
     stopped where it can no longer set the row (``beat``, or the other's); [] without it."""
     if not available():
         return []
+    # imported before any run's CPU cap: its first import (~0.1 CPU-s) inside a run's
+    # cap was stopped by it and failed ("initialization failed"), a peer's every rung
+    # then counted as a diverged run (a scene measured alone lost MuJoCo)
+    import mujoco  # noqa: F401
     out = []
     for name, integrator in INTEGRATORS:
         out.append((name,) + sweep(scene, integrator, ref, times, cap, beat))

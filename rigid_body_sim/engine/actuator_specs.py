@@ -90,6 +90,8 @@ def pyramid(skew: float = PYRAMID_SKEW) -> Tuple[np.ndarray, np.ndarray]:
 
 
 def _per(values, n, name):
+    if n == 0 and type(values) is list and len(values) <= 1:
+        return np.zeros(0)  # no such actuator (most scenes): nothing to convert
     v = np.asarray(values, float)
     if v.size == 1:
         return np.full(n, float(v[0]))

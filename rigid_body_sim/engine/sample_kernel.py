@@ -41,6 +41,18 @@ ON_STEP = 1e-9
 CHUNK = 64
 
 
+@jit
+def grid_instants(first_ns, period_ns, anchor_ns, t_ns, ts):
+    """t_ns[k] ← first_ns + k·period_ns and ts[k] ← (t_ns[k] − anchor_ns)/1e9 s, k <
+    len(ts): a torque-free exact stretch's sample instants (``Engine._free_samples``) and
+    their times from its anchor, in one pass, numpy's arithmetic to the bit (its six
+    passes over the stretch cost ~8 ns a sample, a third of the closed form's own)."""
+    for k in range(ts.shape[0]):
+        t = first_ns + k * period_ns
+        t_ns[k] = t
+        ts[k] = (t - anchor_ns) / 1e9
+
+
 @inline
 def fixed_steps(method, q, m, h, n, weights, split_axes, moments, tau_p, has_tau, model,
                 coefficient, inner, scratch, q_flow, m_flow, t0, env):
@@ -354,7 +366,7 @@ def interpolation_allowed(engine, m) -> bool:
 
 
 # they call the step loops from their own files (see jit.depends_on)
-for _kernel in (fixed_steps, _end, segment, dense_samples):
+for _kernel in (grid_instants, fixed_steps, _end, segment, dense_samples):
     depends_on(_kernel, splitting_kernel, explicit_kernel, dop853_kernel, dop853_dense,
                exact_flow_kernel, dynamics_kernel, orbit_kernel, magnetic_kernel,
                facets_kernel)

@@ -16,7 +16,7 @@ import numpy as np
 from ..physics import IntegrationError
 from ..physics.exact import TorqueFreeSolution
 from ..physics.orbit import OrbitError
-from . import closed_loop_args
+from . import closed_loop_args, sample_kernel
 from .config import NS
 
 
@@ -108,17 +108,18 @@ class Stepping:
         k = min(room, (limit - 1 - self._next_sample) // p + 1)
         if k < 2:
             return 0
-        times = self._next_sample + p * np.arange(k, dtype=np.int64)
         t0, solution = self._anchored()
         # a grid: by addition theorems from an evaluation every few samples (grid_kernel),
-        # written straight into the block's rows
+        # written straight into the block's rows; the instants in one compiled pass
         b = self._builder
         t_col, q_col, m_col, tau_col = b.columns(b.n + k)
-        q, m = solution.at_grid((times - t0) / NS, p / NS, out=(q_col[b.n:], m_col[b.n:]))
-        t_col[b.n:], tau_col[b.n:] = times, 0.0
+        ts = np.empty(k)
+        sample_kernel.grid_instants(self._next_sample, p, t0, t_col[b.n:], ts)
+        q, m = solution.at_grid(ts, p / NS, out=(q_col[b.n:], m_col[b.n:]))
+        tau_col[b.n:] = 0.0
         b.n += k
         self._q, self._m = q[-1].copy(), m[-1].copy()
-        self.t_ns = int(times[-1])
+        self.t_ns = int(t_col[b.n - 1])
         self._next_sample = self.t_ns + p
         self.evaluations += k
         return k

@@ -53,14 +53,16 @@ _RH = math.sqrt(0.5)
 
 @inline
 def _half(x, y):
-    """(cos a/2, sin a/2) of a = atan2(y, x) ∈ (−π, π], (x, y) ≠ 0, by square roots."""
+    """(cos a/2, sin a/2) of a = atan2(y, x) ∈ (−π, π], (x, y) ≠ 0, by square roots.
+    Branch-free (the larger of the two by a square root, the other from it), so that a
+    loop of them runs several samples to an instruction (:func:`_lanes`); each branch's
+    numbers are the same: 1 − c = 1 + |c| for c < 0, and a division by ±b is ± that by b."""
     ir = 1.0 / math.sqrt(x * x + y * y)
     cx = x * ir
-    if cx >= 0.0:
-        ch = math.sqrt(0.5 * (1.0 + cx))
-        return ch, 0.5 * (y * ir) / ch
-    sh = math.copysign(math.sqrt(0.5 * (1.0 - cx)), y)
-    return 0.5 * (y * ir) / sh, sh
+    big = math.sqrt(0.5 * (1.0 + abs(cx)))
+    other = 0.5 * (y * ir) / big
+    pos = cx >= 0.0
+    return (big if pos else abs(other)), (other if pos else math.copysign(big, y))
 
 
 @jit
@@ -146,37 +148,66 @@ def _onto(c, st):
     return sw, cw, dw, cp, sp, ca * r, sa * r
 
 
-@inline
-def _write(c, st, ig, q, m, k):
-    """q[k] (4,), m[k] (3,) ← the attitude and momentum of the state ``st``
-    (:func:`_hop`); ig = 1/G. Rows by index and the helpers inlined: views of the rows and
-    out-of-line calls cost each sample reference counts, ~15 of its ~65 ns."""
-    sw, cw, dw, cp, sp, ca, sa = st
-    sg = c[S]
-    cs, ss = (ca + sg * sa) * _RH, (ca - sg * sa) * _RH   # ψ/2 = π/4 − s(A + δ)/2
-    mx = c[MX] * cw
-    my = sg * c[MY] * sw
-    mz = c[SIGD] * c[MZ] * dw
-    # θ/2 from cos θ = m_z/G (|m| = G to round-off: the half-angles' norm is 1 to an ulp
-    # and q is normalised below), sin θ = |m_xy|/G ≥ 0
-    cx = mz * ig
-    if cx >= 0.0:
-        ct = math.sqrt(0.5 * (1.0 + cx))
-        st = 0.5 * (math.sqrt(mx * mx + my * my) * ig) / ct
-    else:
-        st = math.sqrt(0.5 * (1.0 - cx))
-        ct = 0.5 * (math.sqrt(mx * mx + my * my) * ig) / st
-    x, y, z, w = st * cs, -st * ss, ct * ss, ct * cs                 # Rx(θ)·Rz(ψ)
-    x, y, z, w = _qmul(c[C], c[C + 1], c[C + 2], c[C + 3],
-                       cp * x - sp * y, cp * y + sp * x, cp * z + sp * w, cp * w - sp * z)
-    x, y, z, w = _qmul(x, y, z, w, c[WC], c[WC + 1], c[WC + 2], c[WC + 3])
-    for i in range(3):                                   # m = Wᵀ m_work
-        m[k, i] = c[W + i] * mx + c[W + 3 + i] * my + c[W + 6 + i] * mz
-    inorm = 1.0 / math.sqrt(x * x + y * y + z * z + w * w)
-    q[k, 0] = x * inorm
-    q[k, 1] = y * inorm
-    q[k, 2] = z * inorm
-    q[k, 3] = w * inorm
+@jit
+def _lanes(c, a, cols, j0, count, g, ig, out):
+    """out[0:4, k], out[4:7, k] ← q and m of the state ``a`` (:func:`_anchor`'s tuple) moved
+    by the offset of table row j0 + k (``cols``: the table transposed), k < count: as
+    :func:`_hop` then the attitude and momentum of kernel.evaluate_into's frames (ψ/2 =
+    π/4 − s(A + δ)/2, θ/2 from cos θ = m_z/G, then C ⊗ R_z(φ) ⊗ R_x(θ)R_z(ψ) ⊗ W_C, and
+    m = Wᵀ m_work). One loop over the samples with no branch and the row's constants in
+    locals, on contiguous lanes: the compiler runs several samples to an instruction
+    (~26 ns a sample, where one after another with the stores between cost ~62); each
+    lane's arithmetic is the scalar one, so the numbers are the same to the bit."""
+    s1, c1, d1, cpa, spa, caa, saa = a
+    k2, nn, cphi, sg, sigd = 1.0 - c[KP2], c[N], c[CPHI], c[S], c[SIGD]
+    mx, my, mz = c[MX], c[MY], c[MZ]
+    px, py, pz, pw = c[C], c[C + 1], c[C + 2], c[C + 3]
+    wx, wy, wz, ww = c[WC], c[WC + 1], c[WC + 2], c[WC + 3]
+    w0, w1, w2, w3, w4, w5, w6, w7, w8 = (c[W], c[W + 1], c[W + 2], c[W + 3], c[W + 4],
+                                          c[W + 5], c[W + 6], c[W + 7], c[W + 8])
+    za, zb = mx * c1, my * s1
+    t_s, t_c, t_d = cols[0, j0:j0 + count], cols[1, j0:j0 + count], cols[2, j0:j0 + count]
+    t_ct, t_st = cols[3, j0:j0 + count], cols[4, j0:j0 + count]
+    for k in range(count):
+        s2, c2, d2 = t_s[k], t_c[k], t_d[k]
+        s12 = s1 * s2                                    # _hop: sn, cn, dn(u + v)
+        inv = 1.0 / (1.0 - k2 * s12 * s12)
+        sw = (s1 * c2 * d2 + s2 * c1 * d1) * inv
+        cw = (c1 * c2 - s12 * d1 * d2) * inv
+        dw = (d1 * d2 - k2 * s12 * c1 * c2) * inv
+        x = 1.0 + nn * sw * sw - nn * s12 * cw * dw     # φ/2
+        y = -g * s12 * sw
+        ch, sh = _half(x, math.copysign(y, y * cphi))
+        ct, st = t_ct[k], t_st[k]
+        cp0, sp0 = cpa * ct - spa * st, spa * ct + cpa * st
+        cp, sp = cp0 * ch - sp0 * sh, sp0 * ch + cp0 * sh
+        zx, zy = mx * cw, my * sw                        # (A + δ)/2
+        ch, sh = _half(zx * za + zy * zb, zy * za - zx * zb)
+        ca, sa = caa * ch - saa * sh, saa * ch + caa * sh
+        cs, ss = (ca + sg * sa) * _RH, (ca - sg * sa) * _RH
+        m0 = mx * cw
+        m1 = sg * my * sw
+        m2 = sigd * mz * dw
+        # θ/2 (|m| = G to round-off; q is normalised below), as _half: the larger half
+        # by a square root
+        cx = m2 * ig
+        big = math.sqrt(0.5 * (1.0 + abs(cx)))
+        other = 0.5 * (math.sqrt(m0 * m0 + m1 * m1) * ig) / big
+        pos = cx >= 0.0
+        ch = big if pos else other
+        sh = other if pos else big
+        x, y, z, w = sh * cs, -sh * ss, ch * ss, ch * cs                 # Rx(θ)·Rz(ψ)
+        x, y, z, w = _qmul(px, py, pz, pw,
+                           cp * x - sp * y, cp * y + sp * x, cp * z + sp * w, cp * w - sp * z)
+        x, y, z, w = _qmul(x, y, z, w, wx, wy, wz, ww)
+        inorm = 1.0 / math.sqrt(x * x + y * y + z * z + w * w)
+        out[0, k] = x * inorm
+        out[1, k] = y * inorm
+        out[2, k] = z * inorm
+        out[3, k] = w * inorm
+        out[4, k] = w0 * m0 + w3 * m1 + w6 * m2                     # m = Wᵀ m_work
+        out[5, k] = w1 * m0 + w4 * m1 + w7 * m2
+        out[6, k] = w2 * m0 + w5 * m1 + w8 * m2
 
 
 @jit
@@ -209,6 +240,8 @@ def at_grid(c, ts, dt, tab, q, m):
     g = math.sqrt(nn * (1.0 - c[KP2] + nn) * (1.0 + nn))
     ig = 1.0 / c[G]
     chain = CHAIN if c[KP2] >= CHAIN_KP2 else 1
+    cols = np.ascontiguousarray(tab.T)                  # the offsets' columns: lanes
+    lanes = np.empty((7, 2 * h + 1))
     a = _anchor(c, ts[h])
     block = 0
     for first in range(0, n, 2 * h + 1):
@@ -218,11 +251,16 @@ def at_grid(c, ts, dt, tab, q, m):
             a = _anchor(c, ts[centre])
         else:                                            # from the previous block's anchor
             a = _onto(c, _hop(c, _hop(c, a, tab, 2 * h + 1, g), tab, 2 * h + 2, g))
-        for k in range(first, last + 1):
-            _write(c, _hop(c, a, tab, k - centre + h + 1, g), ig, q, m, k)
+        count = last - first + 1
+        _lanes(c, a, cols, first - centre + h + 1, count, g, ig, lanes)
+        for k in range(count):
+            for i in range(4):
+                q[first + k, i] = lanes[i, k]
+            for i in range(3):
+                m[first + k, i] = lanes[4 + i, k]
         block += 1
 
 
-for _kernel in (_half, offsets, _anchor, _hop, _onto, _write, half_width, at_grid):
+for _kernel in (_half, offsets, _anchor, _hop, _onto, _lanes, half_width, at_grid):
     depends_on(_kernel, double_double, elliptic_kernel, exact_constants, exact_kernel,
                jit_settings)
