@@ -35,6 +35,8 @@ def warm() -> bool:
             {'mode': 'slew', 'target_attitude': [0.0, 0.0, 0.6, 0.8]})
         for _ in Engine(config).run():
             pass
+    from .engine import lockstep_direct  # a lockstep node's period (nodes/sim_lockstep.py)
+    lockstep_direct.warm()
     return compiled
 
 

@@ -12,7 +12,8 @@ apart once per instant, applied, and the instant released; every other command
 accept exactly the same commands: a command stamped with the held instant's stamp is
 one the general checks let through (neither ahead of the node's stamp nor older than
 ``command_timeout``; before t = 0 stamps are not judged at all), so only its value and
-frame are left to check.
+frame are left to check. As fast as possible, that command's call then steps to the next
+instant, publishes it and holds it at once (``_direct_exchange``).
 
 The wait for that command is the node's loop's, not the executor's (``_serve_exchange``):
 in lockstep the node's own ``torque_command`` is taken out of the executor and read from
@@ -31,6 +32,7 @@ import time
 from geometry_msgs.msg import Vector3Stamped
 from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 
+from ..engine.lockstep_direct import DirectPeriod
 from .commands import vector3_stamped, vector3_stamped_fields
 
 _AWAITING = {('', 'torque')}  # the unnamed spacecraft's torque command only (_awaiting)
@@ -48,7 +50,10 @@ MIXED_WAIT_S = 0.001
 class Exchange:
     """The node's torque_command callback (raw bytes) with lockstep's short way.
     ``_held_fields``: the held instant's stamp as a command carries it, (sec, nanosec),
-    or None (``sim_holds``: set by ``_hold``, cleared by ``_release``)."""
+    or None (``sim_holds``: set by ``_hold``, cleared by ``_release``). ``_direct``: the
+    DirectPeriod of the unnamed spacecraft's engine (``_direct_exchange``), or None."""
+
+    _direct = None
 
     def _serve_exchange(self):
         """Lockstep: the node's torque_command (``_command_subs[0]``, raw) leaves the
@@ -119,4 +124,40 @@ class Exchange:
         craft.engine.apply_command((x, y, z))
         self._awaiting.clear()
         self._release()
+        self._direct_exchange(craft)
         return True
+
+    def _direct_exchange(self, craft):
+        """As fast as possible, right after the held instant's command is applied: the
+        next control instant stepped to in one compiled call (``engine.lockstep_direct``),
+        its state published from the values that call wrote, and the instant held, in
+        this same turn, where the loop's next turn went through ``_advance``,
+        ``Engine.advance`` and ``_publish`` for one sample (the simulator's CPU per
+        exchange, ``tools.lockstep`` alternating both ways at load 12, 2 runs each:
+        219 -> 183 µs at 100 Hz, 218 -> 150 at 1 kHz). The messages are those, bit for
+        bit (test_sim_exchange, test_lockstep_direct). Nothing happens
+        (the loop's next turn goes the general way) at real time, paused, with sensors,
+        an orbit or actuators, or where the period is not one plain stretch
+        (``DirectPeriod.step``)."""
+        engine = craft.engine
+        if self._p['real_time_factor'] or self.paused or self._fault or \
+                craft.orbit is not None or craft.sensor_msgs is not None or \
+                craft.msgs.actuators is not None:
+            return
+        direct = self._direct
+        if direct is None or direct.engine is not engine:
+            direct = self._direct = DirectPeriod(engine)
+        t_ns = self._instant
+        values = direct.step(t_ns)
+        if values is None:
+            return
+        # Publishing._publish's path for one sample in lockstep, without a deadline
+        self._tick_clock(t_ns)
+        if craft.active:
+            states = craft.msgs.encoded_block(None, (self.stamp_ns(t_ns),),
+                                              craft.active_names, (values,))
+            craft.publish_states(states, self._acks.refused, 0)
+            self._published += len(craft.active)
+        if self._paced:
+            self._acks.published()
+        self._hold()

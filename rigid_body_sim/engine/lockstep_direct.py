@@ -1,0 +1,208 @@
+"""Lockstep's direct period: one control period of a lockstep exchange in one compiled call.
+
+As fast as possible in lockstep, the simulator's exchange is: apply the held instant's
+command, step to the next control instant, publish that instant's state, hold. Through
+:meth:`Engine.advance` the step alone cost ~22 µs of CPU (100 Hz, slew, splitting4;
+``tools.lockstep_parts``), of which the physics is ~3: the rest was Python deciding, packing
+and taking back what the general closed loop (``closed_loop_args``) needs for any stretch
+of events (a law, dop853's memory, a block of samples), and the compiled call's own
+argument handling (~2.6 µs for its 24 arrays). Here a period that is one plain stretch
+(a fixed-step method, only the held command acting, the next instant a sample and no
+other event before it) runs in :func:`period_kernel` with four arrays: the same steps as
+the closed loop's (``sample_kernel.fixed_steps``, the interval split as
+``Engine._integrate`` splits it), and the instant's 17 sample values
+(``SampleBlock.values``, the formulas of ``samples._row_values``) written beside the
+state, so that the node packs the message from them directly. The state and the values
+are the general path's bit for bit (test_lockstep_direct); anything else (another
+method, a law, sensors, actuators, magnetorquers, an orbit, the run's end, a command's
+expiry, ``auto`` choosing, a fault) goes the general way.
+"""
+import math
+
+import numpy as np
+
+from ..physics import dynamics_kernel
+from ..physics.environment import facets_kernel, magnetic_kernel
+from ..physics.integrators import exact_flow_kernel, explicit_kernel, splitting_kernel
+from ..physics.jit import depends_on, jit
+from ..physics.orbit import kernel as orbit_kernel
+from . import sample_kernel
+from .sample_kernel import DOP853, SPLITTING, fixed_steps
+
+# period_kernel's real array ``f``: the state (q principal → inertial, m), the held torque
+# (body, principal), the step, the damping coefficient, the body's constants for the
+# sample's values (principal → body rotation, principal moments, axes row by row), then
+# the values written (SampleBlock.values order)
+Q, M, TAU, TAU_P, H_MAX, COEFFICIENT, P2B, MOMENTS, AXES, VALUES, N_F = \
+    0, 4, 7, 10, 13, 14, 15, 19, 22, 31, 48
+# its integer array ``ticks``: from, to (ns), the method's loop and damping codes; then
+# what it reports: the steps and evaluations done, the failing step (-1: none; -2: the
+# state at the instant is not finite)
+T_NS, UNTIL_NS, METHOD, MODEL, STEPS, EVALS, FAILED, N_TICKS = range(8)
+
+
+@jit
+def period_kernel(f, ticks, spec, env):
+    """Advance ``f``'s state from ``ticks[T_NS]`` to ``ticks[UNTIL_NS]`` under the held
+    torque, as ``closed_loop.closed_loop_run`` steps one interval between events without
+    a law, then write the state's sample values into ``f[VALUES:]``. ``spec`` = (weights,
+    split_axes, moments) as the closed loop's; ``env`` the dynamics' environment array
+    (None: none). Returns the last step h."""
+    weights, split_axes, moments = spec
+    q = f[Q:Q + 4]
+    m = f[M:M + 3]
+    tau_p = f[TAU_P:TAU_P + 3]
+    has_tau = f[TAU] != 0.0 or f[TAU + 1] != 0.0 or f[TAU + 2] != 0.0
+    t = ticks[T_NS]
+    span = ticks[UNTIL_NS] - t
+    method = ticks[METHOD]
+    model = ticks[MODEL]
+    coefficient = f[COEFFICIENT]
+    n = max(1, int(math.ceil(span / (f[H_MAX] * 1e9) - 1e-9)))
+    h = span / (n * 1e9)
+    t0 = t / 1e9
+    scratch = np.empty((10, 4))
+    q_flow = np.empty(4)
+    m_flow = np.empty(3)
+    inner = method == SPLITTING and splitting_kernel.inner_dissipation(
+        m, h, weights, moments, model, coefficient)
+    failed, e = fixed_steps(method, q, m, h, n, weights, split_axes, moments, tau_p, has_tau,
+                            model, coefficient, inner, scratch, q_flow, m_flow, t0, env)
+    ticks[STEPS] = n
+    ticks[EVALS] = e
+    ticks[FAILED] = failed
+    if failed >= 0:
+        return h
+    for i in range(7):
+        if not math.isfinite(f[i]):
+            ticks[FAILED] = -2
+            return h
+    # samples._row_values, operation for operation (a = q ⊗ conj(p): body attitude; ω, L
+    # inertial, L body, the kinetic energy, the held body torque)
+    qx, qy, qz, qw = f[0], f[1], f[2], f[3]
+    cx, cy, cz, cw = -f[P2B], -f[P2B + 1], -f[P2B + 2], f[P2B + 3]
+    ax = qw * cx + qx * cw + qy * cz - qz * cy
+    ay = qw * cy - qx * cz + qy * cw + qz * cx
+    az = qw * cz + qx * cy - qy * cx + qz * cw
+    aw = qw * cw - qx * cx - qy * cy - qz * cz
+    norm = math.sqrt(ax * ax + ay * ay + az * az + aw * aw)
+    ix, iy, iz = f[MOMENTS], f[MOMENTS + 1], f[MOMENTS + 2]
+    m0, m1, m2 = f[4], f[5], f[6]
+    w0, w1, w2 = m0 / ix, m1 / iy, m2 / iz
+    r00, r01, r02 = f[AXES], f[AXES + 1], f[AXES + 2]
+    r10, r11, r12 = f[AXES + 3], f[AXES + 4], f[AXES + 5]
+    r20, r21, r22 = f[AXES + 6], f[AXES + 7], f[AXES + 8]
+    tx, ty, tz = 2 * (qy * m2 - qz * m1), 2 * (qz * m0 - qx * m2), 2 * (qx * m1 - qy * m0)
+    v = f[VALUES:]
+    v[0], v[1], v[2], v[3] = ax / norm, ay / norm, az / norm, aw / norm
+    v[4] = r00 * w0 + r01 * w1 + r02 * w2
+    v[5] = r10 * w0 + r11 * w1 + r12 * w2
+    v[6] = r20 * w0 + r21 * w1 + r22 * w2
+    v[7] = m0 + qw * tx + (qy * tz - qz * ty)
+    v[8] = m1 + qw * ty + (qz * tx - qx * tz)
+    v[9] = m2 + qw * tz + (qx * ty - qy * tx)
+    v[10] = r00 * m0 + r01 * m1 + r02 * m2
+    v[11] = r10 * m0 + r11 * m1 + r12 * m2
+    v[12] = r20 * m0 + r21 * m1 + r22 * m2
+    v[13] = 0.5 * (m0 * m0 / ix + m1 * m1 / iy + m2 * m2 / iz)
+    v[14], v[15], v[16] = f[TAU], f[TAU + 1], f[TAU + 2]
+    return h
+
+
+# it inlines the step loops from their own files (see jit.depends_on)
+period_kernel = depends_on(period_kernel, sample_kernel, splitting_kernel, explicit_kernel,
+                           exact_flow_kernel, dynamics_kernel, orbit_kernel, magnetic_kernel,
+                           facets_kernel)
+
+
+class DirectPeriod:
+    """The direct period of one engine (see the module docstring): :meth:`step`."""
+
+    def __init__(self, engine):
+        self.engine = engine
+        self.f = np.zeros(N_F)
+        self.ticks = np.zeros(N_TICKS, dtype=np.int64)
+        self._key = None  # (integrator, dynamics, body) the packed constants came from
+        self._spec = None
+
+    def _pack(self, integ, dynamics, body) -> bool:
+        """The method's and the body's constants, again only when those objects change;
+        False if the method has no fixed-step compiled loop."""
+        key = (integ, dynamics, body)
+        if self._key is None or any(a is not b for a, b in zip(key, self._key)):
+            code = integ.loop_code
+            spec = integ.loop_spec()
+            if code is None or code == DOP853 or spec is None:
+                self._key, self._spec = key, None
+                return False
+            f = self.f
+            f[P2B:P2B + 4] = body.principal_to_body
+            f[MOMENTS:MOMENTS + 3] = body.principal_moments
+            f[AXES:AXES + 9] = np.asarray(body.principal_axes).ravel()
+            self.ticks[METHOD], self.ticks[MODEL] = code, integ.loop_model()
+            self._spec = (spec[0], spec[1], dynamics.moments)
+            self._key = key
+        return self._spec is not None
+
+    def step(self, until_ns: int):
+        """The sample values (a list of 17 floats, ``SampleBlock.values``) at ``until_ns``,
+        the engine advanced there as ``advance(until_ns)`` would advance it; None (the
+        engine untouched) where the period is not one plain stretch, or the method failed
+        (the general path then meets the failure and reports it)."""
+        e = self.engine
+        if e.finished or e.fault or e.selection_pending or e._law is not None or \
+                e._sensors is not None or e.magnetics is not None or \
+                e.actuators is not None or not e.compiled_loop or e.interpolate_samples or \
+                e.orbit_anchored or e._builder.n or until_ns != e._next_sample or \
+                until_ns <= e.t_ns or until_ns >= e.end_ns or \
+                e.command.expiry <= until_ns or e._free_exact():
+            return None
+        integ = e.integrator
+        if not self._pack(integ, e.dynamics, e.body):
+            return None
+        f, ticks = self.f, self.ticks
+        f[Q:Q + 4] = e._q
+        f[M:M + 3] = e._m
+        tau, tau_p = e._tau_body, e._tau_p
+        if tau is None:
+            f[TAU:TAU + 3] = 0.0
+        else:
+            f[TAU:TAU + 3] = tau
+        if tau_p is None:
+            f[TAU_P:TAU_P + 3] = 0.0
+        else:
+            f[TAU_P:TAU_P + 3] = tau_p
+        f[H_MAX], f[COEFFICIENT] = e.step_max, e.dynamics.dissipation.coefficient
+        ticks[T_NS], ticks[UNTIL_NS] = e.t_ns, until_ns
+        period_kernel(f, ticks, self._spec, e.dynamics.environment)
+        if ticks[FAILED] != -1:
+            return None
+        e._q, e._m = f[Q:Q + 4].copy(), f[M:M + 3].copy()
+        e.t_ns = until_ns
+        e._next_sample = until_ns + e.config.sample_period_ns
+        e.steps += int(ticks[STEPS])
+        integ.nfev += int(ticks[EVALS])
+        return f[VALUES:].tolist()
+
+
+
+def warm_engine(engine) -> bool:
+    """Load the kernel with the argument types ``engine``'s periods will pass (a live
+    lockstep node, before its t = 0): a fresh engine of its configuration, with a small
+    held command, one direct period. True if it ran one."""
+    from .core import Engine
+    c = engine.config
+    copy = Engine(c, blocking_selection=False)
+    while copy.selection_pending and not copy.fault:
+        copy.work()
+    copy.advance(copy.t_ns)  # the instant's own events (t = 0's sample)
+    copy.apply_command((1e-3 * c.max_torque,) * 3 if c.max_torque else (1e-6,) * 3)
+    return DirectPeriod(copy).step(copy._next_sample) is not None
+
+
+def warm() -> bool:
+    """Load (or compile) the kernel for a body without an environment (setup)."""
+    from .config import EngineConfig
+    from .core import Engine
+    return warm_engine(Engine(EngineConfig.from_parameters(
+        {'integrator': 'splitting4', 'duration': 1.0, 'publish_rate': 10.0})))
