@@ -254,8 +254,9 @@ def test_the_loop_waits_for_the_exchanges_command_itself(ros_process, simulator,
     """Lockstep as fast as possible with the controller (a real process): while an instant
     is held for the node's torque_command, the loop waits for it on its own (an rcl wait
     set of that subscription), never in a turn of the executor, which turns for the rest
-    without waiting, once per EXECUTOR_SLICE_S (sim_lockstep.py: why). Every instant is
-    answered. Before, each exchange's wait was a turn of the events executor."""
+    without waiting, once per EXECUTOR_SLICE_S (sim_lockstep.py: why); the exchanges
+    follow one another in a loop of their own, not a turn of ``run``'s loop each. Every
+    instant is answered. Before, each exchange's wait was a turn of the events executor."""
     import contextlib
     from ros_helpers import venv_exe
     from rigid_body_sim.nodes import simulator as node_module
@@ -285,9 +286,14 @@ def test_the_loop_waits_for_the_exchanges_command_itself(ros_process, simulator,
                 '--params-file', SCENE, '--params-file', str(over))
     sim = simulator(lockstep=True, publish_clock=True, real_time_factor=0.0,
                     publish_rate=100.0, control_rate=100.0, lockstep_timeout=30.0,
-                    duration=0.3, wait_for_subscribers_timeout=60.0)
+                    duration=1.0, wait_for_subscribers_timeout=60.0)
+    once, loop_turns = sim.run_once, []
+    sim.run_once = lambda: (loop_turns.append(1), once())[1]
     sim.run()
-    assert sim._round_trips.count == 30, sim._round_trips.summary()
+    assert sim._round_trips.count == 100, sim._round_trips.summary()
+    # the exchanges run in a loop of their own (_exchanges), back to run's loop for the
+    # executor, diagnostics and subscriber counts (before: a turn of it per exchange)
+    assert len(loop_turns) < 50, len(loop_turns)
     assert sim.kernels_after_t0() == 0  # the direct period's too, loaded before t = 0
     held = [t for t, waiting in turns if waiting]
     assert all(t == 0.0 for t in held), held[:10]

@@ -29,30 +29,37 @@ from ..physics.orbit import kernel as orbit_kernel
 from . import sample_kernel
 from .sample_kernel import DOP853, SPLITTING, fixed_steps
 
-# period_kernel's real array ``f``: the state (q principal → inertial, m), the held torque
-# (body, principal), the step, the damping coefficient, the body's constants for the
-# sample's values (principal → body rotation, principal moments, axes row by row), then
-# the values written (SampleBlock.values order)
-Q, M, TAU, TAU_P, H_MAX, COEFFICIENT, P2B, MOMENTS, AXES, VALUES, N_F = \
-    0, 4, 7, 10, 13, 14, 15, 19, 22, 31, 48
-# its integer array ``ticks``: from, to (ns), the method's loop and damping codes; then
-# what it reports: the steps and evaluations done, the failing step (-1: none; -2: the
-# state at the instant is not finite)
-T_NS, UNTIL_NS, METHOD, MODEL, STEPS, EVALS, FAILED, N_TICKS = range(8)
+# period_kernel's real array ``f``: the step, the damping coefficient, the body's
+# constants for the sample's values (principal → body rotation, principal moments, axes
+# row by row), the values written (SampleBlock.values order), the dynamics' moments, then
+# the method's weights (``ticks[WEIGHTS]`` of them)
+H_MAX, COEFFICIENT, P2B, MOMENTS, AXES, VALUES, DYNAMICS, WEIGHTS_AT = \
+    0, 1, 2, 6, 9, 18, 35, 38
+# its integer array ``ticks``: from, to (ns), the method's loop and damping codes, the
+# number of its weights and its split axes; then what it reports: the steps and
+# evaluations done, the failing step (-1: none; -2: the state at the instant is not
+# finite)
+T_NS, UNTIL_NS, METHOD, MODEL, WEIGHTS, SPLIT_AXES, STEPS, EVALS, FAILED, N_TICKS = \
+    0, 1, 2, 3, 4, 5, 8, 9, 10, 11
 
 
 @jit
-def period_kernel(f, ticks, spec, env):
-    """Advance ``f``'s state from ``ticks[T_NS]`` to ``ticks[UNTIL_NS]`` under the held
-    torque, as ``closed_loop.closed_loop_run`` steps one interval between events without
-    a law, then write the state's sample values into ``f[VALUES:]``. ``spec`` = (weights,
-    split_axes, moments) as the closed loop's; ``env`` the dynamics' environment array
-    (None: none). Returns the last step h."""
-    weights, split_axes, moments = spec
-    q = f[Q:Q + 4]
-    m = f[M:M + 3]
-    tau_p = f[TAU_P:TAU_P + 3]
-    has_tau = f[TAU] != 0.0 or f[TAU + 1] != 0.0 or f[TAU + 2] != 0.0
+def period_kernel(f, ticks, env, q_in, m_in, tau, tau_p, q, m):
+    """Advance (q_in, m_in) from ``ticks[T_NS]`` to ``ticks[UNTIL_NS]`` under the held
+    torque ``tau`` (body frame; ``tau_p`` principal) into (q, m), as
+    ``closed_loop.closed_loop_run`` steps one interval between events without a law, then
+    write the sample's values into ``f[VALUES:]``. The method's and the body's constants
+    are in ``f`` and ``ticks`` (one array each where the closed loop takes 24: their
+    handling per call is most of a small kernel's); ``env`` is the dynamics' environment
+    array (None: none). Returns the last step h."""
+    weights = f[WEIGHTS_AT:WEIGHTS_AT + ticks[WEIGHTS]]
+    split_axes = ticks[SPLIT_AXES:SPLIT_AXES + 3]
+    moments = f[DYNAMICS:DYNAMICS + 3]
+    for i in range(4):
+        q[i] = q_in[i]
+    for i in range(3):
+        m[i] = m_in[i]
+    has_tau = tau[0] != 0.0 or tau[1] != 0.0 or tau[2] != 0.0
     t = ticks[T_NS]
     span = ticks[UNTIL_NS] - t
     method = ticks[METHOD]
@@ -73,13 +80,17 @@ def period_kernel(f, ticks, spec, env):
     ticks[FAILED] = failed
     if failed >= 0:
         return h
-    for i in range(7):
-        if not math.isfinite(f[i]):
-            ticks[FAILED] = -2
-            return h
+    finite = True
+    for i in range(4):
+        finite = finite and math.isfinite(q[i])
+    for i in range(3):
+        finite = finite and math.isfinite(m[i])
+    if not finite:
+        ticks[FAILED] = -2
+        return h
     # samples._row_values, operation for operation (a = q ⊗ conj(p): body attitude; ω, L
     # inertial, L body, the kinetic energy, the held body torque)
-    qx, qy, qz, qw = f[0], f[1], f[2], f[3]
+    qx, qy, qz, qw = q[0], q[1], q[2], q[3]
     cx, cy, cz, cw = -f[P2B], -f[P2B + 1], -f[P2B + 2], f[P2B + 3]
     ax = qw * cx + qx * cw + qy * cz - qz * cy
     ay = qw * cy - qx * cz + qy * cw + qz * cx
@@ -87,7 +98,7 @@ def period_kernel(f, ticks, spec, env):
     aw = qw * cw - qx * cx - qy * cy - qz * cz
     norm = math.sqrt(ax * ax + ay * ay + az * az + aw * aw)
     ix, iy, iz = f[MOMENTS], f[MOMENTS + 1], f[MOMENTS + 2]
-    m0, m1, m2 = f[4], f[5], f[6]
+    m0, m1, m2 = m[0], m[1], m[2]
     w0, w1, w2 = m0 / ix, m1 / iy, m2 / iz
     r00, r01, r02 = f[AXES], f[AXES + 1], f[AXES + 2]
     r10, r11, r12 = f[AXES + 3], f[AXES + 4], f[AXES + 5]
@@ -105,7 +116,7 @@ def period_kernel(f, ticks, spec, env):
     v[11] = r10 * m0 + r11 * m1 + r12 * m2
     v[12] = r20 * m0 + r21 * m1 + r22 * m2
     v[13] = 0.5 * (m0 * m0 / ix + m1 * m1 / iy + m2 * m2 / iz)
-    v[14], v[15], v[16] = f[TAU], f[TAU + 1], f[TAU + 2]
+    v[14], v[15], v[16] = tau[0], tau[1], tau[2]
     return h
 
 
@@ -120,29 +131,42 @@ class DirectPeriod:
 
     def __init__(self, engine):
         self.engine = engine
-        self.f = np.zeros(N_F)
+        self.f = np.zeros(WEIGHTS_AT)  # and the weights (_pack)
         self.ticks = np.zeros(N_TICKS, dtype=np.int64)
-        self._key = None  # (integrator, dynamics, body) the packed constants came from
-        self._spec = None
+        self._zero = np.zeros(3)  # a torque held as None
+        self._key = (None, None, None, None)  # what the packed constants came from
+        self._able = False  # whether its periods can be direct at all (_pack)
+        self._free = False  # exact without damping or environment: free without torque
+        self._end = 0
 
-    def _pack(self, integ, dynamics, body) -> bool:
-        """The method's and the body's constants, again only when those objects change;
-        False if the method has no fixed-step compiled loop."""
-        key = (integ, dynamics, body)
-        if self._key is None or any(a is not b for a, b in zip(key, self._key)):
-            code = integ.loop_code
-            spec = integ.loop_spec()
-            if code is None or code == DOP853 or spec is None:
-                self._key, self._spec = key, None
-                return False
-            f = self.f
-            f[P2B:P2B + 4] = body.principal_to_body
-            f[MOMENTS:MOMENTS + 3] = body.principal_moments
-            f[AXES:AXES + 9] = np.asarray(body.principal_axes).ravel()
-            self.ticks[METHOD], self.ticks[MODEL] = code, integ.loop_model()
-            self._spec = (spec[0], spec[1], dynamics.moments)
-            self._key = key
-        return self._spec is not None
+    def _pack(self, e):
+        """What a period needs of the engine that changes only with its integrator,
+        configuration, dynamics or body (their identities, checked at every period):
+        whether its periods can be direct at all, the method's and the body's
+        constants."""
+        integ = e._integ
+        self._key, self._able = (integ, e.config, e.dynamics, e.body), False
+        code = None if integ is None else integ.loop_code
+        spec = None if code is None else integ.loop_spec()
+        if spec is None or code == DOP853 or e._law is not None or e._sensors is not None \
+                or e.magnetics is not None or e.actuators is not None or \
+                not e.compiled_loop or e.interpolate_samples or e.orbit_anchored:
+            return
+        weights, split_axes = spec[0], spec[1]
+        body = e.body
+        self.f = f = np.zeros(WEIGHTS_AT + len(weights))
+        f[P2B:P2B + 4] = body.principal_to_body
+        f[MOMENTS:MOMENTS + 3] = body.principal_moments
+        f[AXES:AXES + 9] = np.asarray(body.principal_axes).ravel()
+        f[DYNAMICS:DYNAMICS + 3] = e.dynamics.moments
+        f[WEIGHTS_AT:] = weights
+        ticks = self.ticks
+        ticks[METHOD], ticks[MODEL], ticks[WEIGHTS] = code, integ.loop_model(), len(weights)
+        ticks[SPLIT_AXES:SPLIT_AXES + 3] = split_axes
+        self._able = True
+        self._free = e.method == 'exact' and not e.dynamics.dissipation.active and \
+            not e.dynamics.environment_active  # Stepping._free_exact but the torque
+        self._end = e.end_ns
 
     def step(self, until_ns: int):
         """The sample values (a list of 17 floats, ``SampleBlock.values``) at ``until_ns``,
@@ -150,40 +174,31 @@ class DirectPeriod:
         engine untouched) where the period is not one plain stretch, or the method failed
         (the general path then meets the failure and reports it)."""
         e = self.engine
-        if e.finished or e.fault or e.selection_pending or e._law is not None or \
-                e._sensors is not None or e.magnetics is not None or \
-                e.actuators is not None or not e.compiled_loop or e.interpolate_samples or \
-                e.orbit_anchored or e._builder.n or until_ns != e._next_sample or \
-                until_ns <= e.t_ns or until_ns >= e.end_ns or \
-                e.command.expiry <= until_ns or e._free_exact():
+        key = self._key
+        if e._integ is not key[0] or e.config is not key[1] or e.dynamics is not key[2] \
+                or e.body is not key[3]:
+            self._pack(e)
+        tau_p = e._tau_p
+        if not self._able or e._selection is not None or e.finished or e.fault or \
+                until_ns != e._next_sample or until_ns <= e.t_ns or until_ns >= self._end \
+                or e.command.expiry <= until_ns or (tau_p is None and self._free):
             return None
-        integ = e.integrator
-        if not self._pack(integ, e.dynamics, e.body):
-            return None
+        tau = e._tau_body
+        zero = self._zero
         f, ticks = self.f, self.ticks
-        f[Q:Q + 4] = e._q
-        f[M:M + 3] = e._m
-        tau, tau_p = e._tau_body, e._tau_p
-        if tau is None:
-            f[TAU:TAU + 3] = 0.0
-        else:
-            f[TAU:TAU + 3] = tau
-        if tau_p is None:
-            f[TAU_P:TAU_P + 3] = 0.0
-        else:
-            f[TAU_P:TAU_P + 3] = tau_p
         f[H_MAX], f[COEFFICIENT] = e.step_max, e.dynamics.dissipation.coefficient
         ticks[T_NS], ticks[UNTIL_NS] = e.t_ns, until_ns
-        period_kernel(f, ticks, self._spec, e.dynamics.environment)
-        if ticks[FAILED] != -1:
+        q, m = np.empty(4), np.empty(3)
+        period_kernel(f, ticks, e.dynamics.environment, e._q, e._m,
+                      zero if tau is None else tau, zero if tau_p is None else tau_p, q, m)
+        steps, evaluations, failed = ticks[STEPS:].tolist()
+        if failed != -1:
             return None
-        e._q, e._m = f[Q:Q + 4].copy(), f[M:M + 3].copy()
-        e.t_ns = until_ns
+        e._q, e._m, e.t_ns = q, m, until_ns
         e._next_sample = until_ns + e.config.sample_period_ns
-        e.steps += int(ticks[STEPS])
-        integ.nfev += int(ticks[EVALS])
-        return f[VALUES:].tolist()
-
+        e.steps += steps
+        e._integ.nfev += evaluations
+        return f[VALUES:DYNAMICS].tolist()
 
 
 def warm_engine(engine) -> bool:

@@ -22,15 +22,20 @@ import time
 from . import argument_parser, stop
 from .lockstep import SCENE, _exe, overrides
 
-# (label, module, class, method): what is timed, in the simulator's process. As fast as
-# possible the held instant's command steps and publishes the next instant at once
-# (``direct``, within ``take.apply``: nodes/sim_lockstep.py); ``engine`` and ``publish``
-# are the general way's (t = 0, and wherever the direct period declines); ``bytes`` and
-# ``write`` are within either ``publish`` or ``direct``.
+# (label, module, class, method): what is timed, in the simulator's process. A command
+# (``command``: decoded, checked, applied) is taken at the top of a turn of the loop
+# (``take``, within ``run_once``) or, while an instant is held, by the exchanges' own loop
+# (``exchanges``, within ``wait``); as fast as possible the held instant's (``held``)
+# steps to and publishes the next instant at once (``direct``, ``direct.step`` its
+# engine's call: nodes/sim_lockstep.py). ``engine`` and ``publish`` are the general
+# way's (t = 0, and wherever the direct period declines); ``bytes`` and ``write`` are
+# within either ``publish`` or ``direct``.
 PARTS = (('engine', 'rigid_body_sim.engine.core', 'Engine', 'advance'),
          ('publish', 'rigid_body_sim.nodes.simulator', 'Simulator', '_publish'),
          ('take', 'rigid_body_sim.nodes.simulator', 'Simulator', '_take_commands'),
-         ('take.apply', 'rigid_body_sim.nodes.simulator', 'Simulator', '_take_held'),
+         ('exchanges', 'rigid_body_sim.nodes.simulator', 'Simulator', '_exchanges'),
+         ('command', 'rigid_body_sim.nodes.simulator', 'Simulator', '_on_torque_bytes'),
+         ('held', 'rigid_body_sim.nodes.simulator', 'Simulator', '_take_held'),
          ('direct', 'rigid_body_sim.nodes.simulator', 'Simulator', '_direct_exchange'),
          ('direct.step', 'rigid_body_sim.engine.lockstep_direct', 'DirectPeriod', 'step'),
          ('bytes', 'rigid_body_sim.nodes.state_messages', 'StateMessages',
