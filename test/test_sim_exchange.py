@@ -219,6 +219,8 @@ def test_the_next_instant_is_stepped_to_and_published_at_once(rclpy_node, simula
         general.destroy_node()
     for name in topics:
         assert got[(True, name)] == got[(False, name)], name
+    # and counted alike (diagnostics' messages_built)
+    assert direct._crafts[''].msgs.built() == general._crafts[''].msgs.built()
     stamps = [m.header.stamp.sec * NS + m.header.stamp.nanosec for m in got[(True, 'odometry')]]
     assert stamps == [k * 20_000_000 for k in range(exchanges + 1)]
 
