@@ -223,8 +223,7 @@ class Exchange:
                     except RCLError as exc:  # a paced reader's history is full (sim_acks)
                         self._acks.refused(topic, exc)
             self._published += len(craft.active)
-        if self._paced:
-            self._acks.published()
+        self._acks.published()  # paced: as fast as possible (above)
         # what the instant just answered awaited (_take_held), without asking each
         # spacecraft again
         self._hold({('', 'torque')})
