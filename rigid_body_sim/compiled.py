@@ -55,6 +55,7 @@ def warm_scenes() -> int:
     from .physics import INTEGRATORS
     from .scene import SceneError, list_scenes, load
     from .engine.specs import AUTO
+    from .engine import lockstep_direct
     from .engine.warm import warm_span
     runs = 0
     for name, _, _ in list_scenes():
@@ -69,6 +70,10 @@ def warm_scenes() -> int:
                     until = min(engine.end_ns, engine.t_ns + warm_span(engine.config))
                     for _ in engine.run(until):
                         pass
+                    if live and engine.config.environment is not None:
+                        # lockstep's direct period with an environment's array (the
+                        # one without: warm)
+                        lockstep_direct.warm_engine(engine)
                 except (SceneError, ValueError):
                     continue
                 runs += 1
