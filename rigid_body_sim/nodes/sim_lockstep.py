@@ -149,6 +149,8 @@ class Exchange:
             wait_set.clear_entities()
             wait_set.add_subscription(handle)
             wait_set.wait(int(1e9 * (until - now)))
+            if not ok():  # shut down meanwhile (Ctrl-C): the subscription goes with it
+                return
             got = take(Vector3Stamped, True)
             if got is None:
                 continue
