@@ -162,7 +162,8 @@ def test_the_next_instant_is_stepped_to_and_published_at_once(rclpy_node, simula
     """Lockstep as fast as possible: the held instant's command steps the engine to the
     next instant in one compiled call, publishes its state and holds it, in the same call
     (``_direct_exchange``), without ``Engine.advance`` (before, the loop's next turn went
-    through ``_advance``, ``Engine.advance`` and ``_publish``). Every state topic, as a
+    through ``_advance``, ``Engine.advance`` and ``_publish``) or a one-sample block's
+    encoding (``_packers``). Every state topic, as a
     subscriber receives it, equals that of a simulator doing the same exchanges the
     general way (every field, stamps included)."""
     from rigid_body_sim.nodes.simulator import Simulator
@@ -189,10 +190,13 @@ def test_the_next_instant_is_stepped_to_and_published_at_once(rclpy_node, simula
         assert spin_until(rclpy_node, lambda: all(
             pub.get_subscription_count() > 0 for sim in sims
             for pub, name in sim._crafts[''].pubs if name in STATE_TOPICS), 30)
-        calls = []
+        calls, encoded = [], []
         engine = direct._crafts[''].engine
         advance = engine.advance
         engine.advance = lambda *a, **k: (calls.append(a[0]), advance(*a, **k))[1]
+        msgs = direct._crafts[''].msgs
+        encode = msgs.encoded_block
+        msgs.encoded_block = lambda *a, **k: (encoded.append(1), encode(*a, **k))[1]
         for sim in sims:
             sim.run_once()  # t = 0, published and held
             assert sim.lockstep_held is not None and sim.t_ns == 0
@@ -210,6 +214,8 @@ def test_the_next_instant_is_stepped_to_and_published_at_once(rclpy_node, simula
             general.run_once()
             assert general.t_ns == direct.t_ns and general.lockstep_held is not None
         assert calls == [0], calls  # no Engine.advance after t = 0
+        # each topic packed from the row (_packers), not through a one-sample block
+        assert len(encoded) == 1, len(encoded)
         topics = [name for _, name in direct._crafts[''].pubs if name in STATE_TOPICS]
         assert len(topics) >= 9, topics
         assert spin_until(rclpy_node, lambda: all(
