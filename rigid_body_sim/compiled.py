@@ -35,6 +35,8 @@ def warm() -> bool:
             {'mode': 'slew', 'target_attitude': [0.0, 0.0, 0.6, 0.8]})
         for _ in Engine(config).run():
             pass
+    from .engine import lockstep_direct  # a lockstep node's period (nodes/sim_lockstep.py)
+    lockstep_direct.warm()
     return compiled
 
 
@@ -53,6 +55,7 @@ def warm_scenes() -> int:
     from .physics import INTEGRATORS
     from .scene import SceneError, list_scenes, load
     from .engine.specs import AUTO
+    from .engine import lockstep_direct
     from .engine.warm import warm_span
     runs = 0
     for name, _, _ in list_scenes():
@@ -67,6 +70,10 @@ def warm_scenes() -> int:
                     until = min(engine.end_ns, engine.t_ns + warm_span(engine.config))
                     for _ in engine.run(until):
                         pass
+                    if live and engine.config.environment is not None:
+                        # lockstep's direct period with an environment's array (the
+                        # one without: warm)
+                        lockstep_direct.warm_engine(engine)
                 except (SceneError, ValueError):
                     continue
                 runs += 1

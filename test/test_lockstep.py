@@ -359,8 +359,11 @@ def test_the_parts_tool_times_each_part_of_the_simulators_exchange(capsys):
              for m in re.finditer(r'^  (\S+) +([-\d.]+) µs', out, re.M)}
     assert set(parts) == {p[0] for p in PARTS} | {'loop'}, out
     assert all(v > 0 for k, v in parts.items() if k != 'loop'), out
-    assert parts['publish.bytes'] + parts['publish.write'] <= parts['publish'], out
-    assert parts['take.apply'] <= parts['take'] and parts['run_once'] <= total, out
+    # the bytes and their write: the general way's publish (t = 0) or the direct one's
+    assert parts['bytes'] + parts['write'] <= parts['publish'] + parts['direct'], out
+    assert parts['direct.step'] <= parts['direct'] <= parts['held'] <= parts['command'], out
+    assert parts['command'] <= parts['take'] + parts['exchanges'], out
+    assert parts['exchanges'] <= parts['wait'] and parts['run_once'] <= total, out
 
 
 def test_lockstep_nodes_publish_synchronously(tmp_path):
@@ -417,3 +420,33 @@ def test_the_lockstep_benchmark_writes_its_target_rows():
         got[0]['note']
     got = targets_from([row(100.0, 90.0, 98.0)], [3.0, 4.0])
     assert [r['verdict'] for r in got] == ['PASS', 'MISS']
+
+
+def test_round_trips_read_the_cpu_clocks_only_now_and_then(monkeypatch):
+    """The simulator's CPU per exchange is a difference of CPU clocks over a window of
+    exchanges: the clocks (system calls, ~0.5 µs each hot) are read at the first
+    CPU_EVERY commands, then at every CPU_EVERY-th, not at every one (before: two reads
+    per exchange). The figure is the mean over the window, and the wall figures still
+    count every exchange."""
+    from rigid_body_sim.engine import lockstep
+    clock = {'cpu': 0.0, 'reads': 0, 'wall': 0.0}
+
+    def cpu():
+        clock['reads'] += 1
+        return clock['cpu']
+    monkeypatch.setattr(lockstep.time, 'process_time', cpu)
+    monkeypatch.setattr(lockstep.time, 'thread_time', lambda: clock['cpu'] / 2)
+    monkeypatch.setattr(lockstep.time, 'monotonic', lambda: clock['wall'])
+    trips = lockstep.RoundTrips()
+    n = 10 * lockstep.CPU_EVERY + 5
+    for _ in range(n):
+        trips.sent()
+        clock['wall'] += 1e-4  # 100 µs from state to command
+        clock['cpu'] += 7e-5   # 70 µs of CPU per exchange
+        trips.applied()
+    assert clock['reads'] == lockstep.CPU_EVERY + 9, clock
+    v = trips.values()
+    assert v['lockstep_exchanges'] == n
+    assert abs(v['lockstep_round_trip_wall_us'] - 100.0) < 1e-6, v
+    assert abs(v['lockstep_cpu_per_period_us'] - 70.0) < 1e-6, v
+    assert abs(v['lockstep_thread_cpu_per_period_us'] - 35.0) < 1e-6, v

@@ -140,10 +140,13 @@ def test_the_held_instants_command_takes_the_short_way(rclpy_node, simulator):
     command(0, z=float('nan'))       # not finite: general, rejected
     assert routed == ['other_frame', 'base_link'] and sim.lockstep_held is not None
     command(0)                       # the held instant's command: the short way
-    assert routed == ['other_frame', 'base_link'] and sim.lockstep_held is None
+    assert routed == ['other_frame', 'base_link']
     assert sim._crafts[''].engine.command.torque.tolist() == [0.0, 0.0, 0.01]
+    # released, and the next instant stepped to and held (in this call, as fast as
+    # possible: test_the_next_instant_is_stepped_to_and_published_at_once)
     sim.run_once()
     assert sim.t_ns == 20_000_000 and sim.lockstep_held is not None
+    held = sim.lockstep_held
     command(0)                       # answered already: general, stale
     command(60_000_000)              # not held: general, unexpected
     rejected = sim._crafts[''].commands.rejected
@@ -151,7 +154,81 @@ def test_the_held_instants_command_takes_the_short_way(rclpy_node, simulator):
         rejected['non_finite'] == 1 and rejected['lockstep_stale'] == 1 and \
         rejected['lockstep_unexpected'] == 1, rejected
     command(20_000_000, frame='')    # an empty frame is the body's: the short way
-    assert len(routed) == 4 and sim.lockstep_held is None
+    assert len(routed) == 4 and sim.lockstep_held != held, held
+
+
+def test_the_next_instant_is_stepped_to_and_published_at_once(rclpy_node, simulator,
+                                                              namespace):
+    """Lockstep as fast as possible: the held instant's command steps the engine to the
+    next instant in one compiled call, publishes its state and holds it, in the same call
+    (``_direct_exchange``), without ``Engine.advance`` (before, the loop's next turn went
+    through ``_advance``, ``Engine.advance`` and ``_publish``) or a one-sample block's
+    encoding (``_packers``). Every state topic, as a
+    subscriber receives it, equals that of a simulator doing the same exchanges the
+    general way (every field, stamps included)."""
+    from rigid_body_sim.nodes.simulator import Simulator
+    from stamp_checks import STATE_TOPICS
+    values = dict(lockstep=True, publish_clock=True, real_time_factor=0.0,
+                  integrator='splitting4', publish_rate=50.0, control_rate=50.0,
+                  lockstep_timeout=30.0, inertia=[2.0, 0.1, 0.0, 0.1, 3.0, 0.2, 0.0, 0.2, 4.0],
+                  initial_angular_velocity=[0.3, -0.2, 0.1])
+    direct = simulator(**values)
+    general = Simulator(namespace=namespace + '_general', parameter_overrides=[
+        Parameter(k, value=v) for k, v in values.items()])
+    general._direct_exchange = lambda craft: None  # the general way only
+    got = {}
+    try:
+        sims = (direct, general)
+        for sim in sims:
+            kinds = dict(sim._crafts[''].msgs.topics())  # {name: message}
+            for pub, name in sim._crafts[''].pubs:
+                if name in STATE_TOPICS:
+                    rclpy_node.create_subscription(
+                        type(kinds[name]), pub.topic_name,
+                        lambda m, key=(sim is direct, name): got.setdefault(key, []).append(m),
+                        1000)
+        assert spin_until(rclpy_node, lambda: all(
+            pub.get_subscription_count() > 0 for sim in sims
+            for pub, name in sim._crafts[''].pubs if name in STATE_TOPICS), 30)
+        calls, encoded = [], []
+        engine = direct._crafts[''].engine
+        advance = engine.advance
+        engine.advance = lambda *a, **k: (calls.append(a[0]), advance(*a, **k))[1]
+        msgs = direct._crafts[''].msgs
+        encode = msgs.encoded_block
+        msgs.encoded_block = lambda *a, **k: (encoded.append(1), encode(*a, **k))[1]
+        for sim in sims:
+            sim.run_once()  # t = 0, published and held
+            assert sim.lockstep_held is not None and sim.t_ns == 0
+        assert calls == [0]
+        exchanges = 40
+        for k in range(exchanges):
+            msg = Vector3Stamped()
+            msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(k * 20_000_000, NS)
+            msg.vector.x, msg.vector.z = 0.01 * (k % 3), -0.02 if k % 5 else 0.0
+            data = serialize_message(msg)
+            direct._on_torque_bytes(data)
+            # the next instant at once: stepped to, published, held
+            assert direct.t_ns == (k + 1) * 20_000_000 and direct.lockstep_held is not None
+            general._on_torque_bytes(data)
+            general.run_once()
+            assert general.t_ns == direct.t_ns and general.lockstep_held is not None
+        assert calls == [0], calls  # no Engine.advance after t = 0
+        # each topic packed from the row (_packers), not through a one-sample block
+        assert len(encoded) == 1, len(encoded)
+        topics = [name for _, name in direct._crafts[''].pubs if name in STATE_TOPICS]
+        assert len(topics) >= 9, topics
+        assert spin_until(rclpy_node, lambda: all(
+            len(got.get((side, name), [])) == exchanges + 1 for side in (True, False)
+            for name in topics), 60), {k: len(v) for k, v in got.items()}
+    finally:
+        general.destroy_node()
+    for name in topics:
+        assert got[(True, name)] == got[(False, name)], name
+    # and counted alike (diagnostics' messages_built)
+    assert direct._crafts[''].msgs.built() == general._crafts[''].msgs.built()
+    stamps = [m.header.stamp.sec * NS + m.header.stamp.nanosec for m in got[(True, 'odometry')]]
+    assert stamps == [k * 20_000_000 for k in range(exchanges + 1)]
 
 
 def test_lockstep_at_real_time_calls_the_engine_only_when_a_sample_is_due(rclpy_node,
@@ -185,8 +262,9 @@ def test_the_loop_waits_for_the_exchanges_command_itself(ros_process, simulator,
     """Lockstep as fast as possible with the controller (a real process): while an instant
     is held for the node's torque_command, the loop waits for it on its own (an rcl wait
     set of that subscription), never in a turn of the executor, which turns for the rest
-    without waiting, once per EXECUTOR_SLICE_S (sim_lockstep.py: why). Every instant is
-    answered. Before, each exchange's wait was a turn of the events executor."""
+    without waiting, once per EXECUTOR_SLICE_S (sim_lockstep.py: why); the exchanges
+    follow one another in a loop of their own, not a turn of ``run``'s loop each. Every
+    instant is answered. Before, each exchange's wait was a turn of the events executor."""
     import contextlib
     from ros_helpers import venv_exe
     from rigid_body_sim.nodes import simulator as node_module
@@ -216,9 +294,15 @@ def test_the_loop_waits_for_the_exchanges_command_itself(ros_process, simulator,
                 '--params-file', SCENE, '--params-file', str(over))
     sim = simulator(lockstep=True, publish_clock=True, real_time_factor=0.0,
                     publish_rate=100.0, control_rate=100.0, lockstep_timeout=30.0,
-                    duration=0.3, wait_for_subscribers_timeout=60.0)
+                    duration=1.0, wait_for_subscribers_timeout=60.0)
+    once, loop_turns = sim.run_once, []
+    sim.run_once = lambda: (loop_turns.append(1), once())[1]
     sim.run()
-    assert sim._round_trips.count == 30, sim._round_trips.summary()
+    assert sim._round_trips.count == 100, sim._round_trips.summary()
+    # the exchanges run in a loop of their own (_exchanges), back to run's loop for the
+    # executor, diagnostics and subscriber counts (before: a turn of it per exchange)
+    assert len(loop_turns) < 50, len(loop_turns)
+    assert sim.kernels_after_t0() == 0  # the direct period's too, loaded before t = 0
     held = [t for t, waiting in turns if waiting]
     assert all(t == 0.0 for t in held), held[:10]
 

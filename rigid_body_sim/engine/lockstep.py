@@ -86,43 +86,57 @@ def law_bandwidth(controller) -> float:
         return 0.0
 
 
+# the CPU clocks are read at the first CPU_EVERY exchanges, then at every CPU_EVERY-th:
+# each read is a system call (~0.45 µs hot, several on a loaded machine, for two clocks
+# per exchange), and the CPU per period is a difference over the window they span
+CPU_EVERY = 64
+
+
 class RoundTrips:
     """Sim-side cost of the exchanges: wall time from publishing a control instant's state
     to applying its command, and the simulator's CPU per control period (stepping,
     publishing and receiving included): the process's, and its own thread's (the rest is
-    the middleware's threads: with Fast DDS, most of it its asynchronous sender's)."""
+    the middleware's threads: with Fast DDS, most of it its asynchronous sender's),
+    averaged over the periods between the first and the last command whose CPU was read
+    (CPU_EVERY)."""
 
     def __init__(self):
         self.count = 0
         self.wall_total = self.wall_max = 0.0
-        self.cpu_total = self.thread_total = 0.0
         self._sent = None      # wall time when the held instant's state went out
-        self._applied = None   # (wall, cpu, thread cpu) of the previous command applied
+        self._first = self._last = None  # (exchanges, cpu, thread cpu) at two commands
 
     def sent(self):
-        self._sent = time.monotonic()  # (the CPU clocks are read once an exchange, below)
+        self._sent = time.monotonic()  # (the CPU clocks are read at commands, below)
 
     def applied(self):
-        wall, cpu, thread = time.monotonic(), time.process_time(), time.thread_time()
-        if self._sent is not None:
-            rt = wall - self._sent
-            self.count += 1
-            self.wall_total += rt
-            self.wall_max = max(self.wall_max, rt)
-            if self._applied is not None:
-                self.cpu_total += cpu - self._applied[1]
-                self.thread_total += thread - self._applied[2]
-        self._applied, self._sent = (wall, cpu, thread), None
+        wall = time.monotonic()
+        if self._sent is None:
+            return
+        rt = wall - self._sent
+        self.count = n = self.count + 1
+        self.wall_total += rt
+        if rt > self.wall_max:
+            self.wall_max = rt
+        self._sent = None
+        if n <= CPU_EVERY or not n % CPU_EVERY:
+            read = (n, time.process_time(), time.thread_time())
+            if self._first is None:
+                self._first = read
+            else:
+                self._last = read
 
     def values(self) -> dict:
         """Means in µs (CPU over the periods between two commands applied)."""
-        n = self.count
+        n, first, last = self.count, self._first, self._last
+        periods = last[0] - first[0] if last is not None else 0
         return {'lockstep_exchanges': n,
                 'lockstep_round_trip_wall_us': 1e6 * self.wall_total / n if n else 0.0,
                 'lockstep_round_trip_wall_max_us': 1e6 * self.wall_max,
-                'lockstep_cpu_per_period_us': 1e6 * self.cpu_total / (n - 1) if n > 1 else 0.0,
+                'lockstep_cpu_per_period_us':
+                    1e6 * (last[1] - first[1]) / periods if periods else 0.0,
                 'lockstep_thread_cpu_per_period_us':
-                    1e6 * self.thread_total / (n - 1) if n > 1 else 0.0}
+                    1e6 * (last[2] - first[2]) / periods if periods else 0.0}
 
     def summary(self) -> str:
         v = self.values()

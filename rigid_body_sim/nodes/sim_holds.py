@@ -14,12 +14,13 @@ SUBSCRIBER_SETTLE_S = 0.2
 class Holds:
     """Lockstep (module docstring of ``simulator.py``) and ``wait_for_subscribers``."""
 
-    def _hold(self) -> bool:
+    def _hold(self, awaiting=None) -> bool:
         """The state of control instant ``_instant`` is out: hold until every command
         for it (``_awaiting``: (spacecraft name, 'torque' | 'dipole') of each spacecraft in
-        the loop); False, and on to the next instant, if no spacecraft is in the loop."""
-        self._awaiting = {(c.name, kind) for c in self._crafts.values()
-                          for kind in c.awaited}
+        the loop, or ``awaiting``, a new set of them known already); False, and on to the
+        next instant, if no spacecraft is in the loop."""
+        self._awaiting = awaiting if awaiting is not None else {
+            (c.name, kind) for c in self._crafts.values() for kind in c.awaited}
         if not self._awaiting:
             self._instant += self._lockstep
             return False

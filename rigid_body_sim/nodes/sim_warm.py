@@ -6,6 +6,7 @@ and its diagnostics count what still came after t = 0 (``kernels_loaded_after_t0
 """
 import time
 
+from ..engine import lockstep_direct
 from ..engine.warm import warm_live
 from ..physics import jit
 
@@ -29,6 +30,8 @@ class Warming:
         for craft in kinds.values():
             try:
                 warm_live(craft.engine)
+                if self._lockstep and not craft.name:  # its direct period (sim_lockstep)
+                    lockstep_direct.warm_engine(craft.engine)
             except Exception as exc:  # noqa: BLE001 - the run itself reports its failure
                 self._log.warning(f'{craft.prefix}kernels not loaded before t = 0: '
                                   f'{type(exc).__name__}: {exc}')

@@ -176,13 +176,16 @@ class StateMessages:
         return {name: data[0] for name, data in
                 self._encode(block, [i], [block.values(i)], [stamp_ns], only).items()}
 
-    def encoded_block(self, block, stamps, only=None) -> dict:
+    def encoded_block(self, block, stamps, only=None, rows=None) -> dict:
         """{topic: [CDR bytes of each sample of ``block``]}, sample ``i`` stamped
         ``stamps[i]`` (ns): what ``encoded`` gives sample by sample, made a block at a
         time (as fast as possible the live node sends a block topic by topic: converting
         its rows at once and packing a topic's samples in one loop halved the Python of
-        a sample). ``only`` as for ``encoded``."""
-        return self._encode(block, range(len(block)), block_rows(block), stamps, only)
+        a sample). ``only`` as for ``encoded``. ``rows``: the samples' values computed
+        already (``SampleBlock.values`` each; lockstep's direct period, whose ``block``
+        is None: no wheels or CMGs)."""
+        return self._encode(block, range(len(stamps)),
+                            block_rows(block) if rows is None else rows, stamps, only)
 
     def _encode(self, block, index, rows, stamps, only):
         self.prepare()

@@ -7,9 +7,8 @@ controller process in lockstep), with the simulator built in this process so tha
 part of its loop can be timed: this thread's CPU (``time.thread_time``) around the engine's
 call, the state's bytes, their write, the command taken and applied, the wait, and the
 whole loop (``loop``: what neither ``run_once`` nor the wait spent), per exchange from
-t = 0 to the end. The parts nest (the bytes and the write
-are within ``publish``; applying the command within ``take``), and each timer adds
-~0.5 µs. Each run is a process of its own; figures: the runs' medians, with min-max.
+t = 0 to the end. The parts nest (``PARTS`` says how), and each timer adds ~0.5 µs. Each
+run is a process of its own; figures: the runs' medians, with min-max.
 """
 import argparse
 import json
@@ -23,14 +22,25 @@ import time
 from . import argument_parser, stop
 from .lockstep import SCENE, _exe, overrides
 
-# (label, module, class, method): what is timed, in the simulator's process
+# (label, module, class, method): what is timed, in the simulator's process. A command
+# (``command``: decoded, checked, applied) is taken at the top of a turn of the loop
+# (``take``, within ``run_once``) or, while an instant is held, by the exchanges' own loop
+# (``exchanges``, within ``wait``); as fast as possible the held instant's (``held``)
+# steps to and publishes the next instant at once (``direct``, ``direct.step`` its
+# engine's call: nodes/sim_lockstep.py). ``engine`` and ``publish`` are the general
+# way's (t = 0, and wherever the direct period declines); ``bytes`` and ``write`` are
+# within either ``publish`` or ``direct``.
 PARTS = (('engine', 'rigid_body_sim.engine.core', 'Engine', 'advance'),
          ('publish', 'rigid_body_sim.nodes.simulator', 'Simulator', '_publish'),
-         ('publish.bytes', 'rigid_body_sim.nodes.state_messages', 'StateMessages',
-          'encoded_block'),
-         ('publish.write', 'rigid_body_sim.nodes.spacecraft', 'Spacecraft', 'publish_states'),
          ('take', 'rigid_body_sim.nodes.simulator', 'Simulator', '_take_commands'),
-         ('take.apply', 'rigid_body_sim.nodes.simulator', 'Simulator', '_take_held'),
+         ('exchanges', 'rigid_body_sim.nodes.simulator', 'Simulator', '_exchanges'),
+         ('command', 'rigid_body_sim.nodes.simulator', 'Simulator', '_on_torque_bytes'),
+         ('held', 'rigid_body_sim.nodes.simulator', 'Simulator', '_take_held'),
+         ('direct', 'rigid_body_sim.nodes.simulator', 'Simulator', '_direct_exchange'),
+         ('direct.step', 'rigid_body_sim.engine.lockstep_direct', 'DirectPeriod', 'step'),
+         ('bytes', 'rigid_body_sim.nodes.state_messages', 'StateMessages',
+          'encoded_block'),
+         ('write', 'rigid_body_sim.nodes.spacecraft', 'Spacecraft', 'publish_states'),
          ('hold', 'rigid_body_sim.nodes.simulator', 'Simulator', '_hold'),
          ('wait', 'rigid_body_sim.nodes.simulator', 'Simulator', '_turn'),
          ('run_once', 'rigid_body_sim.nodes.simulator', 'Simulator', 'run_once'))
