@@ -20,15 +20,12 @@ process (``cli.main`` with the command's words, from the same directory): its ex
 and output are the same, without a new interpreter importing numba, ROS and matplotlib for
 each (issue 32: about 1 CPU-s a command). Anything else, and every node, runs in bash.
 """
-import contextlib
-import io
 import os
 import re
 import shlex
 import signal
 import subprocess
 import time
-import traceback
 from typing import List, NamedTuple
 
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
@@ -144,22 +141,10 @@ def cli_words(cmd: str, cwd: str):
 
 def _run_cli(cmd: str, words, cwd: str):
     """``cli.main`` on ``words`` from ``cwd``: (ok, what), as ``run`` says them."""
-    from rigid_body_sim import cli
-    out, here = io.StringIO(), os.getcwd()
-    os.chdir(cwd)
-    try:
-        with contextlib.redirect_stdout(out), contextlib.redirect_stderr(out):
-            try:
-                code = cli.main(words[1:])
-            except SystemExit as exc:  # argparse's errors and --help
-                code = exc.code if isinstance(exc.code, int) else (0 if exc.code is None
-                                                                   else 1)
-            except Exception:  # a traceback, as the process would print it, and exit 1
-                traceback.print_exc()
-                code = 1
-    finally:
-        os.chdir(here)
-    return code == 0, f'{cmd}: exit {code} (in process)\n{out.getvalue()}'
+    from cli_inprocess import run_cli
+    done = run_cli(*words[1:], cwd=cwd)
+    return done.returncode == 0, \
+        f'{cmd}: exit {done.returncode} (in process)\n{done.stdout}{done.stderr}'
 
 
 # what each long-running node logs once it has started

@@ -12,6 +12,7 @@ import sys
 
 import pytest
 
+from cli_inprocess import run_cli
 from ros_helpers import spin_until, venv_exe
 
 from rigid_body_sim import params_file, scene
@@ -129,10 +130,8 @@ def test_a_file_runs_offline_and_starts_the_node(tmp_path, key, ros_process, nam
     loaded = scene.load(path, namespace=namespace if named_ns else '/')
     assert loaded.simulator['accuracy'] == 1e-06 and loaded.simulator['step'] == 1.0
     assert loaded.simulator['initial_angular_velocity'] == [0.1, 0.7, -0.2]
-    out = subprocess.run([venv_exe('rigid-body-sim'), 'run', path, '--duration', '1',
-                          '--json', '--no-bag', '--no-plots', '--out', str(tmp_path / 'o')]
-                         + (['--namespace', namespace] if named_ns else []),
-                         capture_output=True, text=True, timeout=300)
+    out = run_cli('run', path, '--duration', '1', '--json', '--no-bag', '--no-plots',
+                  '--out', tmp_path / 'o', *(['--namespace', namespace] if named_ns else []))
     assert out.returncode == 0, out.stderr
     if key.startswith('/**') or named_ns:
         ns_args = ['-r', f'__ns:={namespace}']
