@@ -80,13 +80,11 @@ def warm_scenes() -> int:
     return runs
 
 
-def _warm_scenes_once() -> None:
-    """:func:`warm_scenes` unless it ran for these sources and this numba already (its
-    stamp beside auto's calibration): ``make test`` calls the setup each time, and the
-    runs cost ~1.5 CPU-s even from a warm cache."""
+def sources_digest() -> str:
+    """sha256 of the package's sources (.py, .yaml) and numba's version: what a result
+    kept beside the kernels' cache was computed for."""
     import hashlib
     import numba
-    from .physics.auto import calibration
     package = os.path.dirname(os.path.abspath(__file__))
     digest = hashlib.sha256(f'numba {numba.__version__}'.encode())
     for root, dirs, files in sorted(os.walk(package)):
@@ -95,10 +93,19 @@ def _warm_scenes_once() -> None:
             digest.update(name.encode())
             with open(os.path.join(root, name), 'rb') as f:
                 digest.update(f.read())
+    return digest.hexdigest()
+
+
+def _warm_scenes_once() -> None:
+    """:func:`warm_scenes` unless it ran for these sources and this numba already (its
+    stamp beside auto's calibration): ``make test`` calls the setup each time, and the
+    runs cost ~1.5 CPU-s even from a warm cache."""
+    from .physics.auto import calibration
+    digest = sources_digest()
     stamp = os.path.join(calibration.cache_dir(), 'scenes_warmed.sha256')
     try:
         with open(stamp, encoding='utf-8') as f:
-            if f.read().strip() == digest.hexdigest():
+            if f.read().strip() == digest:
                 return
     except OSError:
         pass
@@ -106,7 +113,7 @@ def _warm_scenes_once() -> None:
     try:
         os.makedirs(os.path.dirname(stamp), exist_ok=True)
         with open(stamp, 'w', encoding='utf-8') as f:
-            f.write(digest.hexdigest() + '\n')
+            f.write(digest + '\n')
     except OSError:
         pass  # a read-only install: warmed again next time, nothing lost
 

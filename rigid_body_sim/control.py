@@ -367,3 +367,17 @@ class Mission:
             return False, 'slew'
         return False, None
 
+
+def slew_begins(s, free_end, controller) -> float:
+    """When the slew began (s; inf if not): at the end of the free phase in slew mode,
+    else at the first sample after it with |ω| below mission.detumble_exit_rate (the
+    figure marks it, the demo's summary prints it)."""
+    t = np.asarray(s['t'])
+    w = np.linalg.norm(s['angular_velocity'], axis=1)
+    active = t >= (free_end if np.isfinite(free_end) else t[0])
+    exit_rate = controller.get('mission.detumble_exit_rate', 0.0)
+    if controller['mode'] == 'slew' and np.any(active):
+        return float(t[np.argmax(active)])
+    if exit_rate > 0 and np.any(active & (w < exit_rate)):
+        return float(t[np.argmax(active & (w < exit_rate))])
+    return np.inf

@@ -167,7 +167,7 @@ def summarize(scene, bag, out, watcher, target, failed, logs, interrupted, prefi
         samples, free_end = bag_samples(bag, scene, prefix)
     except BagError as exc:
         bag_error = exc
-    from .plots.story import slew_begins
+    from .control import slew_begins  # not from plots: they import numba (issue 32)
     slew = slew_begins(samples, free_end, scene.controller) \
         if samples is not None and scene.controlled else np.inf
     print('demo: summary' + (' (interrupted)' if interrupted else ''))

@@ -18,6 +18,7 @@
 :func:`node_parameters` returns a node's flattened parameters (``a: {b: 1}`` → ``a.b``),
 with the section each came from, so an error can name the file, the section and the key.
 """
+import copy
 import math
 import re
 from dataclasses import dataclass
@@ -77,6 +78,14 @@ def scalar(text: str, style, tag) -> Any:
     return text
 
 
+# Documents already parsed, by (path, text): a scene's loading reads its file ~6 times
+# (each node's section, the overrides) and a demo ~30, at ~4 ms of pure-Python YAML each
+# (issue 32). Keyed on the text, so an edited file is parsed again; each caller gets its
+# own copy to change.
+_PARSED: Dict[Tuple[str, str], Any] = {}
+_PARSED_MAX = 64
+
+
 def _tree(path: str, text: str = None):
     """The YAML document (file ``path``, or ``text``) as nested dicts/lists with typed
     scalars (from parser events, so that quoting and explicit tags are seen as rcl sees
@@ -84,13 +93,27 @@ def _tree(path: str, text: str = None):
     try:
         if text is None:
             with open(path, encoding='utf-8') as f:
-                events = list(yaml.parse(f))
-        else:
-            events = list(yaml.parse(text))
+                text = f.read()
+        key = (path, text)
+        if key in _PARSED:
+            return copy.deepcopy(_PARSED[key])
+        events = list(yaml.parse(text))
     except OSError as exc:
         raise ParamsFileError(f'{path}: {exc.strerror}') from None
+    except UnicodeDecodeError as exc:
+        raise ParamsFileError(f'{path}: not UTF-8 text ({exc.reason} at byte '
+                              f'{exc.start})') from None
     except yaml.YAMLError as exc:
         raise ParamsFileError(f'{path}: not valid YAML: {str(exc).splitlines()[0]}') from None
+    root = _build(path, events)
+    if len(_PARSED) >= _PARSED_MAX:
+        _PARSED.clear()
+    _PARSED[key] = root
+    return copy.deepcopy(root)
+
+
+def _build(path: str, events):
+    """The tree of parser ``events`` (see _tree)."""
     stack: List[Any] = []
     keys: List[Any] = []
     root = None

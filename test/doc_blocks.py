@@ -4,8 +4,9 @@ Convention (CONTRIBUTING.md): every ```sh fence is preceded by a marker line,
 - ``<!-- runnable -->``: each command runs and must exit 0;
 - ``<!-- runnable: ready="TEXT" -->``: each command runs until it prints TEXT (a node that
   runs until Ctrl-C), then gets SIGINT and must exit 0;
-- ``<!-- runnable: append="--duration 2" -->``: appended to each ``rigid-body-sim`` command
-  that does not give that option itself (short runs);
+- ``<!-- runnable: append="--duration 2" -->``: appended to each ``rigid-body-sim run`` or
+  ``demo`` command that does not give that option itself (short runs), before the line's
+  comment (after it, bash never saw it: the blocks ran their full durations);
 - ``<!-- not-runnable: REASON -->``: shown only (needs ros2cli, sudo, a cluster, minutes).
 A node (``ros2 run rigid_body_sim simulator|controller|recorder|viewer|replay``) needs no
 ``ready``: it has started once it logs its first line (``READY``), then gets SIGINT; a node
@@ -13,6 +14,11 @@ that ends by itself before then must have logged that line and exited 0.
 Commands run from a fresh directory holding links to the repository's ``.venv`` and
 ``config``; ``ros2 run rigid_body_sim EXE`` runs the venv's ``lib/rigid_body_sim/EXE``, the
 executable colcon installs under that name.
+
+A plain ``rigid-body-sim`` command (no pipe, redirection, variable or glob) runs in this
+process (``cli.main`` with the command's words, from the same directory): its exit status
+and output are the same, without a new interpreter importing numba, ROS and matplotlib for
+each (issue 32: about 1 CPU-s a command). Anything else, and every node, runs in bash.
 """
 import os
 import re
@@ -93,13 +99,52 @@ def doc_files() -> List[str]:
     return [p for p in out if os.path.exists(os.path.join(REPO, p))]
 
 
+def _code_and_comment(command: str):
+    """``command`` split before its shell comment (a ``#`` starting a word, outside quotes):
+    (code, comment), the comment '' or starting with its whitespace."""
+    for m in re.finditer(r'\s#', command):
+        head = command[:m.start()]
+        try:
+            shlex.split(head)
+        except ValueError:  # inside quotes
+            continue
+        return head.rstrip(), command[len(head.rstrip()):]
+    return command, ''
+
+
 def shell_command(command: str, options: dict) -> str:
     """The command as the runner runs it (see the module docstring)."""
     command = re.sub(r'\bros2 run rigid_body_sim (\S+)', r'.venv/lib/rigid_body_sim/\1', command)
     extra = options.get('append', '')
-    if extra and 'rigid-body-sim ' in command and extra.split()[0] not in command.split():
-        command = f'{command} {extra}'
+    code, comment = _code_and_comment(command)
+    if extra and re.search(r'rigid-body-sim (run|demo) ', code + ' ') and \
+            extra.split()[0] not in code.split():
+        command = f'{code} {extra}{comment}'
     return command
+
+
+def cli_words(cmd: str, cwd: str):
+    """The words of ``cmd`` if it is a plain ``rigid-body-sim`` command that the runner
+    runs in this process (see the module docstring), else None."""
+    code, _ = _code_and_comment(cmd)
+    if re.search(r'[|&;<>$`*?(){}\\]', code):  # shell syntax: bash runs it
+        return None
+    try:
+        words = shlex.split(code)
+    except ValueError:
+        return None
+    if not words or os.path.basename(words[0]) != 'rigid-body-sim' or \
+            not os.access(os.path.join(cwd, words[0]), os.X_OK):
+        return None
+    return words
+
+
+def _run_cli(cmd: str, words, cwd: str):
+    """``cli.main`` on ``words`` from ``cwd``: (ok, what), as ``run`` says them."""
+    from cli_inprocess import run_cli
+    done = run_cli(*words[1:], cwd=cwd)
+    return done.returncode == 0, \
+        f'{cmd}: exit {done.returncode} (in process)\n{done.stdout}{done.stderr}'
 
 
 # what each long-running node logs once it has started
@@ -118,6 +163,9 @@ def make_workdir(tmp: str) -> str:
 def run(command: str, options: dict, cwd: str, timeout: float = 90.0):
     """Run one command; returns (ok, what happened with its output)."""
     cmd = shell_command(command, options)
+    words = cli_words(cmd, cwd)
+    if words is not None:
+        return _run_cli(cmd, words, cwd)
     proc = subprocess.Popen(['bash', '-c', cmd], cwd=cwd, stdout=subprocess.PIPE,
                             stderr=subprocess.STDOUT, start_new_session=True)
     node = re.match(r'ros2 run rigid_body_sim (\S+)', command)

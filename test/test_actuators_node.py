@@ -89,15 +89,11 @@ def test_offline_run_records_joint_states_and_plots_the_actuators(tmp_path):
     every sample, and the speeds of the run; actuators.png is written; the run says that
     the skewed wheel's axis given as (1, 1, 1) was normalised."""
     import os
-    import subprocess
+    from cli_inprocess import run_cli
     from mcap_ros2.reader import read_ros2_messages
-    from ros_helpers import venv_exe
     config = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), 'config')
-    out = subprocess.run([venv_exe('rigid-body-sim'), 'run',
-                          os.path.join(config, 'wheel_slew.yaml'), '--duration', '5',
-                          '--out', str(tmp_path),
-                          '--set', 'actuators.wheels.axes=[1,0,0,0,1,0,0,0,1,1,1,1]'],
-                         capture_output=True, text=True, timeout=120, env=dict(os.environ))
+    out = run_cli('run', os.path.join(config, 'wheel_slew.yaml'), '--duration', '5',
+                  '--out', tmp_path, '--set', 'actuators.wheels.axes=[1,0,0,0,1,0,0,0,1,1,1,1]')
     assert out.returncode == 0, out.stderr
     assert 'rw_skew' in out.stderr and 'normalised' in out.stderr
     assert (tmp_path / 'actuators.png').stat().st_size > 10_000

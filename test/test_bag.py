@@ -263,3 +263,26 @@ def test_chunk_indexes_are_held_packed_and_the_file_is_unchanged(tmp_path, monke
         return (sys.getsizeof(index) + sys.getsizeof(index.__dict__) + sys.getsizeof(d)
                 + sum(sys.getsizeof(v) for v in d.values()))
     assert sum(map(size, held)) * 4 < sum(map(size, plain))
+
+
+def test_the_source_revision_is_read_without_taking_the_index_lock(monkeypatch):
+    """The bag's run configuration names the checkout's commit (+dirty). `git status`
+    refreshes the index under .git/index.lock unless told not to: a git killed meanwhile
+    (its 2 s timeout on a loaded machine, a recorder's group SIGKILLed) left the lock in
+    the user's checkout, and every later git command there failed."""
+    from rigid_body_sim.bag import writer
+    seen = []
+    real = subprocess.run
+
+    def run(args, *a, **k):
+        seen.append(list(args))
+        return real(args, *a, **k)
+    monkeypatch.setattr(writer.subprocess, 'run', run)
+    writer.git_revision.cache_clear()
+    try:
+        revision = writer.git_revision()
+    finally:
+        writer.git_revision.cache_clear()
+    status = [a for a in seen if 'status' in a]
+    assert status and all('--no-optional-locks' in a for a in status), seen
+    assert revision is None or len(revision.split('+')[0]) == 40, revision

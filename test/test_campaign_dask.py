@@ -13,6 +13,7 @@ import pyarrow.parquet as pq
 import pytest
 
 from campaign_helpers import CLI, SHORT, cli, rows_equal, spec_for
+from cli_inprocess import run_cli
 from rigid_body_sim.campaign import store
 from rigid_body_sim.campaign.runner import run_one
 
@@ -50,14 +51,15 @@ def test_local_cluster_campaign_writes_dataset_summary_plots_and_reruns(tmp_path
     rows = _read_rows(out)
     for k in (0, 13, 23):
         assert rows_equal(run_one(spec, k), rows[k]) == []
-    again = cli(*args, '--rerun', '13')
+    # the rest in this process (not about Dask: the rerun and the refusal start no cluster)
+    again = run_cli('campaign', *args, '--rerun', '13')
     assert again.returncode == 0 and 'identical to the stored row' in again.stderr
     assert json.loads(again.stdout)['run_id'] == 13
     other = [('12' if a == '11' else a) for a in args]  # another seed: another campaign
-    mismatch = cli(*other, '--rerun', '13')
+    mismatch = run_cli('campaign', *other, '--rerun', '13')
     assert mismatch.returncode == 0 and 'differs from this command in: seed' in mismatch.stderr
     # a finished campaign is not silently overwritten
-    assert cli(*args).returncode == 2
+    assert run_cli('campaign', *args).returncode == 2
 
 
 def _free_port():

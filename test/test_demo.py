@@ -12,6 +12,8 @@ from pathlib import Path
 
 import pytest
 
+from test_viewer import _wait_port, client_js, run_client  # noqa: F401
+
 REPO = Path(__file__).resolve().parent.parent
 
 
@@ -21,17 +23,37 @@ def _free_port():
         return s.getsockname()[1]
 
 
-def test_make_demo_runs_the_live_graph_and_records_a_bag(tmp_path):
+def test_make_demo_runs_the_live_graph_and_records_a_bag(tmp_path, client_js):  # noqa: F811
+    """`make demo`: the whole live graph, its summary and bag; and its viewer, to which a
+    Foxglove client connects (test_viewer's own demo run, 17 CPU-s, folded in here)."""
     # DEMO_DURATION counts simulated seconds from the first sample: 24 s is past the 17 s
     # free phase (one full flip) and into the control phases
     # the viewer on a free port: a demo of another test session may hold 8765, and a demo
     # whose viewer is lost exits 1
-    out = subprocess.run(['make', '-C', str(REPO), 'demo', 'DEMO_DURATION=24',
-                          f'DEMO_OUT={tmp_path}'], capture_output=True, text=True, timeout=240,
-                         env=dict(os.environ, DEMO_VIEWER_PORT=str(_free_port())))
+    port = _free_port()
+    demo = subprocess.Popen(['make', '-C', str(REPO), 'demo', 'DEMO_DURATION=24',
+                             f'DEMO_OUT={tmp_path}'], stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True, start_new_session=True,
+                            env=dict(os.environ, DEMO_VIEWER_PORT=str(port)))
+    try:
+        _wait_port(port, 120.0)
+        # the viewer's port opens before the simulator's t = 0 (it holds t = 0 until the
+        # recorder and the controller are matched): 30 s of listening sees samples
+        (viewed,) = run_client(client_js, port, 30.0, '--subscribe', '/tf,/state')
+        stdout, stderr = demo.communicate(timeout=240)
+    finally:
+        if demo.poll() is None:
+            os.killpg(demo.pid, signal.SIGKILL)
+            demo.wait()
+    out = subprocess.CompletedProcess(demo.args, demo.returncode, stdout, stderr)
     assert out.returncode == 0, out.stdout[-3000:] + out.stderr[-3000:]
     text = out.stdout
     assert 'Traceback' not in text + out.stderr
+    assert f'open ws://127.0.0.1:{port} in Foxglove' in text, text[-3000:]
+    assert viewed['counts'].get('/tf', 0) > 0 and viewed['counts'].get('/state', 0) > 0, \
+        viewed['counts']
+    viewer_log = (tmp_path / 'viewer.log').read_text()
+    assert 'Traceback' not in viewer_log and 'body: principal moments' in viewer_log, viewer_log
     assert 'nan' not in text.lower(), text  # the status line shows nothing before a sample
     ended = re.search(r'ended at t = ([0-9.]+) s \(sim time\) in the (\w+) phase', text)
     # the simulator ends the run at --duration itself: the summary's end is the bag's

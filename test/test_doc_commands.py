@@ -57,3 +57,31 @@ def test_markers_and_options_are_parsed(tmp_path):
         'x/rigid-body-sim run a --duration 5'
     assert doc_blocks.shell_command('ros2 run rigid_body_sim simulator', short) == \
         '.venv/lib/rigid_body_sim/simulator'
+    # before the comment (after it bash never saw it), and only where the option exists
+    assert doc_blocks.shell_command("x/rigid-body-sim run a --set 'b=#1'  # c --d", short) == \
+        "x/rigid-body-sim run a --set 'b=#1' --duration 2  # c --d"
+    assert doc_blocks.shell_command('x/rigid-body-sim scenes  # one line each', short) == \
+        'x/rigid-body-sim scenes  # one line each'
+
+
+def test_a_plain_cli_command_runs_in_process_and_shell_syntax_in_bash(tmp_path, monkeypatch):
+    """A `rigid-body-sim` command runs in this process (no interpreter start-up per
+    command, issue 32), with its exit status and output; a pipe or variable goes to bash."""
+    import subprocess
+
+    import doc_blocks
+    cwd = make_workdir(str(tmp_path))
+    assert doc_blocks.cli_words('.venv/bin/rigid-body-sim run a --set "w=[1, 2]"  # x', cwd) \
+        == ['.venv/bin/rigid-body-sim', 'run', 'a', '--set', 'w=[1, 2]']
+    for shell in ('.venv/bin/rigid-body-sim scenes | head -1', 'x=1 .venv/bin/rigid-body-sim',
+                  '.venv/bin/rigid-body-sim run $SCENE', '.venv/bin/rigid-body-sim > f',
+                  '.venv/lib/rigid_body_sim/simulator', 'missing/rigid-body-sim scenes'):
+        assert doc_blocks.cli_words(shell, cwd) is None, shell
+
+    def no_process(*args, **kwargs):
+        raise AssertionError(f'a process was started: {args}')
+    monkeypatch.setattr(subprocess, 'Popen', no_process)
+    ok, what = run('.venv/bin/rigid-body-sim scenes', {}, cwd)
+    assert ok and 'tennis_racket' in what and 'exit 0' in what, what
+    ok, what = run('.venv/bin/rigid-body-sim run no_such_scene --duration 1', {}, cwd)
+    assert not ok and 'no_such_scene' in what and 'Traceback' not in what, what

@@ -1,5 +1,5 @@
-"""--help (the CLI's, the nodes', the bench's and every tool's), parsing a scene file and
-checking parameters never import numba (issue 32).
+"""--help (the CLI's, the nodes', the bench's and every tool's), parsing a scene file,
+checking parameters and the demo's summary without plots never import numba (issue 32).
 
 numba's start-up (~0.35 CPU-s, with the scipy.linalg it imports) was paid by every --help
 and every refused input: the specs took constants from the kernels' modules. Those now
@@ -70,6 +70,13 @@ for tool in TOOLS:
 for scene in ('tennis_racket', 'wheel_slew', 'cmg_slew', 'slew'):
     step(f'parse the scene file {scene}', load(scene))
 step('a refused scene value', refused)
+
+def demo_summary_without_plots():  # `demo --no-plots`: the summary needs no kernel
+    from rigid_body_sim import demo_summary
+    from rigid_body_sim.scene import load
+    demo_summary.summarize(load('slew', [], '/'), '/nonexistent/bag', '/tmp', None, None, {},
+                           {'recorder': 'recorder.log'}, False, plots=False)
+step('the demo summary without plots', demo_summary_without_plots)
 print(json.dumps([len(TOOLS), steps]))
 '''
 
@@ -79,7 +86,7 @@ def test_help_and_scene_parsing_do_not_import_numba():
                          timeout=120)
     assert out.returncode == 0, out.stderr
     tools, steps = json.loads(out.stdout.strip().splitlines()[-1])
-    assert tools >= 15 and len(steps) == 16 + tools, steps
+    assert tools >= 15 and len(steps) == 17 + tools, steps
     first = next((name for name, loaded in steps if loaded), None)
     assert first is None, f'{first} imported numba'
 

@@ -5,6 +5,7 @@ import math
 import os
 
 import numpy as np
+from cli_inprocess import run_cli
 from ros_helpers import spin_until, venv_exe
 from scipy.spatial.transform import Rotation
 
@@ -102,13 +103,10 @@ def test_orbit_topics_carry_the_orbit_its_frame_and_the_torque(ros_process, name
 def test_an_offline_bag_carries_the_orbit_topics(tmp_path):
     """rigid-body-sim run writes the live node's orbit topics into the bag, stamped with sim
     time: the Kepler position at each sample and the torque for that sample's attitude."""
-    import subprocess
     from rclpy.serialization import deserialize_message
     from rigid_body_sim.bag.reader import iter_messages
     out = tmp_path / 'run'
-    proc = subprocess.run([venv_exe('rigid-body-sim'), 'run', 'gravity_gradient', '--duration',
-                           '200', '--no-plots', '--out', str(out)], capture_output=True,
-                          text=True, timeout=300)
+    proc = run_cli('run', 'gravity_gradient', '--duration', '200', '--no-plots', '--out', out)
     assert proc.returncode == 0, proc.stderr
     scene = load(os.path.join(REPO, 'config', 'gravity_gradient.yaml'))
     o = EngineConfig.from_parameters(scene.simulator).environment.orbit
@@ -155,14 +153,11 @@ def test_an_offline_bag_carries_the_sum_of_the_environments_torques(tmp_path):
     """explorer1_orbit (gravity gradient + drag on six facets): environment_torque at each
     sample is 3μ/r³ ĉ × (Iĉ) plus Σ r_cp × F_drag, both from the closed forms for the
     attitude recorded at the same stamp (the drag dominates near perigee)."""
-    import subprocess
     from rclpy.serialization import deserialize_message
     from rigid_body_sim.bag.reader import iter_messages
     from rigid_body_sim.physics.environment import facets as fm
     out = tmp_path / 'run'
-    proc = subprocess.run([venv_exe('rigid-body-sim'), 'run', 'explorer1_orbit', '--duration',
-                           '5', '--no-plots', '--out', str(out)], capture_output=True,
-                          text=True, timeout=300)
+    proc = run_cli('run', 'explorer1_orbit', '--duration', '5', '--no-plots', '--out', out)
     assert proc.returncode == 0, proc.stderr
     config = EngineConfig.from_parameters(load(os.path.join(
         REPO, 'config', 'explorer1_orbit.yaml')).simulator)

@@ -12,6 +12,7 @@ import sys
 
 import pytest
 
+from cli_inprocess import run_cli
 from ros_helpers import spin_until, venv_exe
 
 from rigid_body_sim import params_file, scene
@@ -129,10 +130,8 @@ def test_a_file_runs_offline_and_starts_the_node(tmp_path, key, ros_process, nam
     loaded = scene.load(path, namespace=namespace if named_ns else '/')
     assert loaded.simulator['accuracy'] == 1e-06 and loaded.simulator['step'] == 1.0
     assert loaded.simulator['initial_angular_velocity'] == [0.1, 0.7, -0.2]
-    out = subprocess.run([venv_exe('rigid-body-sim'), 'run', path, '--duration', '1',
-                          '--json', '--no-bag', '--no-plots', '--out', str(tmp_path / 'o')]
-                         + (['--namespace', namespace] if named_ns else []),
-                         capture_output=True, text=True, timeout=300)
+    out = run_cli('run', path, '--duration', '1', '--json', '--no-bag', '--no-plots',
+                  '--out', tmp_path / 'o', *(['--namespace', namespace] if named_ns else []))
     assert out.returncode == 0, out.stderr
     if key.startswith('/**') or named_ns:
         ns_args = ['-r', f'__ns:={namespace}']
@@ -339,3 +338,25 @@ def test_the_node_warns_when_the_last_value_given_is_not_in_effect(tmp_path):
         tmp_path, 'same.yaml', '/**/attitude_simulator:\n  ros__parameters:\n'
         '    duration: 12.0\n')]) == []
     assert lines(['--params-file', second, '-p', 'duration:=6.0']) == []
+
+
+def test_a_file_is_parsed_once_while_its_text_is_the_same(tmp_path, monkeypatch):
+    """A scene's loading reads its file ~6 times and a demo ~30 (issue 32): the YAML is
+    parsed once per text. Each reader gets its own copy; an edited file is parsed again;
+    a file that is not UTF-8 is refused by name."""
+    import yaml
+    parses = []
+    real = yaml.parse
+    monkeypatch.setattr(yaml, 'parse', lambda text: parses.append(text) or real(text))
+    path = _write(tmp_path, 'p.yaml', '/**:\n  ros__parameters:\n    a: 1.0\n')
+    first = params_file._tree(path)
+    first['/**']['ros__parameters']['a'] = 5.0  # one reader's change is its own
+    assert params_file._tree(path) == {'/**': {'ros__parameters': {'a': 1.0}}}
+    assert len(parses) == 1
+    _write(tmp_path, 'p.yaml', '/**:\n  ros__parameters:\n    a: 2.0\n')
+    assert params_file._tree(path) == {'/**': {'ros__parameters': {'a': 2.0}}}
+    assert len(parses) == 2
+    bad = tmp_path / 'bad.yaml'
+    bad.write_bytes(b'a: \xff\n')
+    with pytest.raises(params_file.ParamsFileError, match='bad.yaml: not UTF-8 text'):
+        params_file._tree(str(bad))

@@ -321,9 +321,8 @@ def test_bad_scene_files_fail_with_file_key_and_reason(case, tmp_path, capsys):
 
 def test_offline_run_json_and_outputs(tmp_path):
     """`run --json` prints one object with the documented keys; the bag opens in rosbags."""
-    out = subprocess.run([CLI, 'run', 'symmetric_top', '--duration', '2', '--out', str(tmp_path),
-                          '--json'],
-                         capture_output=True, text=True, timeout=120)
+    from cli_inprocess import run_cli
+    out = run_cli('run', 'symmetric_top', '--duration', '2', '--out', tmp_path, '--json')
     assert out.returncode == 0, out.stderr
     summary = json.loads(out.stdout)
     for key in ('scene', 'integrator', 'reason', 'duration', 'steps', 'cpu_seconds', 'initial',

@@ -36,3 +36,25 @@ def test_a_loop_that_pays_for_the_term_when_it_is_off_is_caught():
                                     (np.array([0.0, 0.0, 0.0, 1.0]), 1.0))])
     off, on = found['always']
     assert 'eccentric_anomaly' in off and 'gravity_gradient' in on
+
+
+def test_the_bench_keeps_the_search_for_the_sources_it_read(tmp_path, monkeypatch):
+    """The bench's section searches once per version of the sources (and numba): its answer
+    is kept beside the kernels' cache (issue 32: ~8 CPU-s a bench run), read back while the
+    sources are the same, searched again once they change."""
+    from rigid_body_sim import compiled
+    from rigid_body_sim.physics.auto import calibration
+    monkeypatch.setattr(calibration, 'cache_dir', lambda: str(tmp_path))
+    sources = ['one']
+    monkeypatch.setattr(compiled, 'sources_digest', lambda: sources[0])
+    searches = []
+
+    def search():
+        searches.append(sources[0])
+        return {'rk4_run': ((), ('gravity_gradient', 'eccentric_anomaly'))}
+    monkeypatch.setattr(term_off, 'inspect_code', search)
+    answer = {'rk4_run': ((), ('gravity_gradient', 'eccentric_anomaly'))}
+    assert term_off.inspect_code_kept() == answer and searches == ['one']
+    assert term_off.inspect_code_kept() == answer and searches == ['one']  # kept
+    sources[0] = 'two'
+    assert term_off.inspect_code_kept() == answer and searches == ['one', 'two']

@@ -234,8 +234,8 @@ def test_bad_parameters_stop_the_viewer_with_the_reason(override, reason):
 
 # The tests without the module's graph (`live`) come first: a module fixture lives until
 # the module ends, and the simulator and viewer it runs (50 Hz) cost CPU all along. The
-# demo test stays after the graph's tests, beside its simulator (another graph in the
-# domain, as users have).
+# demo's viewer is tested by test_demo's make-demo test (a client connects to it), and
+# another graph in the domain by test_demo's test_another_simulator_in_the_domain.
 
 @pytest.fixture(scope='module')
 def live():
@@ -384,30 +384,3 @@ def test_port_in_use_is_a_clear_error_and_the_simulator_runs_on(live):
     n = len(probe.attitude)
     assert probe.spin(5.0, lambda: len(probe.attitude) > n + RATE)
     assert live['sim'].poll() is None and live['viewer'].poll() is None
-
-
-def test_demo_starts_the_viewer_and_prints_its_url(client_js, tmp_path):
-    port = _free_port()
-    cli = os.path.join(os.path.dirname(sys.executable), 'rigid-body-sim')
-    # 10 s of sim time: the client below listens 20 s from the port's opening, so it sees
-    # samples from t = 0 on whether or not the run outlasts it (the graph's 15 s more of
-    # real time cost ~13 CPU-s and asserted nothing more; 4 s was too short at load 12: the
-    # client, starting after the port opened, connected after the run had ended)
-    demo = subprocess.Popen([cli, 'demo', '--duration', '10', '--out', str(tmp_path),
-                             '--viewer-port', str(port), '--no-plots'], stdout=subprocess.PIPE,
-                            stderr=subprocess.STDOUT, text=True, start_new_session=True)
-    try:
-        _wait_port(port, 90.0)
-        # the viewer's port opens before the simulator's t = 0 (it holds t = 0 until the
-        # recorder and the controller are matched): listen long enough to see samples
-        (s,) = run_client(client_js, port, 20.0, '--subscribe', '/tf,/state')
-    finally:
-        out, _ = demo.communicate(timeout=120)
-    assert demo.returncode == 0, out[-3000:]
-    # the whole run, not one cut short (the module's own simulator, in another namespace,
-    # once gave the demo its time origin: it stopped at its first sample with 0)
-    assert 'ended at t = 10.00 s' in out, out[-3000:]
-    assert f'open ws://127.0.0.1:{port} in Foxglove' in out
-    assert s['counts'].get('/tf', 0) > 0 and s['counts'].get('/state', 0) > 0, s['counts']
-    log = (tmp_path / 'viewer.log').read_text()
-    assert 'Traceback' not in log and 'body: principal moments' in log, log

@@ -46,7 +46,12 @@ def git_revision() -> str | None:
     try:
         rev = subprocess.run(['git', '-C', src, 'rev-parse', 'HEAD'], capture_output=True,
                              text=True, timeout=2, check=True).stdout.strip()
-        dirty = subprocess.run(['git', '-C', src, 'status', '--porcelain', '-uno'],
+        # --no-optional-locks: status refreshes the index under .git/index.lock, and a git
+        # killed meanwhile (the timeout; a recorder's process group SIGKILLed) left that
+        # lock in the user's checkout: every later git command there failed (a loaded
+        # make test once left one)
+        dirty = subprocess.run(['git', '--no-optional-locks', '-C', src, 'status',
+                                '--porcelain', '-uno'],
                                capture_output=True, text=True, timeout=2).stdout.strip()
     except (OSError, subprocess.SubprocessError):
         return None

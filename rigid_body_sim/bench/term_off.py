@@ -16,8 +16,12 @@ the same run as after it:
   for env None and for an element array, and its LLVM IR searched for the term's
   functions (TERM_SYMBOLS): the None specialisation must name none of them, the array one
   must (else the search proves nothing). ``dop853``'s loop (its dense output) is not
-  searched here; the CPU rows cover the methods the scenes run.
+  searched here; the CPU rows cover the methods the scenes run. The section keeps the
+  search's answer beside the kernels' cache for the sources it read (``compiled.
+  sources_digest``): compiling ten loop versions afresh costs ~8 CPU-s, and the answer
+  only changes with the sources or numba (test_term_off.py searches afresh each time).
 """
+import json
 import math
 import os
 
@@ -119,6 +123,32 @@ def inspect_code(loops=None):
     return found
 
 
+def inspect_code_kept():
+    """:func:`inspect_code` of the engine's loops, from the answer kept for these sources
+    and this numba when there is one (written here otherwise)."""
+    from .. import compiled
+    from ..physics import jit
+    from ..physics.auto import calibration
+    if not jit.COMPILED:
+        return None
+    path = os.path.join(calibration.cache_dir(), 'term_off_code.json')
+    digest = compiled.sources_digest()
+    try:
+        with open(path, encoding='utf-8') as f:
+            kept = json.load(f)
+        if kept['sources'] == digest:
+            return {name: (tuple(off), tuple(on)) for name, (off, on) in kept['found'].items()}
+    except (OSError, ValueError, KeyError, TypeError):
+        pass
+    found = inspect_code()
+    try:
+        with open(path, 'w', encoding='utf-8') as f:
+            json.dump({'sources': digest, 'found': found}, f)
+    except OSError:
+        pass  # a read-only install: searched again next time
+    return found
+
+
 def run(quick, log=print):
     """(rows, target rows)."""
     from . import targets
@@ -130,7 +160,7 @@ def run(quick, log=print):
         t_rows.append(targets.simple(TARGET_CPU, ratio, REQUIRED, ratio <= REQUIRED,
                                      f'least of {len(ratios)} runs each; pairs '
                                      f'{_spread(ratios)}', scene=label))
-    code = inspect_code()
+    code = inspect_code_kept()
     if code is None:
         t_rows.append(targets.simple(TARGET_CODE, math.nan, 0, None,
                                      'kernels not compiled (NUMBA_DISABLE_JIT)'))

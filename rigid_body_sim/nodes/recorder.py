@@ -105,14 +105,16 @@ class Recorder(Node):
         steady = Clock(clock_type=ClockType.STEADY_TIME)
         # the report before the subscriptions: a simulator that sees them sees it too
         self._report = matches.Report(self)
+        self._report_changed = time.monotonic()  # the report's last change (its pace)
         flush_period = float(get('flush_period').value)
         self.create_timer(max(0.01, flush_period / 4), self.writer.flush_if_due, clock=steady)
         self._subscribe_known()
         self._discovery = self.create_timer(float(get('discovery_period').value),
                                             self._discover, clock=steady)
         self._discover()
+        self._report_timer = self.create_timer(matches.PERIOD_S, self._report_matches,
+                                               clock=steady)
         self._report_matches()
-        self.create_timer(matches.PERIOD_S, self._report_matches, clock=steady)
         fetch_simulator_parameters(self, get('simulator_node').value,
                                    float(get('config_timeout').value), steady, self._config,
                                    self.writer)
@@ -164,9 +166,27 @@ class Recorder(Node):
             self._discovery.cancel()
 
     def _report_matches(self) -> None:
-        """Publish ``~/matched_publishers`` when it changed (matches.py)."""
-        self._report.update(self._subs, self._wanted - self._exclude - self._skipped,
-                            self._early, self._all, self._exclude)
+        """Publish ``~/matched_publishers`` when it changed (matches.py); look again at
+        matches.PERIOD_S after a change, at QUIET_PERIOD_S once they are settled."""
+        changed = self._report.update(self._subs, self._wanted - self._exclude - self._skipped,
+                                      self._early, self._all, self._exclude)
+        now = time.monotonic()
+        if changed:
+            self._report_pace(True)
+        elif now - self._report_changed > matches.SETTLE_S:
+            self._report_pace(False)
+
+    def _report_pace(self, fast: bool) -> None:
+        """Look at the matches every PERIOD_S (``fast``) or QUIET_PERIOD_S from now on."""
+        if fast:
+            self._report_changed = time.monotonic()
+        period = matches.PERIOD_S if fast else matches.QUIET_PERIOD_S
+        timer = getattr(self, '_report_timer', None)
+        if timer is None or timer.timer_period_ns == int(period * 1e9):
+            return
+        timer.timer_period_ns = int(period * 1e9)
+        timer.reset()  # the next look one new period from now, not at the old schedule's
+        self.get_logger().debug(f'looking at the matched publishers every {period:g} s')
 
     def _subscribe(self, topic: str, type_name: str, publishers: list[Any]) -> None:
         """Subscribe ``topic``; with ``publishers`` (discovered) the QoS is chosen to match
@@ -190,6 +210,7 @@ class Recorder(Node):
             reliability=ReliabilityPolicy.RELIABLE if reliable else ReliabilityPolicy.BEST_EFFORT,
             durability=DurabilityPolicy.TRANSIENT_LOCAL if latched else DurabilityPolicy.VOLATILE)
         subscription = self.create_subscription(msg_type, topic, lambda *_: None, qos, raw=True)
+        self._report_pace(True)  # its publishers are matched within moments: look often
         self._record[topic] = self._recorder(topic, type_name)
         subscription.callback = self._callback(topic, subscription)
         self._subs[topic] = subscription

@@ -13,6 +13,7 @@ Each returns a plots.common.Figure whose ``values`` hold (measured, predicted) p
 """
 import numpy as np
 
+from ..control import slew_begins
 from ..physics import analytic, rotation
 from .common import drift, phase_rate, pyplot, save, sign_changes
 
@@ -168,21 +169,6 @@ def nutation(s, body, out_dir, title, unit, scale, coefficient):
                                                  0.0),
                       'nutation_rate': (c, c), 'energy': (float(s['kinetic_energy'][0]),
                                                           float(s['kinetic_energy'][-1]))})
-
-
-def slew_begins(s, free_end, controller) -> float:
-    """When the slew began (s; inf if not): at the end of the free phase in slew mode,
-    else at the first sample after it with |ω| below mission.detumble_exit_rate (the
-    figure marks it, the demo's summary prints it)."""
-    t = np.asarray(s['t'])
-    w = np.linalg.norm(s['angular_velocity'], axis=1)
-    active = t >= (free_end if np.isfinite(free_end) else t[0])
-    exit_rate = controller.get('mission.detumble_exit_rate', 0.0)
-    if controller['mode'] == 'slew' and np.any(active):
-        return float(t[np.argmax(active)])
-    if exit_rate > 0 and np.any(active & (w < exit_rate)):
-        return float(t[np.argmax(active & (w < exit_rate))])
-    return np.inf
 
 
 def control(s, out_dir, title, unit, scale, controller, free_end):
