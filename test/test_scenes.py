@@ -107,13 +107,13 @@ def test_explorer1_auto_meets_its_budget_over_the_whole_orbit(explorer1_referenc
     """The loose budget of the scene (1e-2 rad over 6,900 s) and a tighter one: a pilot at
     the initial 1° nutation alone picked splitting6 at h = 0.018 s and ended 0.11 rad off
     (1e-3: 1.3e-3), missing the error growth as the nutation grows exponentially. The
-    selection costs at most 10 % of the run: process CPU, and the model's prediction (which
-    the load on the machine does not move; a count of pilot steps would not do, as the
-    pilot's methods cost 0.06–2 µs a step)."""
+    selection is planned at most 10 % of the run: the model's prediction, which the load on
+    the machine does not move (a count of pilot steps would not do, as the pilot's methods
+    cost 0.06–2 µs a step). The process CPU it takes is a timing figure: the benchmark's
+    (``bench.selection``, Explorer 1 over 1 s to the whole orbit)."""
     result = simulate(load('explorer1'), accuracy=accuracy)
     err = np.max(rotation.angle_between(result.samples['attitude'], explorer1_reference))
     assert err <= accuracy, f'{result.integrator} h={result.step:.3g}: {err:.3g} > {accuracy:g}'
-    assert result.selection_cpu_seconds <= 0.1 * result.cpu_seconds
     sel = result.selection
     assert result.pilot_steps > 0 and sel.pilot_cost > 0
     assert sel.planned_cost <= 0.1 * sel.predicted_cost
