@@ -12,7 +12,7 @@ Reference (:func:`reference`), with a bound on its own error:
   the error 10–100× and left a third of the quick run's scenes unjudged. Rungs agreeing
   with each other is no proof: under a control law dop853 at 1e-13 and 3e-14 agreed while
   both erred 9× the budget (seed 20261127, scene 94). So an independent reference, rk4 at
-  fixed steps halved until two agree, must agree with the ladder within budget/AGREE
+  fixed steps made smaller by its order, must agree with the ladder within budget/AGREE
   (the ladder goes on down while they disagree); the one with the smaller own bound is
   the reference, its bound at least their distance. Without that agreement (they differ,
   or rk4 would pass the cap) the bound is infinite and ``what`` says why: undecided.
@@ -41,7 +41,7 @@ ORDERS = {'splitting2': 2, 'splitting4': 4, 'splitting6': 6, 'rk4': 4, 'implicit
 PRIOR = {'exact': 1.5e-5}  # s per step before it is measured: exact steps in Python
 REF_LADDER = (1e-12, 1e-13, 3e-14, 1e-14, 3e-15, 1e-15)
 JUDGE = 4.0      # a reference resolves a budget when its error bound is under 1/JUDGE of it
-# two independent references (dop853's ladder, rk4's halved steps) must agree within
+# two independent references (dop853's ladder, rk4's fixed steps) must agree within
 # budget/AGREE for either to be trusted: dop853's rungs can agree with each other and
 # share an error of 9× the budget (seed 20261127 scene 94, detumble)
 AGREE = 2.0
@@ -132,33 +132,42 @@ def _rk4(f, h):
 
 
 def _rk4_check(scene, f, attitude, start, cap):
-    """The independent reference: rk4 at fixed steps halved from hΩ ≈ 0.1 (snapped to the
-    event spacing) until two successive steps agree within budget/JUDGE. (attitude at the
-    finer step, their distance, the step) or (None, why not, step)."""
-    spacing = _spacing(f)
+    """The independent reference: rk4 at fixed steps from hΩ ≈ 0.1 (snapped to the event
+    spacing), each next step from the last two runs' difference by rk4's order (aiming at
+    budget/(4·AGREE), 2–16× smaller), until one agrees with ``attitude`` (the ladder's)
+    within budget/AGREE or two successive runs agree within budget/JUDGE. (its attitude,
+    its own bound (its distance to the run before; inf for a first run), the step) or
+    (None, why not, step)."""
+    spacing, budget = _spacing(f), scene.budget
     omega = float(np.linalg.norm(getattr(scene, 'omega', ()) or (0.0,)))
     if omega <= 0.0:  # no rate given (an orbit scene): the samples' own turning rate
         turn = rotation.angle_between(attitude[1:], attitude[:-1]) if len(attitude) > 1 \
             else np.zeros(1)
         omega = float(np.max(turn)) * f.simulator['publish_rate']
     h = _snap(spacing, min(spacing, 0.1 / max(omega, 1e-9)))
-    coarse, last = None, 0.0
+    coarse, last, bound, was = None, 0.0, math.inf, h
     for _ in range(12):
-        if time.process_time() - start + 2.2 * last > cap:
+        if time.process_time() - start + last * was / h > cap:
             return None, f'rk4 at h={h:.3g} s would pass the {cap:g} s cap', h
         t0 = time.process_time()
         try:
             fine = _rk4(f, h)
         except FAILURES as exc:
-            fine = None
             if coarse is not None:
                 return None, f'rk4 at h={h:.3g} s failed: {type(exc).__name__}', h
+            coarse, was, h = None, h, _snap(spacing, h / 4.0)
+            continue
         last = time.process_time() - t0
         if coarse is not None:
-            bound = float(np.max(rotation.angle_between(coarse, fine)))
-            if bound * JUDGE <= scene.budget:
-                return fine, bound, h
-        coarse, h = fine, _snap(spacing, h / 2.0)
+            bound = _apart(coarse, fine)
+        if _apart(fine, attitude) * AGREE <= budget or bound * JUDGE <= budget:
+            return fine, bound, h
+        # rk4's error ∝ h⁴: the last one's about bound·s⁴/(1 − s⁴), s the last ratio
+        ratio = h / was if coarse is not None else 0.5
+        err = bound * ratio ** 4 / (1.0 - ratio ** 4) if math.isfinite(bound) else math.inf
+        shrink = (budget / (4.0 * AGREE) / err) ** 0.25 if 0 < err < math.inf else 0.5
+        coarse, was = fine, h
+        h = _snap(spacing, h * min(0.5, max(1.0 / 16.0, shrink)))
     return None, f'rk4 did not converge down to h={h:.3g} s', h
 
 
