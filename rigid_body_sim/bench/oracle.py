@@ -135,7 +135,7 @@ def _rk4_check(scene, f, attitude, start, cap):
     """The independent reference: rk4 at fixed steps from hΩ ≈ 0.1 (snapped to the event
     spacing), each next step from the last two runs' difference by rk4's order (aiming at
     budget/(4·AGREE), 2–16× smaller), until one agrees with ``attitude`` (the ladder's)
-    within budget/AGREE or two successive runs agree within budget/JUDGE. (its attitude,
+    within budget/JUDGE or two successive runs agree within budget/JUDGE. (its attitude,
     its own bound (its distance to the run before; inf for a first run), the step) or
     (None, why not, step)."""
     spacing, budget = _spacing(f), scene.budget
@@ -160,7 +160,9 @@ def _rk4_check(scene, f, attitude, start, cap):
         last = time.process_time() - t0
         if coarse is not None:
             bound = _apart(coarse, fine)
-        if _apart(fine, attitude) * AGREE <= budget or bound * JUDGE <= budget:
+        # agreeing within budget/JUDGE (not AGREE): their distance is the bound, it must
+        # still resolve the budget
+        if _apart(fine, attitude) * JUDGE <= budget or bound * JUDGE <= budget:
             return fine, bound, h
         # rk4's error ∝ h⁴: the last one's about bound·s⁴/(1 − s⁴), s the last ratio
         ratio = h / was if coarse is not None else 0.5
