@@ -139,11 +139,12 @@ def _rk4_check(scene, f, attitude, start, cap):
     its own bound (its distance to the run before; inf for a first run), the step) or
     (None, why not, step)."""
     spacing, budget = _spacing(f), scene.budget
-    omega = float(np.linalg.norm(getattr(scene, 'omega', ()) or (0.0,)))
-    if omega <= 0.0:  # no rate given (an orbit scene): the samples' own turning rate
-        turn = rotation.angle_between(attitude[1:], attitude[:-1]) if len(attitude) > 1 \
-            else np.zeros(1)
-        omega = float(np.max(turn)) * f.simulator['publish_rate']
+    # the drawn rate, or the samples' own turning rate where faster (an orbit scene's rate
+    # is drawn relative to LVLH: 3e-6 rad/s where the body turns with the orbit)
+    turn = rotation.angle_between(attitude[1:], attitude[:-1]) if len(attitude) > 1 \
+        else np.zeros(1)
+    omega = max(float(np.linalg.norm(getattr(scene, 'omega', ()) or (0.0,))),
+                float(np.max(turn)) * f.simulator['publish_rate'])
     h = _snap(spacing, min(spacing, 0.1 / max(omega, 1e-9)))
     coarse, last, bound, was = None, 0.0, math.inf, h
     for _ in range(12):
