@@ -283,7 +283,7 @@ def update_kind(folder, rows, seed, kind, held_out=False):
         write_csv(os.path.join(folder, HELD_OUT_CSV), FIELDS, old + list(rows))
         t_rows = family_targets('body', summary(rows), seed, name=f'generated {kind}, '
                                 f'held-out seed {seed}', said=f'HELD OUT (no fitting or '
-                                f'tuning on this seed), its {kind} scenes only, run {stamp}; ')
+                                f'tuning on this seed), its {kind} scenes only, written {stamp}; ')
     else:
         old = _read(folder, 'generated.csv')
         kept = [r for r in old if r['scene'] not in mine and not (
