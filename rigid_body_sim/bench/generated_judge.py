@@ -296,7 +296,8 @@ def update_kind(folder, rows, seed, kind, held_out=False):
         t_rows = family_targets('body', summary([r for r in merged
                                                  if _family_of(r) == 'body']), seed,
                                 said=f'its {kind} rows re-run {stamp} (--kind {kind}), the '
-                                     'other kinds\' rows kept from the previous run; ')
+                                     'other kinds\' rows kept from the previous run (and '
+                                     'its reference); ')
     report.replace_targets(folder, tuple(r['target'] for r in t_rows), t_rows,
                            command=f'python -m rigid_body_sim.bench.generated --seed {seed} '
                                    f'--kind {kind} --update {{out}}'
