@@ -1,6 +1,7 @@
 """auto on seeded generated scenes (rigid_body_sim.bench.generated), the generator itself,
 and the bench rows that must not report what they cannot measure."""
 import math
+import os
 
 import numpy as np
 import pytest
@@ -296,4 +297,90 @@ def test_kind_judges_only_that_kind_of_scene(monkeypatch):
     assert expected and judged == expected
     assert {r['kind'] for r in rows} == {'detumble'}
     with pytest.raises(SystemExit):
-        generated.main(['--kind', 'detumble', '--update', 'docs/bench'])
+        generated.main(['--kind', 'detumble', '--out', 'docs/bench'])
+    with pytest.raises(SystemExit):  # a held-out seed's rows go only into their own rows
+        generated.main(['--held-out', '--csv', 'x.csv'])
+
+
+def _about_z(angle, n=6):
+    """n samples of a rotation by ``angle`` about z: (n, 4), (x, y, z, w)."""
+    return np.tile([0.0, 0.0, math.sin(angle / 2), math.cos(angle / 2)], (n, 1))
+
+
+def _ladder_scene(monkeypatch, dop853_off):
+    """A detumble scene whose dop853 rungs err dop853_off(rtol) × the budget and whose rk4
+    runs err (h/h0)⁴ × 1e-3 of it: the case of seed 20261127 scene 94, rungs agreeing
+    with each other 9× the budget from the truth (angle 0) where rk4 converges to it."""
+    scene = next(s for s in generated.scenes(SEED, 40, True) if s.kind == 'detumble')
+    h0 = []
+    monkeypatch.setattr(oracle, '_dop853', lambda f, rtol: _about_z(
+        dop853_off(rtol) * scene.budget))
+    monkeypatch.setattr(oracle, '_rk4', lambda f, h: (h0.append(h) or True) and _about_z(
+        (h / h0[0]) ** 4 * 1e-3 * scene.budget), raising=False)  # (the old ladder had none)
+    return scene
+
+
+def test_a_reference_whose_rungs_agree_but_err_is_undecided(monkeypatch):
+    """Seed 20261127 scene 94 (detumble): dop853 at rtol 1e-13 and 3e-14 agreed, and the
+    old ladder trusted 3e-14 with a tiny bound, while it erred 8.9× the budget (rk4 at h
+    … h/8 agreed with each other within 0.08×). Rungs agreeing is no proof: an
+    independent reference must agree, else the reference is undecided and says why."""
+    scene = _ladder_scene(monkeypatch, lambda rtol: 9.0 + rtol * 1e10)
+    ref = oracle.reference(scene)
+    assert ref.error == math.inf and 'disagree' in ref.what, (ref.error, ref.what)
+    assert ref.decide(0.0, scene.budget) == 'undecided'
+    monkeypatch.setattr(oracle, 'reference', lambda scene, cap=None: ref)
+    row = generated.judge(scene)
+    assert row['status'].startswith('undecided') and 'disagree' in row['status']
+
+
+def test_the_ladder_goes_on_down_until_an_independent_reference_agrees(monkeypatch):
+    """As scene 94: dop853 converges to rk4 as rtol tightens (1.37× the budget off at 3e-15,
+    0.26× at 1e-15). The ladder goes on down while they disagree; the trusted reference
+    is the one with the smaller own bound (rk4), its bound at least their distance. A run
+    at the truth is met; one 1.5× the budget off is missed (the old ladder said the
+    reverse: it judged against dop853 at 3e-14, 9× off)."""
+    offs = {1e-12: 9.0, 1e-13: 9.0, 3e-14: 9.0 - 1e-3, 1e-14: 5.0, 3e-15: 1.37, 1e-15: 0.26}
+    scene = _ladder_scene(monkeypatch, offs.get)
+    ref = oracle.reference(scene)
+    b = scene.budget
+    assert ref.what.startswith('rk4') and '1e-15' in ref.what, ref.what
+    assert 0.26 * b * 0.99 <= ref.error <= 0.27 * b, (ref.error / b, ref.what)
+    truth, off = _about_z(0.0), _about_z(1.5 * b)
+    assert ref.decide(float(np.max(rotation.angle_between(truth, ref.attitude))), b) == 'met'
+    assert ref.decide(float(np.max(rotation.angle_between(off, ref.attitude))), b) == \
+        'missed'
+
+
+def test_a_kind_s_rows_replace_only_theirs_and_a_held_out_seed_s_stand_apart(tmp_path):
+    """``--kind detumble --update DIR`` puts the detumble rows in place of theirs in a full
+    run's generated.csv (the other kinds' kept) and sums the body family's targets again;
+    ``--held-out`` puts another seed's rows in their own CSV and target rows, named held
+    out, the body family's untouched. (--kind refused --update: the re-run of the
+    control law's rows was merged by a private script.)"""
+    import shutil
+    from rigid_body_sim.bench import report
+    folder = str(tmp_path / 'bench')
+    shutil.copytree('docs/bench', folder)
+    old = generated.read_rows(os.path.join(folder, 'generated.csv'))
+    mine = [dict(r, status='ok', error_ratio=0.25, cpu_ratio=2.5) for r in old
+            if r['kind'] == 'detumble']
+    assert mine
+    generated_judge.update_kind(folder, mine, generated.SEED, 'detumble')
+    new = generated.read_rows(os.path.join(folder, 'generated.csv'))
+    assert [r['scene'] for r in new] == [r['scene'] for r in old]
+    for was, now in zip(old, new):
+        assert now['cpu_ratio'] == 2.5 if was['kind'] == 'detumble' \
+            else str(now) == str(was)  # (str: nan ≠ nan)
+    by = {r['target']: r for r in report._rows(folder, 'targets.csv')}
+    assert 'detumble rows re-run' in by['generated: auto CPU / oracle, worst scene']['note']
+    held = [dict(r, scene=r['scene'].replace(str(generated.SEED), '20261127'),
+                 cpu_ratio=3.5) for r in mine]
+    generated_judge.update_kind(folder, held, 20261127, 'detumble', held_out=True)
+    assert str(generated.read_rows(os.path.join(folder, 'generated.csv'))) == str(new)
+    assert len(report._rows(folder, generated_judge.HELD_OUT_CSV)) == len(held)
+    by = {r['target']: r for r in report._rows(folder, 'targets.csv')}
+    row = by['generated detumble, held-out seed 20261127: auto CPU / oracle, worst scene']
+    assert float(row['measured']) == 3.5 and 'HELD OUT' in row['note']
+    with open(os.path.join(folder, 'targets.md'), encoding='utf-8') as f:
+        assert 'held-out seed 20261127: auto CPU / oracle, worst scene' in f.read()

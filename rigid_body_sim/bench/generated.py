@@ -46,7 +46,11 @@ def main(argv=None):
                         '(of --family, default body)')
     parser.add_argument('--kind', choices=KINDS, default=None,
                         help='the body family\'s scenes of this kind only (e.g. detumble: '
-                             'auto under a control law); not with --out or --update')
+                             'auto under a control law); with --update, in place of that '
+                             'kind\'s rows (the other kinds\' kept); not with --out')
+    parser.add_argument('--held-out', action='store_true',
+                        help='with --kind and --update: a seed nothing was tuned on, its '
+                             'rows and target rows apart (generated_held_out.csv)')
     parser.add_argument('--csv', default='', help='write the rows here')
     parser.add_argument('--out', default='', metavar='DIR', help='with --family: its rows '
                         'and targets into a full run\'s files in DIR (others kept)')
@@ -63,13 +67,18 @@ def main(argv=None):
         row = judge(scene, log=print)
         print(json.dumps(row, indent=1, default=str))
         return 0
-    if args.kind and (args.out or args.update):
-        parser.error('--kind runs a share of a family: its rows cannot replace the '
-                     'family\'s (use --csv)')
+    if args.kind and args.out:
+        parser.error('--kind runs a share of a family: with --update only (its rows in '
+                     'place of that kind\'s), or --csv')
+    if args.held_out and not (args.kind and args.update):
+        parser.error('--held-out needs --kind and --update')
     if args.out and not args.family:
         parser.error('--out needs --family (a whole run: rigid-body-sim bench)')
     if args.update and args.from_csv:
-        print(update(args.update, read_rows(args.from_csv), args.seed))
+        rows = read_rows(args.from_csv)
+        print(generated_judge.update_kind(args.update, rows, args.seed, args.kind,
+                                          args.held_out) if args.kind else
+              update(args.update, rows, args.seed))
         return 0
     families = (args.family,) if args.family else tuple(FAMILIES)
     rows, t_rows, s = run(args.quick, seed=args.seed, count=args.count, families=families,
@@ -83,7 +92,10 @@ def main(argv=None):
     if args.out:
         print(merge(args.out, args.family, rows, t_rows, args.seed))
     print(json.dumps(s))
-    if args.update:
+    if args.update and args.kind:
+        print(generated_judge.update_kind(args.update, rows, args.seed, args.kind,
+                                          args.held_out))
+    elif args.update:
         print(update(args.update, rows, args.seed))
     return 0
 

@@ -6,6 +6,7 @@ command line is :mod:`.generated`.
 """
 import math
 import os
+import time
 
 import numpy as np
 
@@ -80,7 +81,8 @@ def judge(scene: Scene, log=None, cap: float = oracle_mod.SWEEP_CAP[True]) -> di
     decided = ref.decide(auto_err, scene.budget)
     row['status'] = {'met': 'ok', 'missed': 'auto missed'}.get(
         decided, f'undecided: error {auto_err:.2g} ± {ref.error:.2g} rad (the reference\'s '
-                  f'bound) around the budget')
+                  f'bound) around the budget' if math.isfinite(ref.error) else
+        f'undecided: no trusted reference ({ref.what})')
     if best is None:
         note = '; '.join(x for x in ('no fixed choice proven to meet the budget', note) if x)
         row['status'] = classify(row['status'], predicted, scene.budget)
@@ -169,11 +171,12 @@ def targets_for(rows, seed=SEED):
     return family_targets('body', s, seed), s
 
 
-def family_targets(family, s, seed) -> list:
-    """The three target rows of a family's summary ``s`` (error, median and worst CPU)."""
+def family_targets(family, s, seed, name=None, said='') -> list:
+    """The three target rows of a family's summary ``s`` (error, median and worst CPU);
+    ``name`` in place of the family's, ``said`` first in each note."""
     from . import targets
-    name = TARGET_NAMES[family]
-    where = (f'seed {seed}, {s["judged"]} of {s["scenes"]} scenes judged'
+    name = name or TARGET_NAMES[family]
+    where = (said + f'seed {seed}, {s["judged"]} of {s["scenes"]} scenes judged'
              + (f', {s["undecided"]} undecided' if s['undecided'] else ''))
     spread = (f'{where}; {s["with_oracle"]} with an oracle; CPU ratio p10 '
               f'{s["cpu_ratio_p10"]:.2f}, p50 '
@@ -255,3 +258,53 @@ def update(folder, rows, seed=SEED):
         out = replace_section(folder, 'generated.csv', FIELDS, merged,
                               family_targets(family, s, seed), (f'{TARGET_NAMES[family]}:',))
     return out
+
+
+HELD_OUT_CSV = 'generated_held_out.csv'
+
+
+def update_kind(folder, rows, seed, kind, held_out=False):
+    """Put a ``--kind`` run of the body family (its ``rows``) into a full run's ``folder``.
+
+    * not held out: its rows in place of that kind's in generated.csv (the other kinds'
+      kept), the body family's target rows summed again over them all;
+    * ``held_out``: a seed nothing was fitted on, reported apart: its rows into
+      HELD_OUT_CSV (that seed's rows of the kind replaced) and their own target rows,
+      named and noted as held out.
+
+    Returns the summary's path."""
+    from . import report
+    from .common import write_csv
+    mine = {r['scene'] for r in rows}
+    stamp = time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())
+    if held_out:
+        old = [r for r in _read(folder, HELD_OUT_CSV)
+               if not (r.get('kind') == kind and r['scene'].startswith(f'gen{seed}-'))]
+        write_csv(os.path.join(folder, HELD_OUT_CSV), FIELDS, old + list(rows))
+        t_rows = family_targets('body', summary(rows), seed, name=f'generated {kind}, '
+                                f'held-out seed {seed}', said=f'HELD OUT (no fitting or '
+                                f'tuning on this seed), its {kind} scenes only, written {stamp}; ')
+    else:
+        old = _read(folder, 'generated.csv')
+        kept = [r for r in old if r['scene'] not in mine and not (
+            _family_of(r) == 'body' and r.get('kind') == kind)]
+        by_name = {r['scene']: r for r in rows}
+        merged = [by_name.get(r['scene'], r) for r in old if r['scene'] in by_name
+                  or r in kept] + [r for r in rows if r['scene'] not in
+                                   {o['scene'] for o in old}]
+        write_csv(os.path.join(folder, 'generated.csv'), FIELDS, merged)
+        t_rows = family_targets('body', summary([r for r in merged
+                                                 if _family_of(r) == 'body']), seed,
+                                said=f'its {kind} rows re-run {stamp} (--kind {kind}), the '
+                                     'other kinds\' rows kept from the previous run (and '
+                                     'its reference); ')
+    report.replace_targets(folder, tuple(r['target'] for r in t_rows), t_rows,
+                           command=f'python -m rigid_body_sim.bench.generated --seed {seed} '
+                                   f'--kind {kind} --update {{out}}'
+                                   + (' --held-out' if held_out else ''), after='generated')
+    return report.write(folder)
+
+
+def _read(folder, name):
+    path = os.path.join(folder, name)
+    return read_rows(path) if os.path.exists(path) else []

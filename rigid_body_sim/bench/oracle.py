@@ -9,7 +9,13 @@ Reference (:func:`reference`), with a bound on its own error:
   dop853 converges steadily there, ~7× a decade of rtol); the ladder stops as soon as the
   bound resolves the budget (JUDGE × bound ≤ budget), when it stops shrinking (float64's
   round-off floor), or past REF_CAP s of CPU. rtol 1e-13 against 1e-12 alone over-stated
-  the error 10–100× and left a third of the quick run's scenes unjudged.
+  the error 10–100× and left a third of the quick run's scenes unjudged. Rungs agreeing
+  with each other is no proof: under a control law dop853 at 1e-13 and 3e-14 agreed while
+  both erred 9× the budget (seed 20261127, scene 94). So an independent reference, rk4 at
+  fixed steps made smaller by its order, must agree with the ladder within budget/AGREE
+  (the ladder goes on down while they disagree); the one with the smaller own bound is
+  the reference, its bound at least their distance. Without that agreement (they differ,
+  or rk4 would pass the cap) the bound is infinite and ``what`` says why: undecided.
 
 Judging with a bound r: an error e (against the reference) meets the budget b if e + r ≤ b
 and misses it if e − r > b (both proven); in between the row says it is undecided, with r.
@@ -35,6 +41,10 @@ ORDERS = {'splitting2': 2, 'splitting4': 4, 'splitting6': 6, 'rk4': 4, 'implicit
 PRIOR = {'exact': 1.5e-5}  # s per step before it is measured: exact steps in Python
 REF_LADDER = (1e-12, 1e-13, 3e-14, 1e-14, 3e-15, 1e-15)
 JUDGE = 4.0      # a reference resolves a budget when its error bound is under 1/JUDGE of it
+# two independent references (dop853's ladder, rk4's fixed steps) must agree within
+# budget/AGREE for either to be trusted: dop853's rungs can agree with each other and
+# share an error of 9× the budget (seed 20261127 scene 94, detumble)
+AGREE = 2.0
 REF_CAP = 40.0   # CPU s for the reference ladder (it stops at the rung reached)
 SWEEP_CAP = {True: 20.0, False: 30.0}  # CPU s of one scene's oracle sweep (quick, full)
 FAILURES = (IntegrationError, ArithmeticError, ValueError)  # a diverging run: a row
@@ -93,35 +103,118 @@ def _exact_bound(samples, picks=3) -> float:
     return max(attitude_error(samples.q[i], ref.at(float(t[i]))[0]) for i in at)
 
 
+def _ladder(f, budget, start, cap):
+    """dop853 down REF_LADDER: (best, coarse, rung, left) where best is (bound, attitude,
+    rtol) of the rung that resolved the budget, stalled or was last affordable (None when
+    no second rung could be run), coarse its attitude, rung the CPU s of the last run and
+    left the finer rungs not run."""
+    coarse = _dop853(f, REF_LADDER[0])
+    best, rung = None, time.process_time() - start
+    for i, rtol in enumerate(REF_LADDER[1:], 1):
+        # a finer rung costs ~1.2× the last: not started if it would pass the cap
+        if time.process_time() - start + 1.3 * rung > cap:
+            return best, coarse, rung, ()
+        t0 = time.process_time()
+        fine = _dop853(f, rtol)
+        rung = time.process_time() - t0
+        bound = float(np.max(rotation.angle_between(coarse, fine)))
+        if best is not None and bound >= 0.7 * best[0]:
+            return best, coarse, rung, REF_LADDER[i + 1:]  # round-off: no finer is better
+        best = (bound, fine, rtol)
+        if bound * JUDGE <= budget:
+            return best, fine, rung, REF_LADDER[i + 1:]
+        coarse = fine
+    return best, coarse, rung, ()
+
+
+def _rk4(f, h):
+    return simulate(f, integrator='rk4', step=h).samples['attitude']
+
+
+def _rk4_check(scene, f, attitude, start, cap):
+    """The independent reference: rk4 at fixed steps from hΩ ≈ 0.1 (snapped to the event
+    spacing), each next step from the last two runs' difference by rk4's order (aiming at
+    budget/(4·AGREE), 2–16× smaller), until one agrees with ``attitude`` (the ladder's)
+    within budget/JUDGE or two successive runs agree within budget/JUDGE. (its attitude,
+    its own bound (its distance to the run before; inf for a first run), the step) or
+    (None, why not, step)."""
+    spacing, budget = _spacing(f), scene.budget
+    # the drawn rate, or the samples' own turning rate where faster (an orbit scene's rate
+    # is drawn relative to LVLH: 3e-6 rad/s where the body turns with the orbit)
+    turn = rotation.angle_between(attitude[1:], attitude[:-1]) if len(attitude) > 1 \
+        else np.zeros(1)
+    omega = max(float(np.linalg.norm(getattr(scene, 'omega', ()) or (0.0,))),
+                float(np.max(turn)) * f.simulator['publish_rate'])
+    h = _snap(spacing, min(spacing, 0.1 / max(omega, 1e-9)))
+    coarse, last, bound, was = None, 0.0, math.inf, h
+    for _ in range(12):
+        if time.process_time() - start + last * was / h > cap:
+            return None, f'rk4 at h={h:.3g} s would pass the {cap:g} s cap', h
+        t0 = time.process_time()
+        try:
+            fine = _rk4(f, h)
+        except FAILURES as exc:
+            if coarse is not None:
+                return None, f'rk4 at h={h:.3g} s failed: {type(exc).__name__}', h
+            coarse, was, h = None, h, _snap(spacing, h / 4.0)
+            continue
+        last = time.process_time() - t0
+        if coarse is not None:
+            bound = _apart(coarse, fine)
+        # agreeing within budget/JUDGE (not AGREE): their distance is the bound, it must
+        # still resolve the budget
+        if _apart(fine, attitude) * JUDGE <= budget or bound * JUDGE <= budget:
+            return fine, bound, h
+        # rk4's error ∝ h⁴: the last one's about bound·s⁴/(1 − s⁴), s the last ratio
+        ratio = h / was if coarse is not None else 0.5
+        err = bound * ratio ** 4 / (1.0 - ratio ** 4) if math.isfinite(bound) else math.inf
+        shrink = (budget / (4.0 * AGREE) / err) ** 0.25 if 0 < err < math.inf else 0.5
+        coarse, was = fine, h
+        h = _snap(spacing, h * min(0.5, max(1.0 / 16.0, shrink)))
+    return None, f'rk4 did not converge down to h={h:.3g} s', h
+
+
+def _apart(a, b) -> float:
+    return float(np.max(rotation.angle_between(a, b)))
+
+
 def reference(scene, cap: float = REF_CAP) -> Reference:
-    """The scene's reference at its samples and a bound on its error (module docstring)."""
+    """The scene's reference at its samples and a bound on its own error (module docstring):
+    trusted only where two independent references agree within budget/AGREE, else its
+    bound is infinite and ``what`` says why (the rows it judges are undecided)."""
     f = scene.scene_file()
     if scene.kind == 'free':
         result = simulate(f, integrator='exact')
         return Reference(result.samples['attitude'], _exact_bound(result.samples),
                          'exact (checked against the 40-digit closed form)')
     start = time.process_time()
-    coarse = _dop853(f, REF_LADDER[0])
-    best, rung = None, time.process_time() - start  # best: (bound, attitude, rtol)
-    for rtol in REF_LADDER[1:]:
-        # a finer rung costs ~1.2× the last: not started if it would pass the cap
-        if time.process_time() - start + 1.3 * rung > cap:
-            break
-        t0 = time.process_time()
-        fine = _dop853(f, rtol)
-        rung = time.process_time() - t0
-        bound = float(np.max(rotation.angle_between(coarse, fine)))
-        if best is not None and bound >= 0.7 * best[0]:
-            break  # no longer converging: round-off, a finer rung would not be better
-        best = (bound, fine, rtol)
-        if bound * JUDGE <= scene.budget:
-            break
-        coarse = fine
+    best, coarse, rung, left = _ladder(f, scene.budget, start, cap)
     if best is None:  # one run already costs most of the cap: no second one to bound it
         return Reference(coarse, math.inf, f'dop853 rtol {REF_LADDER[0]:g}, unbounded: one '
                          f'run took {rung:.3g} s, a finer one would pass the {cap:g} s cap',
                          rung)
-    return Reference(best[1], best[0], f'dop853 rtol {best[2]:g}', rung)
+    check, own, h = _rk4_check(scene, f, best[1], start, cap)
+    if check is None:
+        return Reference(best[1], math.inf, f'undecided: dop853 rtol {best[2]:g} '
+                         f'(±{best[0]:.2g} rad) has no independent check: {own}', rung)
+    apart = _apart(best[1], check)
+    for rtol in left:  # they disagree: dop853 further down while the cap allows
+        if apart * AGREE <= scene.budget or time.process_time() - start + 1.3 * rung > cap:
+            break
+        t0 = time.process_time()
+        fine = _dop853(f, rtol)
+        rung = time.process_time() - t0
+        best = (_apart(best[1], fine), fine, rtol)
+        apart = _apart(fine, check)
+    if apart * AGREE > scene.budget:
+        return Reference(best[1], math.inf, f'undecided: dop853 rtol {best[2]:g} and rk4 '
+                         f'h={h:.3g} s disagree by {apart:.2g} rad ({apart / scene.budget:.2g}'
+                         f'× the budget)', rung)
+    if own < best[0]:  # the reference of the smaller own bound, never closer than apart
+        return Reference(check, max(own, apart), f'rk4 h={h:.3g} s (dop853 rtol '
+                         f'{best[2]:g} within {apart:.2g} rad)', rung)
+    return Reference(best[1], max(best[0], apart), f'dop853 rtol {best[2]:g} (rk4 '
+                     f'h={h:.3g} s within {apart:.2g} rad)', rung)
 
 
 def _spacing(f) -> float:
