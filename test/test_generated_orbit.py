@@ -80,15 +80,16 @@ def test_auto_meets_its_budget_on_eccentric_librations(index):
     bound growing as T or T². auto now says it cannot know (no predicted error) and takes
     dop853 at its tightest rtol. Scene 27's truth is past float64 here: rk4 from h = 2.6 s
     down to 0.02 s stays 1e-4 to 2e-3 rad from dop853's ladder (round-off grown by the
-    chaos), so no independent reference confirms it and the judge says undecided."""
+    chaos), so no independent reference confirms it (the judge says undecided only after
+    its whole 40 s cap: its ladder's own tests, test_generated, cover that): there the test
+    checks what auto says."""
     scene = generated.draw_gravity_gradient(generated.SEED, index)
-    ref, ref_error, what = generated.reference(scene)
     result = simulate(scene.scene_file())
     assert 'possibly chaotic' in result.reason and \
         math.isinf(result.selection.predicted_error)
     if index == 27:
-        assert math.isinf(ref_error) and 'undecided' in what, what
         return
+    ref, ref_error, _ = generated.reference(scene)
     assert ref_error * generated.JUDGE <= scene.budget
     assert generated.error(result, ref) <= scene.budget - ref_error, result.reason
 
