@@ -36,20 +36,30 @@ OUTPUTS = ('omega.png', 'invariants.png', 'poinsot.png', 'flips.png', 'precessio
            'nutation.png', 'control.png', 'actuators.png', 'pointing.png')
 
 
+REHEARSALS = 3  # rehearse: why more than one
+
+
 def rehearse(scene, engine, keep) -> None:
     """The run's first few periods (``engine.warm.warm_span``) through the run's own code,
     ``offline.simulate`` with ``keep`` but no sink, on a fresh engine of the same
     configuration, last before the clock: the kernels and the caches warm, and the Python
     that handles the blocks (their first and last rows converted, the plot series) run
     once in this process. Without it a 0.3 ms run took 0.40-0.45 ms in the clock, 1.2-1.3x
-    the same run in-process; the kernels alone (``warm_for``) left 1.1-1.2x."""
+    the same run in-process; the kernels alone (``warm_for``) left 1.1-1.2x.
+
+    REHEARSALS times: the per-run Python (building the blocks, the end rows, the run's
+    set-up) runs once a run, and CPython 3.11 specialises its bytecode only after a few
+    executions. Explorer 1, 50 s, the run's CPU after 1, 2, 3 and 4 rehearsals (fresh
+    processes, 4 each, quiet): 347-421, 265-275, 256-320, 247-318 µs; in a warm process
+    230-250."""
     from . import offline
     from .engine import Engine
     from .engine.warm import warm_span
-    copy = Engine(engine.config, block_size=offline.block_size(engine.config),
-                  interpolate_samples=engine.interpolate_samples)
-    offline.simulate(scene, engine=copy, keep=keep,
-                     until_ns=min(copy.end_ns, copy.t_ns + warm_span(engine.config)))
+    for _ in range(REHEARSALS):
+        copy = Engine(engine.config, block_size=offline.block_size(engine.config),
+                      interpolate_samples=engine.interpolate_samples)
+        offline.simulate(scene, engine=copy, keep=keep,
+                         until_ns=min(copy.end_ns, copy.t_ns + warm_span(engine.config)))
 
 
 def _replace_previous(out: str) -> None:
