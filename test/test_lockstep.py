@@ -64,7 +64,7 @@ def _live_bag(ros_process, namespace, tmp_path, label, rtf, integrator='splittin
     env = {'PYTHONUNBUFFERED': '1'}
     rec = ros_process(venv_exe('recorder'), '--ros-args', '-r', f'__ns:={ns}',
                       '-p', f'output:={bag}', *recorder, env=env)
-    assert wait_output(rec, 'recording to'), rec.output()
+    assert wait_output(rec, 'recording to', 180.0), rec.output()
     ctl = ros_process(venv_exe('controller'), '--ros-args', '-r', f'__ns:={ns}',
                       '--params-file', path, '--params-file', str(over), env=env)
     sim = ros_process(venv_exe('simulator'), '--ros-args', '-r', f'__ns:={ns}',
