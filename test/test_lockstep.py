@@ -546,4 +546,6 @@ def test_a_synchronous_writer_does_not_wake_its_event_thread_per_message(tmp_pat
         assert ping.returncode == 0, ping.stderr[-2000:]
         return float(ping.stdout.split()[-1])
     ours, default = wakes(process._PROFILE), wakes(without)
-    assert ours < 2.0 and ours <= default / 2, (ours, default)
+    # a ratio of two runs, not a bound: under load the exchanges slow down and the
+    # periodic heartbeat's wake-ups (every 20 ms with unacknowledged data) add to both
+    assert ours <= default / 2, (ours, default)
