@@ -27,8 +27,11 @@ def _engines(scene, method, rate=100.0, overrides=()):
 
 
 def _state(e):
+    c = e.command
     return (e._q.tolist(), e._m.tolist(), e.t_ns, e._next_sample, e.steps,
-            e.integrator.nfev, None if e.torque is None else e.torque.tolist())
+            e.integrator.nfev, None if e.torque is None else e.torque.tolist(),
+            None if e._tau_p is None else e._tau_p.tolist(), e.torque is c.torque,
+            c.accepted, c.saturated, c.expiry, e._anchor is None)
 
 
 @pytest.mark.parametrize('scene, method, overrides', [
@@ -47,10 +50,14 @@ def test_a_direct_period_is_the_general_one_bit_for_bit(scene, method, overrides
     rng = np.random.default_rng(7)
     used = 0
     for k in range(150):
-        # every seventh command zero (no torque held: exact's free flow declines)
+        # every seventh command zero (no torque held: exact's free flow declines), every
+        # fifth beyond max_torque on an axis (clipped, counted)
         command = tuple(rng.uniform(-0.01, 0.01, 3)) if k % 7 else (0.0, 0.0, 0.0)
+        if k % 5 == 4:
+            command = (command[0] * 1e4,) + command[1:]
         general.apply_command(command)
-        direct.apply_command(command)
+        stepped.apply(*(float(v) for v in command))  # the node's way (sim_lockstep)
+        assert _state(direct) == _state(general), k
         block = general.advance((k + 1) * period)
         assert len(block) == 1
         values = stepped.step((k + 1) * period)
@@ -80,9 +87,12 @@ def test_a_period_that_is_not_one_plain_stretch_is_declined():
     direct, before = DirectPeriod(engine), _state(engine)
     assert direct.step(20_000_000) is None  # the sample at 10 ms comes first
     assert direct.step(engine.end_ns) is None  # (and the end is the general way's)
+    assert _state(engine) == before
     engine.command.expiry = 5_000_000
+    before = _state(engine)
     assert direct.step(10_000_000) is None and _state(engine) == before
     engine.command.expiry = 10_000_000  # expiring at the instant: the general way too
+    before = _state(engine)
     assert direct.step(10_000_000) is None and _state(engine) == before
     law = Engine(EngineConfig.from_parameters(
         {'integrator': 'splitting4', 'duration': 1.0, 'publish_rate': 100.0},

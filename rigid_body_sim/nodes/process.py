@@ -105,12 +105,22 @@ def prefer_asynchronous_publication(synchronous: bool = False):
 # into their 1 s timeout (4.99 s of a 2,000-exchange lockstep run, profiled), and a
 # message a reader's full shared-memory queue lost went again only seconds later.
 HEARTBEAT_PERIOD_NS = 20_000_000
+# And why: after each message a writer sends, Fast DDS restarts its nack suppression timer
+# (its default duration 0) on the timed-events thread, which wakes for it: 1.8-4.3 wake-ups
+# of that thread per exchange of a lockstep-like ping-pong, 0.35-0.99 with this duration
+# (test_lockstep: test_a_synchronous_writer_does_not_wake_its_event_thread_per_message),
+# and the simulator's CPU per lockstep exchange 156-200 -> 124-136 µs (tools.lockstep,
+# alternating runs, load 10). A repair it delays waits for a heartbeat anyway.
+NACK_SUPPRESSION_NS = HEARTBEAT_PERIOD_NS
 _PROFILE = f"""<?xml version="1.0" encoding="UTF-8"?>
 <dds xmlns="http://www.eprosima.com/XMLSchemas/fastRTPS_Profiles">
   <profiles>
     <data_writer profile_name="rigid_body_sim_heartbeat" is_default_profile="true">
       <times>
         <heartbeatPeriod><sec>0</sec><nanosec>{HEARTBEAT_PERIOD_NS}</nanosec></heartbeatPeriod>
+        <nackSupressionDuration>
+          <sec>0</sec><nanosec>{NACK_SUPPRESSION_NS}</nanosec>
+        </nackSupressionDuration>
       </times>
     </data_writer>
   </profiles>
@@ -118,19 +128,20 @@ _PROFILE = f"""<?xml version="1.0" encoding="UTF-8"?>
 """
 
 
-def heartbeat_profile() -> str:
+def heartbeat_profile(text: str = _PROFILE) -> str:
     """The path of a Fast DDS XML profile that makes every data writer's heartbeat period
-    HEARTBEAT_PERIOD_NS (``FASTRTPS_DEFAULT_PROFILES_FILE``; rmw_fastrtps then sets the
-    ROS QoS over it, as over Fast DDS's defaults). Written once per content into the
-    temporary directory, atomically (processes start together)."""
+    HEARTBEAT_PERIOD_NS and its nack suppression NACK_SUPPRESSION_NS
+    (``FASTRTPS_DEFAULT_PROFILES_FILE``; rmw_fastrtps then sets the ROS QoS over it, as over
+    Fast DDS's defaults), or with ``text`` that profile (a test's). Written once per content
+    into the temporary directory, atomically (processes start together)."""
     import hashlib
     import tempfile
     path = os.path.join(tempfile.gettempdir(), 'rigid_body_sim_fastdds_%s.xml' % hashlib.sha256(
-        _PROFILE.encode()).hexdigest()[:12])
+        text.encode()).hexdigest()[:12])
     if not os.path.isfile(path):
         with tempfile.NamedTemporaryFile('w', dir=os.path.dirname(path), suffix='.xml',
                                          delete=False) as f:
-            f.write(_PROFILE)
+            f.write(text)
         os.replace(f.name, path)
     return path
 

@@ -34,7 +34,7 @@ from rclpy._rclpy_pybind11 import RCLError
 from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 
 from ..engine.lockstep_direct import DirectPeriod
-from .commands import vector3_stamped, vector3_stamped_fields
+from .commands import stamped_fields, vector3_stamped
 from .state_messages import N_VALUES
 
 _AWAITING = {('', 'torque')}  # the unnamed spacecraft's torque command only (_awaiting)
@@ -103,27 +103,22 @@ class Exchange:
         self._exchanges(min(now + wait, self._executor_due, self._next_refresh_wall))
 
     def _packers(self, craft):
-        """(packers, constants) of the subscribed state topics: [(publish_raw, pack, get,
-        topic name)] in ``craft.active_raw``'s order and the templates' constant bytes,
-        what ``StateMessages.encoded_block`` packs a sample's row of values with
-        (``state_messages._Templates``), kept while the subscribed topics and the
-        templates are the same; packers None if a topic has no template (rclpy then
-        serialises it: ``encoded_block``). Why: building the block's dict of lists for
-        one sample and publishing from it cost ~2.4 µs hot where packing the row costs
-        0.6. The messages built are counted as ``encoded_block`` counts them."""
+        """``_packing``, made for ``craft``'s subscribed state topics (``_direct_exchange``
+        uses it while they and the templates are the same): (``craft.active_raw``, the
+        templates, the packers [(publish_raw, pack, get, topic name)] in that order, the
+        templates' constant bytes), what ``StateMessages.encoded_block`` packs a sample's
+        row of values with (``state_messages._Templates``); packers None if a topic has
+        no template (rclpy then serialises it: ``encoded_block``). Why: building the
+        block's dict of lists for one sample and publishing from it cost ~2.4 µs hot
+        where packing the row costs 0.6."""
         msgs = craft.msgs
         msgs.prepare()
-        templates, raw, kept = msgs._templates, craft.active_raw, self._packing
-        if kept is None or kept[0] is not raw or kept[1] is not templates:
-            topics = {name: (pack, get) for name, pack, get in templates.topics}
-            packers = [(send, *topics[name], pub.topic_name) for send, pub, name in raw] \
-                if all(name in topics for _, _, name in raw) else None
-            kept = self._packing = (raw, templates, packers,
-                                    templates.row[2 + N_VALUES:])
-        if kept[2] is not None:
-            only = craft.active_names
-            msgs._builds[only] = msgs._builds.get(only, 0) + 1
-        return kept[2], kept[3]
+        templates, raw = msgs._templates, craft.active_raw
+        topics = {name: (pack, get) for name, pack, get in templates.topics}
+        packers = [(send, *topics[name], pub.topic_name) for send, pub, name in raw] \
+            if all(name in topics for _, _, name in raw) else None
+        self._packing = (raw, templates, packers, templates.row[2 + N_VALUES:])
+        return self._packing
 
     def _exchanges(self, until: float):
         """Held for the exchange's command only: wait for it (an rcl wait set of that one
@@ -160,7 +155,7 @@ class Exchange:
             until = min(until, self._held_since + timeout)  # its pause is run_once's
 
     def _on_torque_bytes(self, data):
-        fields = vector3_stamped_fields(data)
+        fields = stamped_fields(data, 3)  # vector3_stamped_fields', a call fewer
         if fields is not None and fields[:2] == self._held_fields and \
                 self._take_held(fields):
             return
@@ -179,7 +174,10 @@ class Exchange:
                 frame.lstrip('/') not in ('', craft.p['child_frame_id']) or \
                 not (math.isfinite(x) and math.isfinite(y) and math.isfinite(z)):
             return False
-        craft.engine.apply_command((x, y, z))
+        direct = self._direct
+        if direct is None or direct.engine is not craft.engine:
+            direct = self._direct = DirectPeriod(craft.engine)
+        direct.apply(x, y, z)  # engine.apply_command's, shorter (lockstep_direct)
         self._awaiting.clear()
         self._release()
         self._direct_exchange(craft)
@@ -197,35 +195,41 @@ class Exchange:
         (the loop's next turn goes the general way) at real time, paused, with sensors,
         an orbit or actuators, or where the period is not one plain stretch
         (``DirectPeriod.step``)."""
-        engine = craft.engine
         if self._p['real_time_factor'] or self.paused or self._fault or \
                 craft.orbit is not None or craft.sensor_msgs is not None or \
                 craft.msgs.actuators is not None:
             return
-        direct = self._direct
-        if direct is None or direct.engine is not engine:
-            direct = self._direct = DirectPeriod(engine)
         t_ns = self._instant
-        values = direct.step(t_ns)
+        values = self._direct.step(t_ns)  # (made for craft's engine by _take_held)
         if values is None:
             return
         # Publishing._publish's path for one sample in lockstep, without a deadline
         self._tick_clock(t_ns)
+        acks = self._acks
         if craft.active:
-            packers, constants = self._packers(craft)
+            kept, msgs = self._packing, craft.msgs
+            if kept is None or kept[0] is not craft.active_raw or \
+                    kept[1] is not msgs._templates:
+                kept = self._packers(craft)
+            packers = kept[2]
             if packers is None:
-                states = craft.msgs.encoded_block(None, (self.stamp_ns(t_ns),),
-                                                  craft.active_names, (values,))
-                craft.publish_states(states, self._acks.refused, 0)
+                states = msgs.encoded_block(None, (self.stamp_ns(t_ns),), craft.active_names,
+                                            (values,))
+                craft.publish_states(states, acks.refused, 0)
             else:
-                row = [*divmod(self.stamp_ns(t_ns), 1_000_000_000), *values, *constants]
+                only = craft.active_names  # counted as encoded_block counts them
+                msgs._builds[only] = msgs._builds.get(only, 0) + 1
+                row = [*divmod(self.stamp_ns(t_ns), 1_000_000_000), *values, *kept[3]]
                 for send, pack, get, topic in packers:
                     try:
                         send(pack(*get(row)))
                     except RCLError as exc:  # a paced reader's history is full (sim_acks)
-                        self._acks.refused(topic, exc)
+                        acks.refused(topic, exc)
             self._published += len(craft.active)
-        self._acks.published()  # paced: as fast as possible (above)
+        # paced (as fast as possible): Acknowledgements.published, inline
+        acks.pending += 1
+        if acks.pending >= acks.window:
+            acks.wait()
         # what the instant just answered awaited (_take_held), without asking each
         # spacecraft again
         self._hold({('', 'torque')})
