@@ -12,6 +12,7 @@ import numpy as np
 
 from ..integrators import AUTO_CANDIDATES, create, get_integrator
 from . import calibration
+from .kinds import applicability
 from .calibration import DAMP_SUBSTEP
 
 # What auto may choose: the registry's candidates (integrators.AUTO_CANDIDATES).
@@ -354,20 +355,3 @@ class RunModel:
         return not (self.stiffness * H_OMEGA_PLAUSIBLE < self.omega
                     or self.stiffness * self.cap(c, True) < 1.0)
 
-
-def applicability(c, torque: bool, damping):
-    """Whether c applies to a run with (``torque``) or without commanded or environment
-    torque, under ``damping`` (the dissipation model, None without): True, False, or None
-    where the dissipation's stiffness decides (:meth:`RunModel.stiff_enough`)."""
-    if c.adaptive:  # its restarts at control instants are in its cost (tolerance)
-        return bool(torque or damping is not None)
-    if c.coupled_only and not (torque or damping):
-        return False
-    if c.exact_damping:
-        if damping != 'double_bracket':
-            return False
-        if not torque:
-            return True
-    elif not c.stiff_only:
-        return True
-    return None  # A-stability only pays off where the dissipation is stiff at the step

@@ -47,7 +47,6 @@ Adding a method needs nothing here: its class states its ``auto`` facts (a ``Can
 cost per step, error constant, …), which :mod:`.model` (the a-priori model: time scales,
 costs, errors) collects from the registry.
 """
-import functools
 import math
 from typing import NamedTuple
 
@@ -59,9 +58,10 @@ from ..dynamics import Dissipation, Dynamics
 from . import law_pilot, libration, pilot
 from .pilot_search import (NO_ROUND, PAYBACK, PREFER, SELECTION_SHARE, better as _better,
                            no_round_fits, piloted)
-from ..integrators import Candidate, get_integrator
+from ..integrators import Candidate
+from .kinds import applicable, free_flow_exact, least, usable as usable_of_kind
 from .model import (CANDIDATES, H_OMEGA_PRIOR, MEASURED_K, RTOL_RANGE, RUN_COST, RunModel,
-                    applicability, is_symmetric)
+                    is_symmetric)
 
 __all__ = ['CANDIDATES', 'Candidate', 'Selection', 'select', 'selecting']
 
@@ -208,11 +208,9 @@ def selecting(body: RigidBody, dissipation: Dissipation, attitude, angular_veloc
     if s.omega == 0.0:
         return Selection('splitting2', max_step, 'body at rest, no torque: any step is exact',
                          0.0, s.run_cost(CANDIDATES[0], max_step))
-    fixed, adaptive = _applicable(torque, s.damping, bool(environment))
-    usable = [c for c, stiff in fixed if not stiff or s.stiff_enough(c)]
-    if not torque:  # a method another one supersedes is not asked (Candidate.supersedes)
-        superseded = {c.supersedes for c in usable}
-        usable = [c for c in usable if c.name not in superseded]
+    kind = torque, s.damping, bool(environment)
+    fixed, adaptive = applicable(*kind)
+    usable = usable_of_kind(*kind, tuple([s.stiff_enough(c) for c, decides in fixed if decides]))
     what = effects(commanded, dissipation, environment)
     if forced and not commanded and adaptive and s.torque_rate >= s.spin:
         return _unknowable(s, adaptive[0], accuracy, horizon, (
@@ -322,27 +320,6 @@ def selecting(body: RigidBody, dissipation: Dissipation, attitude, angular_veloc
                      steps, spent, prior_cost, _options(c, tolerances, s.G))
 
 
-@functools.lru_cache(maxsize=None)
-def _applicable(torque: bool, damping, environment: bool):
-    """((candidate, whether the dissipation's stiffness decides), …) of the step-based
-    candidates, and (candidate, …) of the adaptive ones, that apply to a run of this kind
-    (:func:`.model.applicability`), in the registry's order: facts of the registry, once
-    per kind (asking each candidate per selection was a tenth of a short run's)."""
-    kinds = [(c, applicability(c, torque, damping)) for c in CANDIDATES
-             if c.environment or not environment]
-    return (tuple((c, kind is None) for c, kind in kinds if not c.adaptive and kind is not False),
-            tuple(c for c, kind in kinds if c.adaptive and kind))
-
-
-@functools.lru_cache(maxsize=None)
-def _free_flow_exact() -> frozenset:
-    """The candidates whose free flow has no stepping error (``orders['torque_free']``
-    None: exact), so that under dissipation alone only their splitting with the damping
-    errs (once: a registry lookup per candidate is a share of a short run's selection)."""
-    return frozenset(c.name for c in CANDIDATES
-                     if get_integrator(c.name).orders.get('torque_free', 0) is None)
-
-
 def _none_could_pay(s, usable, best, accuracy) -> bool:
     """Whether no step-based candidate could save what asking it costs, by one bound for
     all (each one's ``least_cost`` asked for nothing; Explorer 1 over 1 s, exact at the
@@ -351,10 +328,7 @@ def _none_could_pay(s, usable, best, accuracy) -> bool:
     if best is None or best[3] > accuracy or not usable:
         return False
     h = min(H_OMEGA_PRIOR / s.omega, s.max_step)
-    cost, term = s.costs.cost, s.term_cost
-    per_step = min(min(cost(c)) + term * c.environment_evals for c in usable)
-    # every candidate's event costs the closed loop's where it is known (RunModel.per_event)
-    event = s.event if s.event is not None else min(s.per_event(c) for c in usable)
+    per_step, event = least(s, usable)
     floor = RUN_COST + s.events * event + s.horizon / h * per_step * 1e-6
     # as _worth_asking, for a geometric candidate (the preference can only favour it)
     return floor + PRIOR_EACH >= best[2] * (1.0 if best[0].geometric else 1.0 + PREFER)
@@ -373,7 +347,7 @@ def _symmetric_split(s, usable, why):
     multiples of its 0.5 s period) erred 0.93–1.0·Δβ over 30–690 s, at h = 0.37 s 2000×
     less. The earlier facts (no a-priori bound, 18 µs a step, hΩ ≤ 2) made it 30× dearer
     than it is and kept auto on dop853 at 2.8× its CPU there."""
-    best, asked, err, exact = None, 0, None, _free_flow_exact()
+    best, asked, err, exact = None, 0, None, free_flow_exact()
     for c in usable:
         if c.name not in exact:
             continue
