@@ -50,7 +50,7 @@ def usable(torque: bool, damping, environment: bool, stiff: tuple) -> tuple:
     """The step-based candidates a run of this kind asks (:func:`applicable`), ``stiff``
     saying for each one whose dissipation's stiffness decides whether it is stiff enough
     (``RunModel.stiff_enough``); without torque, none another one supersedes
-    (``Candidate.supersedes``). One tuple per kind: :func:`least` keys on it."""
+    (``Candidate.supersedes``)."""
     decided = iter(stiff)
     usable = [c for c, decides in applicable(torque, damping, environment)[0]
               if not decides or next(decided)]
@@ -60,29 +60,30 @@ def usable(torque: bool, damping, environment: bool, stiff: tuple) -> tuple:
     return tuple(usable)
 
 
-# (the costs, the usable tuple, the event's cost) → (the costs and the tuple, kept so that
-# their ids stay theirs; the least µs per step and s per event of any of them)
+# (kind, the costs' id, the event's cost) → (the costs, kept so that their id stays theirs;
+# the least µs per step and s per event of the kind's usable candidates)
 _LEAST = {}
 
 
-def least(s, usable):
-    """(µs, s): the least cost per step and per event of any of ``usable`` on the run
-    ``s`` (RunModel.costs, .per_event); the same figures for every run of one kind and
-    costs without environment torques, so kept per kind (a loop over the candidates was a
-    fifth of Explorer 1's selection)."""
-    key = (id(s.costs), id(usable), s.damping is None, s.event)
+def least(s, kind: tuple):
+    """(µs, s): the least cost per step and per event of any of the usable candidates of
+    ``kind`` (the arguments of :func:`usable`) on the run ``s`` (RunModel.costs,
+    .per_event). Without environment torques they are the same for every run of the kind
+    and costs, so kept (a loop over the candidates was a fifth of Explorer 1's selection);
+    with them the terms' cost is the run's own."""
+    key = (kind, id(s.costs), s.event)
     known = _LEAST.get(key) if not s.term_cost else None
-    if known is not None:
+    if known is not None and known[0] is s.costs:
         return known[1]
     cost, term, per_event = s.costs.cost, s.term_cost, s.per_event
     per_step = event = math.inf  # loops: a generator per min is dearer
-    for c in usable:
+    for c in usable(*kind):
         x = min(cost(c)) + term * c.environment_evals
         per_step = x if x < per_step else per_step
         x = per_event(c)
         event = x if x < event else event
     if not s.term_cost:
-        _LEAST[key] = ((s.costs, usable), (per_step, event))
+        _LEAST[key] = (s.costs, (per_step, event))
     return per_step, event
 
 

@@ -59,7 +59,7 @@ from . import law_pilot, libration, pilot
 from .pilot_search import (NO_ROUND, PAYBACK, PREFER, SELECTION_SHARE, better as _better,
                            no_round_fits, piloted)
 from ..integrators import Candidate
-from .kinds import applicable, free_flow_exact, least, usable as usable_of_kind
+from .kinds import applicable, free_flow_exact, least as least_costs, usable as usable_of_kind
 from .model import (CANDIDATES, H_OMEGA_PRIOR, MEASURED_K, RTOL_RANGE, RUN_COST, RunModel,
                     is_symmetric)
 
@@ -208,9 +208,10 @@ def selecting(body: RigidBody, dissipation: Dissipation, attitude, angular_veloc
     if s.omega == 0.0:
         return Selection('splitting2', max_step, 'body at rest, no torque: any step is exact',
                          0.0, s.run_cost(CANDIDATES[0], max_step))
-    kind = torque, s.damping, bool(environment)
-    fixed, adaptive = applicable(*kind)
-    usable = usable_of_kind(*kind, tuple([s.stiff_enough(c) for c, decides in fixed if decides]))
+    fixed, adaptive = applicable(torque, s.damping, bool(environment))
+    kind = torque, s.damping, bool(environment), \
+        tuple([s.stiff_enough(c) for c, decides in fixed if decides])
+    usable = usable_of_kind(*kind)
     what = effects(commanded, dissipation, environment)
     if forced and not commanded and adaptive and s.torque_rate >= s.spin:
         return _unknowable(s, adaptive[0], accuracy, horizon, (
@@ -229,7 +230,7 @@ def selecting(body: RigidBody, dissipation: Dissipation, attitude, angular_veloc
     # cheapest first by the least each could cost (at its largest step); one that could not
     # save more than asking it costs is not asked: on a short run the fixed part of the run
     # dominates every candidate's cost, and the a-priori pass would be its largest share
-    least = [] if _none_could_pay(s, usable, best, accuracy) else \
+    least = [] if _none_could_pay(s, kind, best, accuracy) else \
         sorted((s.least_cost(c), i, c) for i, c in enumerate(usable) if math.isfinite(c.k))
     if not least and best is not None:
         unasked += [c.name for c in usable if math.isfinite(c.k)]
@@ -320,15 +321,15 @@ def selecting(body: RigidBody, dissipation: Dissipation, attitude, angular_veloc
                      steps, spent, prior_cost, _options(c, tolerances, s.G))
 
 
-def _none_could_pay(s, usable, best, accuracy) -> bool:
+def _none_could_pay(s, kind, best, accuracy) -> bool:
     """Whether no step-based candidate could save what asking it costs, by one bound for
     all (each one's ``least_cost`` asked for nothing; Explorer 1 over 1 s, exact at the
     sample period): the fewest steps any takes (hΩ ≤ H_OMEGA_PRIOR, at most the event
     spacing) at the least cost per step and per event of all, beside the run's fixed part."""
-    if best is None or best[3] > accuracy or not usable:
+    if best is None or best[3] > accuracy or not usable_of_kind(*kind):
         return False
     h = min(H_OMEGA_PRIOR / s.omega, s.max_step)
-    per_step, event = least(s, usable)
+    per_step, event = least_costs(s, kind)
     floor = RUN_COST + s.events * event + s.horizon / h * per_step * 1e-6
     # as _worth_asking, for a geometric candidate (the preference can only favour it)
     return floor + PRIOR_EACH >= best[2] * (1.0 if best[0].geometric else 1.0 + PREFER)
