@@ -68,7 +68,8 @@ def share(scene, duration, runs=9):
 # calibration read, the per-kind candidate facts of physics/auto/kinds.py kept since its
 # first selection), but no choice is kept: each run chooses afresh
 SHARE_NOTE = ('median of 9 runs in one warm process (kernels, costs and per-kind candidate '
-              'facts loaded), each choosing afresh')
+              'facts loaded), each choosing afresh; a fresh process\'s first selection, '
+              'which also reads the calibration, is not among them')
 
 
 def _share_row(targets, name, duration, log):
