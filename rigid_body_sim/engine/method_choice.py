@@ -84,7 +84,10 @@ class MethodChoice:
                   # event-by-event loop, the live node and lockstep (the law in another
                   # process) choose as the offline run does and their samples stay equal
                   # (selecting leaves out restarting runs, an orbit's among them)
-                  law_in_loop=True)
+                  law_in_loop=True,
+                  # the state's own momentum (a copy: the pilot may outlive this instant),
+                  # not I·ω from the ω it gives: two array operations of the selection's time
+                  momentum=self._m.copy())
         runner = self._law_runner() if torque else None
         if runner is not None:  # the law runs here: a pilot can measure it
             kw.update(law_runner=runner, control_period=c.control.period_ns / NS)

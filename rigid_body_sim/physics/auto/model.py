@@ -12,6 +12,7 @@ import numpy as np
 
 from ..integrators import AUTO_CANDIDATES, create, get_integrator
 from . import calibration
+from .kinds import applicability
 from .calibration import DAMP_SUBSTEP
 
 # What auto may choose: the registry's candidates (integrators.AUTO_CANDIDATES).
@@ -109,7 +110,7 @@ class RunModel:
         self.costs = costs or calibration.current()
         # µs per evaluation of the environment's torques ('gravity gradient'): a method pays
         # it at each of its evaluations (Candidate.environment_evals) every step
-        self.term_cost = sum(self.costs.term_cost(t) for t in environment)
+        self.term_cost = sum(map(self.costs.term_cost, environment)) if environment else 0
         # s per event where the compiled closed loop runs every event (no commands from
         # outside, no environment re-made per interval) and the calibration measured it;
         # else None: EVENT_COST and the method's call, the event-by-event loop
@@ -120,9 +121,13 @@ class RunModel:
             event = (SAMPLE_EVENT if event is None else event) + LAW_EVENT
         self.event = None if (commanded and not law_in_loop) or event is None else event * 1e-6
         self.accuracy, self.horizon, self.max_step = accuracy, horizon, max_step
-        self.G = math.sqrt(sum(x * x for x in m.tolist()))  # floats: numpy's per-call cost
+        # plain floats, kept for the selection's closed forms (pilot.turning): numpy's
+        # per-call cost is a share of a short run's selection; the sum in the order sum() took
+        self.m_floats = a, b, c = m.tolist()
+        self.moment_floats = dyn.moments.tolist()
+        self.G = math.sqrt(a * a + b * b + c * c)
         self.stiffness = dyn.dissipation_stiffness(self.G)
-        spin = self.G / min(dyn.moments.tolist())
+        spin = self.G / min(self.moment_floats)
         self.spin, self.torque_rate = spin, torque_rate
         self.omega = spin + torque_rate + self.stiffness
         self.events = max(1, math.ceil(horizon / max_step - 1e-9))
@@ -340,18 +345,13 @@ class RunModel:
         return min(((h, self.prior_error(c, h)) for h in steps), key=lambda he: he[1])
 
     def applicable(self, c, torque):
-        if c.adaptive:  # its restarts at control instants are in its cost (tolerance)
-            return bool(torque or self.damping is not None)
-        if c.coupled_only and not (torque or self.damping):
-            return False
-        if c.exact_damping:
-            if self.damping != 'double_bracket':
-                return False
-            if not torque:
-                return True
-        elif not c.stiff_only:
-            return True
-        # A-stability only pays off when dissipation is stiff at the step; the bound on cap
-        # first (cap ≤ H_OMEGA_PLAUSIBLE/Ω) spares building the method to ask its order
+        kind = applicability(c, bool(torque), self.damping)
+        return kind if kind is not None else self.stiff_enough(c)
+
+    def stiff_enough(self, c):
+        """Whether the dissipation is stiff at c's steps: where A-stability pays off (the
+        bound on cap first: cap ≤ H_OMEGA_PLAUSIBLE/Ω spares building the method to ask
+        its order)."""
         return not (self.stiffness * H_OMEGA_PLAUSIBLE < self.omega
                     or self.stiffness * self.cap(c, True) < 1.0)
+

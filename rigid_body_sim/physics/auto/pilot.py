@@ -101,13 +101,15 @@ def _beta(moments, m):
                0.5 * math.pi - BETA_LIMIT)
 
 
-def turning(dynamics, m0, horizon: float, momentum_norm: float = None) -> float:
+def turning(dynamics, m0, horizon: float, momentum_norm: float = None,
+            moments=None) -> float:
     """|β(T) − β(0)| (rad): how far the dissipation turns the momentum in the body over the
     run, along its path (tan β ∝ exp(κ t), :func:`path_rate`). On a symmetric body that is
     the whole of the damping's turning: there its rate is (κ/2)·sin 2β, whose integral is
-    Δβ (the Gudermannian of κt). ``momentum_norm``: |m0| if the caller has it."""
+    Δβ (the Gudermannian of κt). ``momentum_norm``: |m0|, and ``moments``: the dynamics'
+    moments as floats, if the caller has them."""
     a, b, c = m0 = _floats(m0)
-    beta0 = _beta(dynamics.moments, m0)
+    beta0 = _beta(dynamics.moments if moments is None else moments, m0)
     if momentum_norm is None:
         momentum_norm = math.sqrt(a * a + b * b + c * c)
     u = math.log(math.tan(beta0)) + path_rate(dynamics, momentum_norm) * horizon

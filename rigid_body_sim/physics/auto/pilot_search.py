@@ -29,10 +29,9 @@ def better(c, cost, best, accuracy):
     preferred within PREFER (they keep |L| and the energy in free stretches)."""
     if best[3] > accuracy:
         return True
-
-    def weighed(cand, value):
-        return value * (1.0 if cand.geometric else 1.0 + PREFER)
-    return weighed(c, cost) < weighed(best[0], best[2])
+    # written out, not a nested function made at every call (asked several times a run)
+    return cost * (1.0 if c.geometric else 1.0 + PREFER) < \
+        best[2] * (1.0 if best[0].geometric else 1.0 + PREFER)
 
 
 def _budget(strict, fallback, saving, spend, prior_cost):

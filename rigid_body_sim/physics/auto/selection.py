@@ -47,9 +47,8 @@ Adding a method needs nothing here: its class states its ``auto`` facts (a ``Can
 cost per step, error constant, …), which :mod:`.model` (the a-priori model: time scales,
 costs, errors) collects from the registry.
 """
-import functools
 import math
-from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 
@@ -59,7 +58,8 @@ from ..dynamics import Dissipation, Dynamics
 from . import law_pilot, libration, pilot
 from .pilot_search import (NO_ROUND, PAYBACK, PREFER, SELECTION_SHARE, better as _better,
                            no_round_fits, piloted)
-from ..integrators import Candidate, get_integrator
+from ..integrators import Candidate
+from .kinds import applicable, free_flow_exact, least as least_costs, usable as usable_of_kind
 from .model import (CANDIDATES, H_OMEGA_PRIOR, MEASURED_K, RTOL_RANGE, RUN_COST, RunModel,
                     is_symmetric)
 
@@ -76,11 +76,11 @@ SPLIT_NOTE = f'symmetric body: E ≤ {SPLIT_K:g}·Δβ'
 DEFAULT_HORIZON = 600.0   # s: the budget horizon for open-ended (duration 0) runs
 
 
-@dataclass(frozen=True)
-class Selection:
+class Selection(NamedTuple):
     """The chosen method and step (s), why, the predicted attitude error (rad) and run CPU
     (s), and what choosing cost: pilot steps and their predicted CPU (s), and the a-priori
-    pass's predicted CPU (s)."""
+    pass's predicted CPU (s). Immutable; a named tuple, not a frozen dataclass, whose ten
+    fields set one by one cost a sixth of Explorer 1's whole selection."""
     name: str
     step: float
     reason: str
@@ -140,7 +140,8 @@ def selecting(body: RigidBody, dissipation: Dissipation, attitude, angular_veloc
               torque_rate: float = 0.0, prior_only: bool = False,
               dynamics: Dynamics = None, environment: tuple = (), forced: bool = False,
               restarting: bool = False, orbit_state: tuple = None,
-              law_in_loop: bool = False, law_runner=None, control_period: float = 0.0):
+              law_in_loop: bool = False, law_runner=None, control_period: float = 0.0,
+              momentum=None):
     """Generator form of :func:`select`: yields often (every few ms of pilot work) so that a
     caller can interleave the selection with its own work; its return value is the Selection.
 
@@ -185,6 +186,9 @@ def selecting(body: RigidBody, dissipation: Dissipation, attitude, angular_veloc
             the closed loop from the current state (``engine.law_pilot``): the a-priori
             choice is then refined by a pilot with the law in the loop
             (:mod:`.law_pilot`); ``control_period``: the law's period, s.
+        momentum: the angular momentum in the principal frame (I·ω, an array the
+            selection keeps) if the caller holds it (the engine's state), else from
+            ``angular_velocity``.
     """
     commanded, torque = torque, torque or bool(environment)
     if not (accuracy > 0 and math.isfinite(accuracy)):
@@ -192,7 +196,7 @@ def selecting(body: RigidBody, dissipation: Dissipation, attitude, angular_veloc
     if not (max_step > 0 and math.isfinite(max_step)):
         raise ValueError(f'max_step must be positive, got {max_step}')
     moments = body.principal_moments
-    m = moments * body.to_principal(angular_velocity)
+    m = moments * body.to_principal(angular_velocity) if momentum is None else momentum
     if not torque and not dissipation.active:
         return _free_choice(moments, max_step, m)
     horizon = duration if duration > 0 else DEFAULT_HORIZON
@@ -204,13 +208,10 @@ def selecting(body: RigidBody, dissipation: Dissipation, attitude, angular_veloc
     if s.omega == 0.0:
         return Selection('splitting2', max_step, 'body at rest, no torque: any step is exact',
                          0.0, s.run_cost(CANDIDATES[0], max_step))
-    usable = [c for c in CANDIDATES if s.applicable(c, torque)
-              and (c.environment or not environment)]
-    adaptive = [c for c in usable if c.adaptive]  # set by a tolerance, not a step
-    usable = [c for c in usable if not c.adaptive]
-    if not torque:  # a method another one supersedes is not asked (Candidate.supersedes)
-        superseded = {c.supersedes for c in usable}
-        usable = [c for c in usable if c.name not in superseded]
+    fixed, adaptive = applicable(torque, s.damping, bool(environment))
+    kind = torque, s.damping, bool(environment), \
+        tuple([s.stiff_enough(c) for c, decides in fixed if decides])
+    usable = usable_of_kind(*kind)
     what = effects(commanded, dissipation, environment)
     if forced and not commanded and adaptive and s.torque_rate >= s.spin:
         return _unknowable(s, adaptive[0], accuracy, horizon, (
@@ -224,12 +225,12 @@ def selecting(body: RigidBody, dissipation: Dissipation, attitude, angular_veloc
             return _unknowable(s, adaptive[0], accuracy, horizon, (
                 f'{what}: the body starts {near.describe()} → it leaves it exponentially'))
     best, why, unasked, asked = None, [], [], 0
-    if not torque and is_symmetric(moments):  # exact's split error is known a priori here
+    if not torque and is_symmetric(s.moment_floats):  # exact's split error is known a priori
         best, asked = _symmetric_split(s, usable, why)
     # cheapest first by the least each could cost (at its largest step); one that could not
     # save more than asking it costs is not asked: on a short run the fixed part of the run
     # dominates every candidate's cost, and the a-priori pass would be its largest share
-    least = [] if _none_could_pay(s, usable, best, accuracy) else \
+    least = [] if _none_could_pay(s, kind, best, accuracy) else \
         sorted((s.least_cost(c), i, c) for i, c in enumerate(usable) if math.isfinite(c.k))
     if not least and best is not None:
         unasked += [c.name for c in usable if math.isfinite(c.k)]
@@ -320,26 +321,16 @@ def selecting(body: RigidBody, dissipation: Dissipation, attitude, angular_veloc
                      steps, spent, prior_cost, _options(c, tolerances, s.G))
 
 
-@functools.lru_cache(maxsize=None)
-def _free_flow_exact() -> frozenset:
-    """The candidates whose free flow has no stepping error (``orders['torque_free']``
-    None: exact), so that under dissipation alone only their splitting with the damping
-    errs (once: a registry lookup per candidate is a share of a short run's selection)."""
-    return frozenset(c.name for c in CANDIDATES
-                     if get_integrator(c.name).orders.get('torque_free', 0) is None)
-
-
-def _none_could_pay(s, usable, best, accuracy) -> bool:
+def _none_could_pay(s, kind, best, accuracy) -> bool:
     """Whether no step-based candidate could save what asking it costs, by one bound for
     all (each one's ``least_cost`` asked for nothing; Explorer 1 over 1 s, exact at the
     sample period): the fewest steps any takes (hΩ ≤ H_OMEGA_PRIOR, at most the event
     spacing) at the least cost per step and per event of all, beside the run's fixed part."""
-    if best is None or best[3] > accuracy or not usable:
+    if best is None or best[3] > accuracy or not usable_of_kind(*kind):
         return False
     h = min(H_OMEGA_PRIOR / s.omega, s.max_step)
-    per_step = min(min(s.costs.cost(c)) + s.term_cost * c.environment_evals for c in usable)
-    floor = RUN_COST + s.events * min(s.per_event(c) for c in usable) \
-        + s.horizon / h * per_step * 1e-6
+    per_step, event = least_costs(s, kind)
+    floor = RUN_COST + s.events * event + s.horizon / h * per_step * 1e-6
     # as _worth_asking, for a geometric candidate (the preference can only favour it)
     return floor + PRIOR_EACH >= best[2] * (1.0 if best[0].geometric else 1.0 + PREFER)
 
@@ -357,12 +348,13 @@ def _symmetric_split(s, usable, why):
     multiples of its 0.5 s period) erred 0.93–1.0·Δβ over 30–690 s, at h = 0.37 s 2000×
     less. The earlier facts (no a-priori bound, 18 µs a step, hΩ ≤ 2) made it 30× dearer
     than it is and kept auto on dop853 at 2.8× its CPU there."""
-    best, asked, err, exact = None, 0, None, _free_flow_exact()
+    best, asked, err, exact = None, 0, None, free_flow_exact()
     for c in usable:
         if c.name not in exact:
             continue
         asked += 1
-        err = SPLIT_K * pilot.turning(s.dyn, s.m, s.horizon, s.G) if err is None else err
+        err = SPLIT_K * pilot.turning(s.dyn, s.m_floats, s.horizon, s.G,
+                                      s.moment_floats) if err is None else err
         why.append(f'{c.name} h={s.max_step:.3g} ({SPLIT_NOTE} = {err:.2g}, the damping\'s '
                    'turning, at any step)')
         if err <= s.accuracy:
@@ -372,9 +364,11 @@ def _symmetric_split(s, usable, why):
 
 def effects(commanded, dissipation, environment) -> str:
     """What the model holds besides the free body, for the reason."""
-    return ' + '.join([e for e, on in (('commanded torque', commanded),
-                                       (f'{dissipation.model} dissipation',
-                                        dissipation.active)) if on] + list(environment))
+    parts = ['commanded torque'] if commanded else []
+    if dissipation.active:
+        parts.append(dissipation.model + ' dissipation')
+    parts.extend(environment)
+    return ' + '.join(parts)
 
 
 def _unknowable(s, c, accuracy, horizon, why):

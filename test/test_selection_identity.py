@@ -1,0 +1,100 @@
+"""``auto`` chooses as it did before its fixed cost was cut (issue 29's selection share).
+
+test/data/selection_choices.json.gz holds what the engine chose (method, step, reason, the
+whole Selection) and the provisional a-priori choice a non-blocking engine (the live node)
+takes first, on the named scenes at their own and three shorter horizons and on 300 body,
+30 orbit and 30 B-dot scenes of ``bench.generated`` (seed 20261125), written by this file
+(``python test/test_selection_identity.py --write``) from main at cf57fee, before the
+a-priori pass was made cheaper. A change of the choice, of a step, of a predicted figure
+or of a word of a reason fails here; one meant to change a choice rewrites the file in its
+own commit and says why. The costs are the classes' constants (conftest), so the choices
+do not depend on the machine; the pilots' measured errors are bit-identical runs of the
+compiled kernels.
+"""
+import gzip
+import json
+import os
+import sys
+
+import pytest
+
+from rigid_body_sim.bench import generated_bdot, generated_scenes
+from rigid_body_sim.engine import Engine, EngineConfig
+from rigid_body_sim.offline import effective_parameters, engine_for
+from rigid_body_sim.scene import SceneError, load
+
+pytestmark = pytest.mark.fast
+
+DATA = os.path.join(os.path.dirname(__file__), 'data', 'selection_choices.json.gz')
+SEED = 20261125
+NAMED = ('default', 'slew', 'detumble', 'tennis_racket', 'symmetric_top', 'explorer1',
+         'rigid_earth', 'gravity_gradient', 'explorer1_orbit', 'bdot_detumble')
+HORIZONS = (None, 1.0, 10.0, 100.0)  # None: the scene's own duration
+
+
+def _scenes():
+    """(key, scene file maker, duration) of every recorded case."""
+    for name in NAMED:
+        for d in HORIZONS:
+            yield f'{name}@{d}', lambda name=name: load(name), d
+    for i in range(300):
+        yield f'body{i}', lambda i=i: generated_scenes.draw(SEED, i).scene_file(), None
+    for i in range(30):
+        yield f'gg{i}', lambda i=i: generated_scenes.draw_gravity_gradient(
+            SEED, i, quick=True).scene_file(), None
+        yield f'bdot{i}', lambda i=i: generated_bdot.draw(SEED, i, quick=True).scene_file(), \
+            None
+
+
+def _selection(s):
+    return None if s is None else [s.name, s.step, s.reason, s.predicted_error,
+                                   s.predicted_cost, s.pilot_steps, s.pilot_cost,
+                                   s.prior_cost, [list(o) for o in s.options]]
+
+
+def _provisional(scene, duration):
+    """The a-priori choice a non-blocking engine takes before its pilot runs."""
+    p = effective_parameters(scene, duration)
+    config = EngineConfig.from_parameters(p, scene.controller if scene.controlled else None)
+    engine = Engine(config, blocking_selection=False, interpolate_samples=True)
+    return [engine.method, engine.step_max, engine.reason]
+
+
+def choices(scene, duration) -> dict:
+    """What auto chooses for ``scene`` over ``duration`` (None: its own), as JSON values."""
+    try:
+        engine = engine_for(scene, duration=duration)
+    except (SceneError, ValueError) as exc:
+        return dict(error=str(exc))
+    return dict(method=engine.method, step=engine.step_max, reason=engine.reason,
+                selection=_selection(engine.selected),
+                provisional=_provisional(scene, duration))
+
+
+def _recorded():
+    with gzip.open(DATA, 'rt', encoding='utf-8') as f:
+        return json.load(f)
+
+
+@pytest.mark.slow
+def test_choices_and_reasons_are_those_recorded_before_the_cut():
+    recorded = _recorded()
+    cases = list(_scenes())
+    assert sorted(recorded) == sorted(key for key, _, _ in cases)
+    # the record spans what auto does: every kind of choice, piloted and a priori
+    methods = {v['method'] for v in recorded.values() if 'method' in v}
+    assert {'exact', 'dop853', 'rk4', 'splitting4', 'splitting6'} <= methods
+    assert sum(1 for v in recorded.values() if (v.get('selection') or [0] * 6)[5] > 0) > 100
+    differ = []
+    for key, make, duration in cases:
+        now = choices(make(), duration)
+        if now != recorded[key]:
+            differ.append(f'{key}: now {now}\n  was {recorded[key]}')
+    assert not differ, f'{len(differ)} of {len(cases)} choices changed:\n' + \
+        '\n'.join(differ[:5])
+
+
+if __name__ == '__main__' and sys.argv[1:] == ['--write']:
+    os.environ.setdefault('RIGID_BODY_SIM_AUTO_COSTS', 'constants')
+    with gzip.open(DATA, 'wt', encoding='utf-8') as out:
+        json.dump({key: choices(make(), d) for key, make, d in _scenes()}, out, indent=0)
