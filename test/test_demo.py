@@ -363,3 +363,30 @@ def test_a_demo_that_never_got_a_sample_fails():
     assert exit_code(0, False, started=True) == 0
     assert exit_code(0, True, started=False) == 130
     assert exit_code(2, False, started=True) == 2
+
+
+class _Node:
+    def __init__(self, name, events):
+        self.name, self._events = name, events
+
+    def stop(self):
+        self._events.append(f'stop {self.name}')
+        return 0
+
+
+@pytest.mark.parametrize('sim_ended, interrupted, first', [
+    (True, False, ['spin 1']), (False, False, []), (True, True, [])])
+def test_the_others_outlive_a_simulator_that_ended_its_run(sim_ended, interrupted, first):
+    """A simulator that ended its run on its own: the controllers keep running a moment
+    before they are stopped, so that a command the recorder lost on the way goes again at
+    their next heartbeat (a formation's bag once held 19 of the leader's 20 lockstep
+    commands, the simulator all 20: stopped at once, the controller took the last one with
+    it). The recorder (procs[0]) is the caller's, stopped last; Ctrl-C stops at once."""
+    from rigid_body_sim.demo_nodes import WRITERS_GRACE_S, stop_nodes
+    events = []
+    procs = [_Node(n, events) for n in ('recorder', 'controller leader', 'simulator')]
+    codes = stop_nodes(procs, lambda s: events.append(f'spin {s:g}'), sim_ended, interrupted)
+    assert WRITERS_GRACE_S >= 1.0  # ~50 heartbeats of a lockstep writer (20 ms)
+    assert events == first + ['stop controller leader', 'stop simulator',
+                              'spin 0.2' if interrupted else 'spin 1']
+    assert codes == {'controller leader': 0, 'simulator': 0}
