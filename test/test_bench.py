@@ -35,8 +35,8 @@ def quick_run(tmp_path_factory, pytestconfig):
     # The figures are checked finite and present, not judged: each (scene, method) sweep
     # of the work-precision section gets half --quick's CPU budget (its first, coarsest
     # run always runs, so every method still has a row on every scene), and the sampling
-    # section's CLI runs (fresh processes, ~1.4 CPU-s each) are timed once, not twice.
-    # 12 of the fixture's 47 CPU-s (issue 32).
+    # section's CLI runs (fresh processes, ~1.4 CPU-s each) are timed once, not twice:
+    # the sweeps 10.4-10.9 -> 7.9 CPU-s, two processes fewer (issue 32).
     # The run takes a minute or more: show its progress lines live, not captured.
     capture = pytestconfig.pluginmanager.getplugin('capturemanager')
     with capture.global_and_fixture_disabled(), pytest.MonkeyPatch.context() as patch:
