@@ -30,9 +30,10 @@ demo: venv
 
 # -v names each test as it ends, with its worker. --no-loadscope-reorder keeps the order of
 # test/conftest.py (the files that took longest last time first, so that no minutes-long file
-# is left for the end). loadfile keeps a file on one worker, so a module-scoped fixture (the
-# benchmark's run, colcon's build, the viewer's graph) runs once; xdist 3.8's loadgroup did
-# not keep a module-level xdist_group together here.
+# is left for the end; a fresh clone, without .pytest_cache, by test/file_seconds.json).
+# loadfile keeps a file on one worker, so a module-scoped fixture (the benchmark's run,
+# colcon's build, the viewer's graph) runs once; xdist 3.8's loadgroup did not keep a
+# module-level xdist_group together here.
 #
 # bytecode first: with PYTHONDONTWRITEBYTECODE set (as on these machines) no .pyc of the
 # package is ever written, and each of the suite's ~400 node and CLI processes compiled

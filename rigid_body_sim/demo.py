@@ -18,7 +18,7 @@ import numpy as np
 
 from .demo_nodes import (CONTROLLER_ID, STARTUP_TIMEOUT, Process, check_lost,
                          controllers_file, judge_simulator, shown_spacecraft,
-                         wait_for_nodes)
+                         stop_nodes, wait_for_nodes)
 from .demo_summary import summarize
 from .demo_watch import Watcher
 from .scene import SceneError, load, spacecraft_scene
@@ -256,10 +256,8 @@ def run(args) -> int:
         sim = next((p for p in procs if p.name == 'simulator'), None)
         check_lost(procs, sim)  # those that exited since the loop's last look
         sim_ended = sim is not None and sim.exited()  # on its own, not stopped below
-        codes = {p.name: p.stop() for p in procs[1:]}
-        end = time.monotonic() + (0.2 if interrupted else 1.0)  # the last messages
-        while executor is not None and time.monotonic() < end:
-            executor.spin_once(timeout_sec=0.05)
+        codes = stop_nodes(procs, lambda seconds: _spin_for(executor, seconds), sim_ended,
+                           interrupted)
         if sim_ended:
             judge_simulator(sim, watcher.t, scene.simulator['duration'],
                             1.0 / scene.simulator['publish_rate'])
@@ -280,6 +278,13 @@ def run(args) -> int:
                      {p.name: p.log_path for p in procs}, interrupted,
                      f'/{shown}' if shown else '', list(scene.spacecraft), args.plots)
     return exit_code(code, interrupted, watcher.t0 is not None)
+
+
+def _spin_for(executor, seconds):
+    """Turn the demo's node for ``seconds`` (wall): the status and the last messages."""
+    end = time.monotonic() + seconds
+    while executor is not None and time.monotonic() < end:
+        executor.spin_once(timeout_sec=0.05)
 
 
 def exit_code(summary_code: int, interrupted: bool, started: bool) -> int:

@@ -18,6 +18,13 @@ import time
 SIMULATOR_ID = '/attitude_simulator'
 CONTROLLER_ID = '/attitude_controller'
 TAIL_LINES = 5  # of a lost node's log, in the report
+# A simulator that ended its run on its own: the other nodes keep running this long (wall
+# s) before they are stopped. A reliable message a reader lost on the way (its full
+# shared-memory queue, on a loaded machine) goes again only after its writer's next
+# heartbeat (20 ms in lockstep, process.heartbeat_profile): a controller stopped as soon as
+# the simulator exited took its last commands with it (a formation's leader: 19 of its 20
+# lockstep commands in the bag, the simulator had all 20; a fresh clone's suite).
+WRITERS_GRACE_S = 1.0
 STARTUP_TIMEOUT = 60.0  # wall s for the first sample (imports, kernels from cache, discovery)
 
 
@@ -134,3 +141,16 @@ def wait_for_nodes(node, executor, names, procs):
                 node.get_subscriber_names_and_types_by_node(*present[n]) for n in names):
             return
         executor.spin_once(timeout_sec=0.1)
+
+
+def stop_nodes(procs, spin, sim_ended: bool, interrupted: bool) -> dict:
+    """Stop every node but the recorder (``procs[0]``, stopped last by the caller), the
+    simulator among them; {name: exit code}. ``spin(seconds)`` turns the demo's own node.
+    After a run the simulator ended on its own, the others get WRITERS_GRACE_S first (their
+    last messages reach the recorder); then, the nodes stopped, the last messages of their
+    shutdown get 1 s (0.2 s after Ctrl-C)."""
+    if sim_ended and not interrupted:
+        spin(WRITERS_GRACE_S)
+    codes = {p.name: p.stop() for p in procs[1:]}
+    spin(0.2 if interrupted else 1.0)
+    return codes

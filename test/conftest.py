@@ -69,14 +69,26 @@ def rclpy_node(request):
 # ones (the bench's quick run, the demo, Dask, the 40-digit references) last: the suite then
 # waited minutes on one or two workers at the end. Each file's wall time is kept in pytest's
 # cache (.pytest_cache) and the next run starts with the longest (the Makefile passes
-# --no-loadscope-reorder so that xdist keeps this order; without a cache it is by name).
+# --no-loadscope-reorder so that xdist keeps this order). A fresh clone has no cache: it
+# takes the committed table (FILE_SECONDS_TABLE, the files of 15 s or more in a full run;
+# by name, test_viewer*'s module fixtures came last and fresh clones took 7:18-8:18 where a
+# cached run took 6:51). Files it does not list come after, in collection order.
 _FILE_SECONDS = 'rigid_body_sim/file_seconds'
+FILE_SECONDS_TABLE = os.path.join(os.path.dirname(__file__), 'file_seconds.json')
 _SPENT = {}
+
+
+def committed_seconds():
+    """{test file: wall s} of the committed table (what a run without a cache orders by)."""
+    import json
+    with open(FILE_SECONDS_TABLE) as f:
+        return json.load(f)
 
 
 def pytest_collection_modifyitems(config, items):
     cache = getattr(config, 'cache', None)
-    seconds = cache.get(_FILE_SECONDS, {}) if cache is not None else {}
+    seconds = (cache.get(_FILE_SECONDS, {}) if cache is not None else {}) or \
+        committed_seconds()
     if seconds:  # a stable sort: each file's tests stay together and in their order
         items.sort(key=lambda item: -seconds.get(item.nodeid.split('::')[0], 0.0))
 

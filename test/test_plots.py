@@ -194,13 +194,11 @@ def test_bench_chart_never_plots_the_reference_against_itself(tmp_path):
 
 
 def test_tour_writes_five_small_thumbnails_that_the_docs_show(tmp_path):
-    import subprocess
-    import sys
-
+    """`rigid-body-sim tour` (in the test's process, cli_inprocess: what it writes, not its
+    process) writes the five thumbnails the scenes page shows, each small."""
+    from cli_inprocess import run_cli
     from rigid_body_sim.tour import MAX_BYTES, TOUR, thumbnail_name
-    cli = os.path.join(os.path.dirname(sys.executable), 'rigid-body-sim')
-    out = subprocess.run([cli, 'tour', '--out', str(tmp_path)], capture_output=True, text=True,
-                         timeout=300)
+    out = run_cli('tour', '--out', tmp_path)
     assert out.returncode == 0, out.stderr
     # the tour lives on the scenes page (its pictures relative to docs/)
     page = open(os.path.join(REPO, 'docs', 'scenes.md'), encoding='utf-8').read()

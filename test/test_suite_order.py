@@ -1,5 +1,6 @@
 """`make test` starts with the files that took longest last time (test/conftest.py), so that
 xdist's loadfile does not leave a minutes-long file for the end (issue 32)."""
+from pathlib import Path
 from types import SimpleNamespace
 
 import pytest
@@ -36,10 +37,29 @@ def test_the_longest_file_goes_first_and_each_file_keeps_its_order():
         'test/test_a.py::one', 'test/test_a.py::two']
 
 
-def test_without_a_cache_the_order_is_the_collections():
-    items = _items('test/test_a.py::one', 'test/test_b.py::one')
+def test_without_a_cache_the_committed_table_orders_and_unlisted_files_come_last(
+        monkeypatch):
+    """A fresh clone has no .pytest_cache: the committed table puts the long files first
+    (by name, the viewer's files came last); files it does not list keep their order."""
+    monkeypatch.setattr(conftest, 'committed_seconds',
+                        lambda: {'test/test_z.py': 200, 'test/test_b.py': 20})
+    items = _items('test/test_a.py::one', 'test/test_b.py::one', 'test/test_c.py::one',
+                   'test/test_z.py::one')
     conftest.pytest_collection_modifyitems(_config(Cache()), items)
-    assert [i.nodeid for i in items] == ['test/test_a.py::one', 'test/test_b.py::one']
+    assert [i.nodeid for i in items] == ['test/test_z.py::one', 'test/test_b.py::one',
+                                         'test/test_a.py::one', 'test/test_c.py::one']
+
+
+def test_the_committed_table_names_existing_files_and_the_longest_ones():
+    """Each file of test/file_seconds.json exists (a renamed file would silently lose its
+    place), and the files that took minutes (a module fixture each) are in it."""
+    table = conftest.committed_seconds()
+    root = Path(conftest.__file__).resolve().parent.parent
+    assert table and all((root / name).is_file() for name in table), \
+        [n for n in table if not (root / n).is_file()]
+    assert all(isinstance(v, (int, float)) and v > 0 for v in table.values()), table
+    assert {'test/test_bench.py', 'test/test_demo.py', 'test/test_campaign_dask.py',
+            'test/test_viewer.py'} <= set(table)
 
 
 def test_a_whole_run_keeps_each_files_time_and_a_selection_does_not(monkeypatch):
