@@ -63,18 +63,29 @@ EXTENSION = (np.ascontiguousarray(_coefficients.A[N_STAGES + 1:]),
 C_EXTRA = np.ascontiguousarray(_coefficients.C[N_STAGES + 1:])
 A_EXTRA, D = EXTENSION
 A, B, E3, E5 = dop853_kernel.TABLEAU  # constants compiled into advance: fewer arguments
+# the stages each row of A_EXTRA and D weighs (their other coefficients are exact zeros:
+# stages 2-6 enter neither), in order: _build's sums skip the zero terms, whose products
+# add ±0 to a finite sum (an accepted step's stages are finite), the same values with
+# 24 of 42 products for the extra stages and 48 of 64 for F, per component; the build,
+# once a step holding a sample, cost as much as the step at ~3 samples a step
+_EXTRA_USED = np.array([np.flatnonzero(A_EXTRA[e, :N_STAGES + 1 + e])
+                        for e in range(len(A_EXTRA))])
+_D_USED = np.flatnonzero(np.any(D != 0.0, axis=0))
 # The memory, one flat array (each array argument costs numba's dispatch ~0.1 µs, and a
 # call's whole work can be 1 µs): y, f, y_old (7 each), K (16·7), F (7·7), clock (4):
 # pos (the last output, from the step's start), h (its length), built, h_abs; last (17):
-# q (4), m (3) and torque (3) of the last call, raw y it returned (7).
+# q (4), m (3) and torque (3) of the last call, raw y it returned (7); then scratch (2·7)
+# for a step's stage and its result: an array allocated in a call costs ~50 ns, and at
+# ~3 samples a step advance is called once a step (two of them were ~100 ns a sample)
 _Y, _F_, _Y_OLD, _K = 0, DIM, 2 * DIM, 3 * DIM
 _FF = _K + N_EXTENDED * DIM
 _CLOCK = _FF + POWER * DIM
 _LAST = _CLOCK + 4
-MEMORY = _LAST + 17
+_SCRATCH = _LAST + 17
+MEMORY = _SCRATCH + 2 * DIM
 
 
-@jit
+@inline
 def views(memory):
     """(y, f, y_old, K (16, 7), F (7, 7), clock, last): views into the flat memory."""
     return (memory[_Y:_F_], memory[_F_:_Y_OLD], memory[_Y_OLD:_K],
@@ -83,16 +94,17 @@ def views(memory):
             memory[_LAST:MEMORY])
 
 
-@jit
-def _build(y_old, y, f, h, K, F, moments, tau, model, coefficient, A_EXTRA, D, t_old, env):
+@inline
+def _build(y_old, y, f, h, K, F, moments, tau, model, coefficient, A_EXTRA, D, t_old, env,
+           y_stage):
     """scipy's DOP853._dense_output_impl: the extra stages K[13:16] from the step's K[0:13]
-    (K[0] = f(y_old), K[12] = f(y); y_old at time t_old), then F (7, 7). 3 evaluations."""
-    y_stage = np.empty(DIM)
+    (K[0] = f(y_old), K[12] = f(y); y_old at time t_old), then F (7, 7). 3 evaluations;
+    y_stage (7,): scratch."""
     for e in range(N_EXTENDED - N_STAGES - 1):
         s = N_STAGES + 1 + e
         for i in range(DIM):
             y_stage[i] = 0.0
-        for j in range(s):
+        for j in _EXTRA_USED[e]:
             a = A_EXTRA[e, j]
             for i in range(DIM):
                 y_stage[i] += K[j, i] * a
@@ -109,7 +121,7 @@ def _build(y_old, y, f, h, K, F, moments, tau, model, coefficient, A_EXTRA, D, t
     for r in range(POWER - 3):
         for i in range(DIM):
             F[3 + r, i] = 0.0
-        for j in range(N_EXTENDED):
+        for j in _D_USED:
             d = D[r, j]
             for i in range(DIM):
                 F[3 + r, i] += K[j, i] * d
@@ -118,7 +130,7 @@ def _build(y_old, y, f, h, K, F, moments, tau, model, coefficient, A_EXTRA, D, t
     return 3
 
 
-@jit
+@inline
 def _interpolate(y_old, F, x, out):
     """Dop853DenseOutput at x = (t − t_old)/h: Horner in x and 1 − x, alternately."""
     for i in range(DIM):
@@ -184,8 +196,8 @@ def advance(q, m, span, tau, memory, moments, model, coefficient, rtol, atol, t0
     target = clock[0] + span  # the output, from the step's start
     h_step = clock[1]
     base = h_step - clock[0]  # where y (the step's end) lies, from the call's start
-    y_stage = np.empty(DIM)
-    y_new = np.empty(DIM)
+    y_stage = memory[_SCRATCH:_SCRATCH + DIM]
+    y_new = memory[_SCRATCH + DIM:MEMORY]
     while target > h_step:  # not inside this step: step on from its end
         target -= h_step
         for i in range(DIM):
@@ -216,7 +228,7 @@ def advance(q, m, span, tau, memory, moments, model, coefficient, rtol, atol, t0
     else:
         if clock[2] == 0.0:  # the first output inside this step: the extra stages, once
             nfev += _build(y_old, y, f, h_step, K, F, moments, tau, model, coefficient,
-                           A_EXTRA, D, t0 + base - h_step, env)
+                           A_EXTRA, D, t0 + base - h_step, env, y_stage)
             clock[2] = 1.0
         _interpolate(y_old, F, target / h_step, out)
     clock[0] = target
