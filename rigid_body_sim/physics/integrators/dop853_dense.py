@@ -100,16 +100,15 @@ def _build(y_old, y, f, h, K, F, moments, tau, model, coefficient, A_EXTRA, D, t
     """scipy's DOP853._dense_output_impl: the extra stages K[13:16] from the step's K[0:13]
     (K[0] = f(y_old), K[12] = f(y); y_old at time t_old), then F (7, 7). 3 evaluations;
     y_stage (7,): scratch."""
+    # each sum in a local (the same terms in the same order as summing into the arrays,
+    # which, views of one memory, the compiler must load and store at every term)
     for e in range(N_EXTENDED - N_STAGES - 1):
         s = N_STAGES + 1 + e
         for i in range(DIM):
-            y_stage[i] = 0.0
-        for j in _EXTRA_USED[e]:
-            a = A_EXTRA[e, j]
-            for i in range(DIM):
-                y_stage[i] += K[j, i] * a
-        for i in range(DIM):
-            y_stage[i] = y_old[i] + y_stage[i] * h
+            acc = 0.0
+            for j in _EXTRA_USED[e]:
+                acc += K[j, i] * A_EXTRA[e, j]
+            y_stage[i] = y_old[i] + acc * h
         _rhs(y_stage, K[s], moments, tau, model, coefficient)
         if env is not None:
             _rhs_environment(y_stage, K[s], t_old + C_EXTRA[e] * h, env, moments)
@@ -120,13 +119,10 @@ def _build(y_old, y, f, h, K, F, moments, tau, model, coefficient, A_EXTRA, D, t
         F[2, i] = 2.0 * delta - h * (f[i] + K[0, i])
     for r in range(POWER - 3):
         for i in range(DIM):
-            F[3 + r, i] = 0.0
-        for j in _D_USED:
-            d = D[r, j]
-            for i in range(DIM):
-                F[3 + r, i] += K[j, i] * d
-        for i in range(DIM):
-            F[3 + r, i] *= h
+            acc = 0.0
+            for j in _D_USED:
+                acc += K[j, i] * D[r, j]
+            F[3 + r, i] = acc * h
     return 3
 
 
