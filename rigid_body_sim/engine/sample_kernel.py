@@ -249,8 +249,8 @@ def dense_samples(q, m, tau_p, memory, hn_first, hn, room, s, sample_period_ns, 
 
     The samples go CHUNK at a time, each operation over the chunk's samples in a loop of
     its own: independent lanes, which the compiler runs several to an instruction (each
-    lane's arithmetic is the scalar one, so the values are), the checks and 1/|q|
-    included; only the copy into the rows goes sample by sample. At 100 samples/s
+    lane's arithmetic is the scalar one, so the values are), the checks and the divisions
+    by |q| included; only the copy into the rows goes sample by sample. At 100 samples/s
     on a slow body, calling ``_interpolated`` sample by sample from the event loop cost
     ~95 ns a sample; one sample after another here, ~24 ns; lane by lane, ~12 ns (the
     scratch allocated per call cost ~250 ns a call, once a step: ~100 ns a sample at
@@ -335,11 +335,9 @@ def dense_samples(q, m, tau_p, memory, hn_first, hn, room, s, sample_period_ns, 
                 stop = True
                 break
         tried = good if good < count else count - 1
-        for k in range(good):  # q normalised as dop853_dense.advance normalises it
-            check[k] = 1.0 / norms[k]
         for i in range(4):
             for k in range(good):
-                unit[i, k] = raw[i, k] * check[k]
+                unit[i, k] = raw[i, k] / norms[k]
         for k in range(good):
             r = row + written + k
             for i in range(4):

@@ -231,12 +231,8 @@ def advance(q, m, span, tau, memory, moments, model, coefficient, rtol, atol, t0
     clock[1] = h_step
     clock[3] = h_abs
     norm = math.sqrt(out[0] * out[0] + out[1] * out[1] + out[2] * out[2] + out[3] * out[3])
-    # q normalised by one division and four products (as _interpolated and
-    # sample_kernel.dense_samples, whose samples must be these to the bit): the four
-    # divisions were a sixth of a sample's CPU there
-    inverse = 1.0 / norm
     for i in range(4):
-        q[i] = out[i] * inverse
+        q[i] = out[i] / norm
         last[i] = q[i]
     for i in range(3):
         m[i] = out[4 + i]
@@ -287,9 +283,8 @@ def _interpolated(q, m, span, tau, memory):
     if not finite:
         return False
     memory[_CLOCK] = target
-    inverse = 1.0 / norm  # as advance normalises
     for i in range(4):
-        q[i] = memory[out + i] * inverse
+        q[i] = memory[out + i] / norm
         memory[last + i] = q[i]
     for i in range(3):
         m[i] = memory[out + 4 + i]
