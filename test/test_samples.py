@@ -425,15 +425,24 @@ def test_dense_samples_are_interpolated_calls_bit_for_bit(span_ns):
     assert 5 < len(expected) < count
     t, qo, mo, to = (np.zeros(count, np.int64), np.zeros((count, 4)), np.zeros((count, 3)),
                      np.zeros((count, 3)))
+    lanes = np.empty((sample_kernel.LANES, sample_kernel.CHUNK))
     written = sample_kernel.dense_samples(q, m, tau, memory, span, span, count,
-                                          span_ns, span_ns, t, qo, mo, to, tau, 0)
+                                          span_ns, span_ns, t, qo, mo, to, tau, 0, lanes)
     assert written == len(expected)
     np.testing.assert_array_equal(np.hstack([qo, mo])[:written], np.array(expected))
     np.testing.assert_array_equal(t[:written], span_ns * np.arange(1, written + 1))
     np.testing.assert_array_equal(memory, slow_memory)
     q, m = qo[written - 1].copy(), mo[written - 1].copy()  # the last output's state
     assert sample_kernel.dense_samples(q, m, tau + 1e-3, memory, 1e-9, 1e-9, count, 0,
-                                       1, t, qo, mo, to, tau, 0) == 0
+                                       1, t, qo, mo, to, tau, 0, lanes) == 0
+    # the last output's state, but the next sample past the step (or no room): nothing
+    # written, the memory as it was
+    before = (memory.copy(), qo.copy())
+    for span_next, room in ((span, count), (1e-9, 0)):
+        assert sample_kernel.dense_samples(q, m, tau, memory, span_next, span_next, room,
+                                           0, 1, t, qo, mo, to, tau, written, lanes) == 0
+        np.testing.assert_array_equal(memory, before[0])
+        np.testing.assert_array_equal(qo, before[1])
 
 
 def test_auto_runs_the_free_phase_in_the_compiled_loop(monkeypatch):

@@ -34,8 +34,9 @@ CLI_GENERATED = {True: (2, 1), False: (20, 3)}
 CLI_REPEATS = {True: 2, False: 5}
 
 
-def _simulate_cpu(name, duration, rate, overrides, repeats):
-    """Least CPU (s) of ``repeats`` in-process runs, samples kept, engine built outside."""
+def _simulate_cpu(name, duration, rate, overrides, repeats, counts=None):
+    """Least CPU (s) of ``repeats`` in-process runs, samples kept, engine built outside;
+    ``counts`` (a dict), if given, gets the last run's evaluations and samples."""
     from ..offline import engine_for, simulate
     from ..scene import load
     scene = load(name, [f'publish_rate={rate:g}']) if isinstance(name, str) else \
@@ -46,7 +47,23 @@ def _simulate_cpu(name, duration, rate, overrides, repeats):
         t0 = cpu()
         result = simulate(scene, engine=engine, keep='all')
         best = min(best, cpu() - t0 - (engine.selection_cpu - result.selection_cpu_seconds))
+    if counts is not None:
+        counts.update(evaluations=engine.total_evaluations, samples=result.sample_count)
     return best
+
+
+def _dense_cost(slow, fast, a, b):
+    """A dop853 row's note: the steps holding a sample that 100 samples/s adds (from the
+    extra evaluations, ``DOP853.sample_cost.evaluations`` each) and the extra CPU in units
+    of its own step (12 evaluations; the 1 sample/s run's CPU per step): the data behind
+    ``DOP853.sample_cost``."""
+    from ..physics.integrators.dop853 import DOP853
+    step = slow / (a['evaluations'] / 12)
+    sampled = (b['evaluations'] - a['evaluations']) / DOP853.sample_cost.evaluations
+    extra = (fast - slow) / step
+    return (f'; {sampled:.0f} more sampled steps, {b["samples"]} samples: '
+            f'{extra / max(sampled, 1):.3g} steps a sampled step (samples ignored), '
+            f'{extra / b["samples"]:.3g} a sample (steps ignored)')
 
 
 def _at_rate(scene, rate):
@@ -141,13 +158,16 @@ def generated_rows(quick, log=print, count=None):
         fixed = {'integrator': chosen.integrator, 'step': chosen.step,
                  'integrator_options': dict(chosen.selection.options if chosen.selection
                                             else {})}
-        slow = _simulate_cpu(f, duration, 1.0, fixed, repeats)
-        fast = _simulate_cpu(f, duration, 100.0, fixed, repeats)
+        a, b = {}, {}
+        slow = _simulate_cpu(f, duration, 1.0, fixed, repeats, a)
+        fast = _simulate_cpu(f, duration, 100.0, fixed, repeats, b)
         sampling.append(fast / slow)
+        dense = _dense_cost(slow, fast, a, b) if fixed['integrator'] == 'dop853' else ''
         rows.append({'what': 'sampling overhead', 'scene': scene.name, 'duration': duration,
                      'rate_a': 1.0, 'cpu_a_s': slow, 'rate_b': 100.0, 'cpu_b_s': fast,
                      'ratio': fast / slow, 'note': f'{scene.kind}, {fixed["integrator"]} '
-                     f'h {fixed["step"]:.3g} s, |ω| {np.linalg.norm(scene.omega):.3g} rad/s'})
+                     f'h {fixed["step"]:.3g} s, |ω| {np.linalg.norm(scene.omega):.3g} '
+                     f'rad/s{dense}'})
         log(f'  {scene.name:16s} {scene.kind:14s} {duration:7.4g} s: sampling x{sampling[-1]:.3g}'
             f' ({slow * 1e3:.3g} → {fast * 1e3:.3g} ms, {fixed["integrator"]})')
         if len(cli) >= CLI_GENERATED[quick][0]:

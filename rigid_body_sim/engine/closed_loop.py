@@ -138,7 +138,8 @@ def closed_loop_run(state, ticks, reals, spec, body, law, block, out):
     interpolate = ticks[INTERPOLATE] != 0
     need_room = False
     herm = np.empty((8, 4))  # a step's two ends and derivatives (sample_kernel.segment)
-    lanes = np.empty((13, sample_kernel.CHUNK))  # its samples' scratch (hermite_run)
+    # the samples' scratch (hermite_run, dense_samples)
+    lanes = np.empty((sample_kernel.LANES, sample_kernel.CHUNK))
     while row + rows < capacity:
         if interpolate:
             # the steps split only the intervals between law instants (and the limit, a
@@ -177,7 +178,7 @@ def closed_loop_run(state, ticks, reals, spec, body, law, block, out):
                 h_p = sample_period_ns / (n_p * 1e9)
                 written = sample_kernel.dense_samples(
                     q, m, tau_p, memory, h * n, h_p * n_p, room, sample_ns, sample_period_ns,
-                    t_out, q_out, m_out, tau_out, tau_body, row + rows)
+                    t_out, q_out, m_out, tau_out, tau_body, row + rows, lanes)
                 if written > 0:
                     r = row + rows + written - 1
                     for i in range(4):

@@ -37,8 +37,9 @@ SPLITTING, RK4, EULER, DOP853, EXACT = range(5)
 # a sample this close to a step's end (in steps) is that end's own state
 ON_STEP = 1e-9
 # samples per pass of the interpolants (hermite_run, dense_samples): scratch of a few rows
-# of CHUNK stays in the L1 cache
+# of CHUNK stays in the L1 cache; LANES rows of it (the closed loop allocates them once)
 CHUNK = 64
+LANES = 16
 
 
 @jit
@@ -234,7 +235,7 @@ def segment(method, q, m, a_ns, b_ns, n, sample_ns, sample_period_ns, weights, s
 
 @inline
 def dense_samples(q, m, tau_p, memory, hn_first, hn, room, s, sample_period_ns, t_out,
-                  q_out, m_out, tau_out, tau_body, row):
+                  q_out, m_out, tau_out, tau_body, row, lanes):
     """Samples inside dop853's step in progress, in one loop: at most ``room`` rows from
     ``row`` on, at the instants s, s + p, … (p = sample_period_ns), each one output step
     of h·n (``hn_first`` for the first, ``hn`` for the others, as ``closed_loop_run``
@@ -243,15 +244,19 @@ def dense_samples(q, m, tau_p, memory, hn_first, hn, room, s, sample_period_ns, 
     per-call checks that the state (q, m) is the last output's, with the same torque
     (tau_p; true from the second sample on: the loop wrote them), are made once; q and m
     are left to the caller (the last row's). It stops at the first output not strictly
-    inside the step, or not finite (the caller's usual path then takes it). Returns the
-    rows written.
+    inside the step, or not finite (the caller's usual path then takes it). ``lanes``
+    (LANES, CHUNK): scratch. Returns the rows written.
 
     The samples go CHUNK at a time, each operation over the chunk's samples in a loop of
     its own: independent lanes, which the compiler runs several to an instruction (each
-    lane's arithmetic is the scalar one, so the values are). At 100 samples/s on a slow
-    body, calling ``_interpolated`` sample by sample from the event loop cost ~95 ns a
-    sample; one sample after another here, ~24 ns."""
-    if memory[_CLOCK + 3] <= 0.0 or memory[_CLOCK + 2] == 0.0:
+    lane's arithmetic is the scalar one, so the values are), the checks and the divisions
+    by |q| included; only the copy into the rows goes sample by sample. At 100 samples/s
+    on a slow body, calling ``_interpolated`` sample by sample from the event loop cost
+    ~95 ns a sample; one sample after another here, ~24 ns; lane by lane, ~12 ns (the
+    scratch allocated per call cost ~250 ns a call, once a step: ~100 ns a sample at
+    ~3 samples a step)."""
+    if memory[_CLOCK + 3] <= 0.0 or memory[_CLOCK + 2] == 0.0 or room <= 0 \
+            or not memory[_CLOCK] + hn_first < memory[_CLOCK + 1]:
         return 0
     last = _LAST
     for i in range(4):
@@ -263,11 +268,9 @@ def dense_samples(q, m, tau_p, memory, hn_first, hn, room, s, sample_period_ns, 
     out = last + 10
     h_step = memory[_CLOCK + 1]
     clock = memory[_CLOCK]  # the last output's position in the step
-    targets = np.empty(CHUNK)
-    xs = np.empty(CHUNK)
-    ys = np.empty(CHUNK)
-    norms = np.empty(CHUNK)
-    raw = np.empty((DIM, CHUNK))  # the interpolant, then q normalised in rows 0-3
+    targets, xs, ys, norms, check = lanes[0], lanes[1], lanes[2], lanes[3], lanes[4]
+    raw = lanes[5:5 + DIM]  # the interpolant
+    unit = lanes[5 + DIM:9 + DIM]  # q normalised
     written = 0
     tried = -1  # the chunk column whose raw output the memory keeps (-1: none)
     span = hn_first
@@ -298,6 +301,7 @@ def dense_samples(q, m, tau_p, memory, hn_first, hn, room, s, sample_period_ns, 
             f4 = memory[_FF + (POWER - 5) * DIM + i]
             f5 = memory[_FF + (POWER - 6) * DIM + i]
             f6 = memory[_FF + (POWER - 7) * DIM + i]
+            row_i = raw[i]
             for k in range(count):
                 x = xs[k]
                 y = ys[k]
@@ -316,28 +320,36 @@ def dense_samples(q, m, tau_p, memory, hn_first, hn, room, s, sample_period_ns, 
                 v *= y
                 v += f6
                 v *= x
-                raw[i, k] = v + y_old
+                row_i[k] = v + y_old
         for k in range(count):
             norms[k] = math.sqrt(raw[0, k] * raw[0, k] + raw[1, k] * raw[1, k]
                                  + raw[2, k] * raw[2, k] + raw[3, k] * raw[3, k])
+        # x − x is 0 for a finite x, NaN otherwise; |q| finite covers q's components
         for k in range(count):
-            tried = k
-            finite = math.isfinite(norms[k]) and norms[k] > 0.0
-            for i in range(DIM):
-                finite = finite and math.isfinite(raw[i, k])
-            if not finite:
+            check[k] = ((norms[k] - norms[k]) + (raw[4, k] - raw[4, k])
+                        + (raw[5, k] - raw[5, k]) + (raw[6, k] - raw[6, k]))
+        good = count
+        for k in range(count):
+            if not (check[k] == 0.0 and norms[k] > 0.0):
+                good = k
                 stop = True
                 break
-            r = row + written
+        tried = good if good < count else count - 1
+        for i in range(4):
+            for k in range(good):
+                unit[i, k] = raw[i, k] / norms[k]
+        for k in range(good):
+            r = row + written + k
             for i in range(4):
-                q_out[r, i] = raw[i, k] / norms[k]
+                q_out[r, i] = unit[i, k]
             for i in range(3):
                 m_out[r, i] = raw[4 + i, k]
                 tau_out[r, i] = tau_body[i]
-            t_out[r] = s
-            clock = targets[k]
-            written += 1
-            s += sample_period_ns
+            t_out[r] = s + k * sample_period_ns
+        if good:
+            clock = targets[good - 1]
+            written += good
+            s += good * sample_period_ns
     if tried >= 0:
         for i in range(DIM):  # as _interpolated leaves it: the last output tried
             memory[out + i] = raw[i, tried]

@@ -1,5 +1,7 @@
 """Adaptive DOP853, the high-accuracy reference method: compiled for one body, scipy's
 solve_ivp for a batch."""
+from typing import NamedTuple
+
 import numpy as np
 
 from .. import dynamics_kernel
@@ -7,6 +9,19 @@ from . import dop853_dense, dop853_kernel
 from .base import Candidate, IntegrationError, Integrator, same_order
 
 _UNUSED_WEIGHTS, _UNUSED_AXES = np.ones(1), np.array([0, 2, 1])
+
+
+class SampleCost(NamedTuple):
+    """What samples add to a run of a method beyond its unsampled steps, for ``auto`` to
+    weigh a run's sample rate (it does not read it yet). CPU in units of the method's own
+    step (``auto.cost``), measured in the same run, so the ratios hold across machines.
+
+    per_sample: each sample (the interpolant evaluated and its row written).
+    per_sampled_step: each step holding at least one sample (the interpolant built).
+    evaluations: right-hand-side evaluations per step holding a sample (counted in nfev)."""
+    per_sample: float
+    per_sampled_step: float
+    evaluations: int
 
 
 class DOP853(Integrator):
@@ -31,6 +46,17 @@ class DOP853(Integrator):
     # dear, which kept auto off dop853 where it was the cheapest. k: see auto.model.DOP853_*
     auto = Candidate((0.47, 0.48), 2.0, call=(3.0, 3.0), growth='drift', adaptive=True,
                      coupled_only=True, geometric=False)
+    # samples: a step holding any builds the 7th-order interpolant (3 evaluations and the
+    # 4x16 product, once however many samples it holds); each sample evaluates it. A
+    # run's extra CPU is then per_sample·samples + per_sampled_step·min(samples, steps)
+    # steps: ~3 samples a step (a fast body at 100 samples/s) nearly doubles the run, 100
+    # a step adds ~2 steps' worth per step. Measured on the generated scenes (seed
+    # 20261125, dop853 at 1 and 100 samples/s in one process, least of 9; the data in
+    # the notes of ``python -m rigid_body_sim.bench.sampling``'s dop853 rows): 0.74-0.85
+    # a sampled step on scenes of ~1 sample a step, 0.010-0.03 a sample on scenes of ~100
+    # (the rows' first-touch page faults, ~2 µs a 4 KB page on a loaded 2-core VM, add
+    # up to ~0.04 in a fresh process)
+    sample_cost = SampleCost(per_sample=0.02, per_sampled_step=0.8, evaluations=3)
     loop_code = 3  # dop853_dense.advance from the closed loop, its memory carried along
     kernel_modules = (dop853_kernel, dop853_dense)
     environment = True  # a term of the right-hand side, at each stage's instant
