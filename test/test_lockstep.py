@@ -592,8 +592,8 @@ def test_a_commands_layout_decodes_as_stamped_fields(frame):
     assert command_layout(first + bytes(8), stamped_fields(first, 3)) is None
 
 
-def test_the_held_instants_commands_are_read_by_their_layout(rclpy_node, simulator,
-                                                            monkeypatch):
+def test_the_held_instants_commands_are_read_by_their_layout(
+        rclpy_node, simulator, monkeypatch):  # noqa: F811 (test_sim_exchange's fixture)
     """Lockstep as fast as possible: once the short way took a command, the next held
     instants' commands of the same frame are decoded by its layout
     (``command_layout``) without ``stamped_fields``; a command of another frame, stale
