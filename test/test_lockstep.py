@@ -14,6 +14,7 @@ from rclpy.serialization import deserialize_message
 
 from ros_helpers import spin_until, venv_exe, wait_output
 from stamp_checks import STATE_TOPICS
+from test_sim_exchange import NS, simulator  # noqa: F401 (a fixture)
 
 from rigid_body_sim import offline
 from rigid_body_sim.bag.reader import iter_messages
@@ -549,3 +550,87 @@ def test_a_synchronous_writer_does_not_wake_its_event_thread_per_message(tmp_pat
     # a ratio of two runs, not a bound: under load the exchanges slow down and the
     # periodic heartbeat's wake-ups (every 20 ms with unacknowledged data) add to both
     assert ours <= default / 2, (ours, default)
+
+
+@pytest.mark.parametrize('frame', ['', 'b', 'base_link', '/base_link', 'body_frame_1',
+                                   'ωβ_frame', 'x' * 15])
+def test_a_commands_layout_decodes_as_stamped_fields(frame):
+    """``sim_lockstep.command_layout``: the layout of one command's bytes, made once,
+    decodes each next command of that layout (frame id) in one struct call to exactly
+    what ``commands.stamped_fields`` reads from it (frame ids of every padding), and
+    tells a command of another frame by its (size, bytes); big-endian bytes and bytes
+    past the doubles have no layout (they go ``stamped_fields``' way)."""
+    from geometry_msgs.msg import Vector3Stamped
+    from rclpy.serialization import serialize_message
+    from rigid_body_sim.nodes.commands import stamped_fields, vector3_stamped_cdr
+    from rigid_body_sim.nodes.sim_lockstep import command_layout
+
+    def cdr(sec, nanosec, frame_id, x, y, z):
+        m = Vector3Stamped()
+        m.header.stamp.sec, m.header.stamp.nanosec, m.header.frame_id = sec, nanosec, frame_id
+        m.vector.x, m.vector.y, m.vector.z = x, y, z
+        return serialize_message(m)
+    first = cdr(0, 0, frame, 0.0, 0.0, 0.0)
+    layout = command_layout(first, stamped_fields(first, 3))
+    assert layout is not None and layout[0] == len(first) and layout[3] == frame
+    for sec, nanosec, x, y, z in [(0, 0, 0.0, 0.0, 0.0), (12, 340_000_000, 1e-3, -2.5e-7, 0.0),
+                                  (-3, 999_999_999, float('nan'), float('inf'), -0.0),
+                                  (2**31 - 1, 1, 5e-324, -1.7976931348623157e308, 1.0)]:
+        data = cdr(sec, nanosec, frame, x, y, z)
+        assert len(data) == layout[0]
+        got = layout[1](data)
+        assert got[2:4] == layout[2], (got, layout)
+        want = stamped_fields(data, 3)
+        assert repr(got[:2] + (layout[3],) + got[4:]) == repr(want), (got, want)
+    other = cdr(0, 0, frame + 'x', 0.0, 0.0, 0.0)
+    if len(other) == layout[0]:  # same length (padding): told apart by the frame's bytes
+        assert layout[1](other)[2:4] != layout[2]
+    little = vector3_stamped_cdr(0, 0, frame, 0.0, 0.0, 0.0)
+    assert command_layout(little, stamped_fields(little, 3)) is not None
+    big = b'\x00\x00' + little[2:]  # (the encapsulation says big-endian)
+    assert command_layout(big, (0, 0, frame, 0.0, 0.0, 0.0)) is None
+    assert command_layout(first + bytes(8), stamped_fields(first, 3)) is None
+
+
+def test_the_held_instants_commands_are_read_by_their_layout(
+        rclpy_node, simulator, monkeypatch):  # noqa: F811 (test_sim_exchange's fixture)
+    """Lockstep as fast as possible: once the short way took a command, the next held
+    instants' commands of the same frame are decoded by its layout
+    (``command_layout``) without ``stamped_fields``; a command of another frame, stale
+    or for another instant still goes the general way and is counted as before
+    (test_sim_exchange: every other case and the messages, bit for bit)."""
+    from geometry_msgs.msg import Vector3Stamped
+    from rclpy.serialization import serialize_message
+    from rigid_body_sim.nodes import sim_lockstep
+    sim = simulator(lockstep=True, publish_clock=True, real_time_factor=0.0,
+                    publish_rate=50.0, control_rate=50.0, lockstep_timeout=30.0)
+    calls = []
+    decode = sim_lockstep.stamped_fields
+    monkeypatch.setattr(sim_lockstep, 'stamped_fields',
+                        lambda *a: (calls.append(1), decode(*a))[1])
+
+    def command(k, frame='base_link', z=0.01):
+        msg = Vector3Stamped()
+        msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(k * 20_000_000, NS)
+        msg.header.frame_id, msg.vector.z = frame, z * (k + 1)
+        sim._on_torque_bytes(serialize_message(msg))
+    sim.run_once()
+    assert sim.lockstep_held is not None and sim.t_ns == 0
+    command(0)  # the first: stamped_fields, and its layout kept
+    assert calls == [1] and sim.t_ns == 20_000_000
+    for k in range(1, 6):
+        command(k)
+        assert sim.t_ns == (k + 1) * 20_000_000 and sim.lockstep_held is not None
+        assert sim._crafts[''].engine.command.torque.tolist() == [0.0, 0.0, 0.01 * (k + 1)]
+    assert calls == [1], calls  # the layout's, not stamped_fields'
+    rejected = sim._crafts[''].commands.rejected
+    command(3)                      # answered already, same layout: general, stale
+    command(6, z=float('nan'))      # the held stamp, not finite: general, rejected
+    assert calls == [1] and rejected['lockstep_stale'] == 1 and \
+        rejected['non_finite'] == 1, rejected
+    command(6, frame='other_frame')  # another layout: stamped_fields, general
+    assert calls == [1, 1] and rejected['wrong_frame'] == 1, rejected
+    command(6, frame='')            # the body's too: short way, its layout kept
+    assert sim.t_ns == 7 * 20_000_000 and calls == [1, 1, 1]
+    command(7, frame='')
+    assert sim.t_ns == 8 * 20_000_000 and calls == [1, 1, 1]
