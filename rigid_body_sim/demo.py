@@ -276,7 +276,9 @@ def run(args) -> int:
                    if n not in failed and c not in (0, None, -signal.SIGINT)})
     code = summarize(view, bag, out, watcher, target, failed,
                      {p.name: p.log_path for p in procs}, interrupted,
-                     f'/{shown}' if shown else '', list(scene.spacecraft), args.plots)
+                     f'/{shown}' if shown else '', list(scene.spacecraft), args.plots,
+                     [f'/{c.namespace}/torque_command' if c.namespace else '/torque_command'
+                      for c in ctls] if lockstep else None)
     return exit_code(code, interrupted, watcher.t0 is not None)
 
 

@@ -2,6 +2,7 @@
 origin for the summary and the plots, from the stamps and the simulator's diagnostics),
 the phases, the free phase's drift, and why a run that ended early shows a large error."""
 import math
+import re
 
 import numpy as np
 
@@ -151,14 +152,44 @@ def spacecraft_lines(bag, crafts, prefix):
             for c in crafts]
 
 
+# the simulator's last word on a lockstep run (sim_lockstep.py): how many control instants
+# it held until a command came
+EXCHANGES = re.compile(r'lockstep: (\d+) exchanges')
+
+
+def lockstep_exchanges(sim_log):
+    """The control instants a lockstep simulator answered (its log's last count), or None
+    when it did not say (not lockstep, or it did not end its run)."""
+    try:
+        with open(sim_log, errors='replace') as f:
+            found = EXCHANGES.findall(f.read())
+    except OSError:
+        return None
+    return int(found[-1]) if found else None
+
+
+def lost_commands(bag, topics, exchanges):
+    """{topic: commands missing}: in lockstep the simulator stepped past a control instant
+    only once it had that instant's command from each controller, so each command topic
+    (``topics``) must hold at least ``exchanges`` messages; fewer is a loss on the way
+    to the recorder (a recorder paused for a moment once kept 1 of 21), never silent."""
+    from .bag.reader import iter_messages
+    counts = dict.fromkeys(topics, 0)
+    for m in iter_messages(bag, topics=list(topics)):
+        counts[m.topic] += 1
+    return {t: exchanges - n for t, n in counts.items() if n < exchanges}
+
+
 def summarize(scene, bag, out, watcher, target, failed, logs, interrupted, prefix='',
-              crafts=(), plots=True) -> int:
+              crafts=(), plots=True, commands=None) -> int:
     """Print the demo's summary from the bag, on the simulator's time origin, and write
     the plots; 1 when the bag is unreadable or a node failed (``failed``: name → exit
     code; ``logs``: name → log path), else 0. A formation (``crafts``, their names):
     ``scene`` is the shown spacecraft's (``scene.spacecraft_scene``), its topics under
     ``prefix``, and a line per spacecraft says what the bag holds of it. ``plots``
-    False: no plots (``demo --no-plots``; they cost ~2 CPU-s)."""
+    False: no plots (``demo --no-plots``; they cost ~2 CPU-s). ``commands`` (lockstep):
+    the command topics, each checked against the simulator's exchanges (``lost_commands``):
+    a topic short of them fails the demo (1), named with what it lacks."""
     from .bag.errors import BagError
     from .bag.reader import read_info
     samples, free_end, bag_error = None, None, None
@@ -197,9 +228,15 @@ def summarize(scene, bag, out, watcher, target, failed, logs, interrupted, prefi
           f'{info.duration_s:.2f} s — bag: {bag}')
     for line in spacecraft_lines(bag, crafts, prefix) if crafts else ():
         print(line)
+    exchanges = lockstep_exchanges(logs['simulator']) if commands and 'simulator' in logs \
+        else None
+    lost = lost_commands(bag, commands, exchanges) if exchanges is not None else {}
+    for topic, n in lost.items():
+        print(f'  lost: {topic}: the bag holds {exchanges - n} of the {exchanges} commands the '
+              f'simulator was answered with (recorder log: {logs["recorder"]})')
     if samples is not None and plots:
         from .plots import write_plots
         for path in write_plots(samples, body_of(scene), out, f'{scene.name} (live)', free_end,
                                 scene):
             print(f'  plot: {path}')
-    return 1 if failed else 0
+    return 1 if failed or lost else 0

@@ -246,6 +246,53 @@ def test_demo_lockstep_runs_a_formation_with_a_controller_per_spacecraft(tmp_pat
                          out.stdout), out.stdout[-3000:]
 
 
+def test_commands_a_paused_recorder_lost_are_named_and_fail_the_demo(tmp_path):
+    """The recorder stopped (SIGSTOP) from the formation's t = 0 until the simulator has
+    ended its lockstep run: each spacecraft's command topic in the bag holds either every
+    command, once and in order, or the demo names it ('lost: <topic>: the bag holds n of
+    the 20 commands ...') and exits 1. Before, the demo printed '0 commands recorded' for
+    each spacecraft and exited 0 (0-1 of 20 kept in every such run tried: Fast DDS did not
+    repair what the stopped reader missed; states, which the simulator waits for, came)."""
+    import psutil
+    from rclpy.serialization import deserialize_message
+    from rigid_body_sim.bag.reader import iter_messages
+    from rigid_body_sim.bag.schema import message_class
+    cli = os.path.join(os.path.dirname(sys.executable), 'rigid-body-sim')
+    demo = subprocess.Popen([cli, 'demo', '--scene', 'formation', '--duration', '2',
+                             '--no-viewer', '--lockstep', '--out', str(tmp_path), '--no-plots'],
+                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    sim_log = tmp_path / 'simulator.log'
+
+    def wait_log(text):
+        deadline = time.monotonic() + 180.0
+        while not (sim_log.exists() and text in sim_log.read_text()):
+            assert demo.poll() is None and time.monotonic() < deadline, demo.communicate()
+            time.sleep(0.01)
+    recorder = None
+    try:
+        wait_log('starting at t = 0')
+        recorder = next(p for p in psutil.Process(demo.pid).children()
+                        if 'recorder' in ' '.join(p.cmdline()))
+        recorder.suspend()
+        wait_log('lockstep: 20 exchanges')  # the run ended while the recorder was stopped
+    finally:
+        if recorder is not None:
+            recorder.resume()
+        stdout, _ = demo.communicate(timeout=300)
+    crafts = ('leader', 'wingman', 'tumbler')
+    stamps = {f'/{c}/torque_command': [] for c in crafts}
+    for m in iter_messages(str(tmp_path / 'bag'), topics=list(stamps)):
+        h = deserialize_message(m.data, message_class(m.type)).header.stamp
+        stamps[m.topic].append(h.sec * 10**9 + h.nanosec)
+    every = [k * 100_000_000 for k in range(21)]  # t = 0 ... 2 s at 10 Hz, sim time
+    short = {t for t, got in stamps.items() if len(got) < 20}
+    for topic, got in stamps.items():
+        assert got == every[:len(got)], (topic, stamps)  # what came: in order, once
+        said = f'lost: {topic}: the bag holds {len(got)} of the 20 commands'
+        assert (said in stdout) == (topic in short), (topic, stdout[-3000:])
+    assert demo.returncode == (1 if short else 0), stdout[-3000:]
+
+
 def test_a_node_that_fails_at_start_has_its_last_log_line_in_the_summary(tmp_path):
     """`--set lockstep=true` without publish_clock: the scene check lets it through (only
     the simulator's start-up validates lockstep, engine/lockstep.py), the simulator exits
