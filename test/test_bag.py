@@ -5,7 +5,7 @@ from pathlib import Path
 
 import pytest
 import yaml
-from ros_helpers import venv_exe
+from cli_inprocess import run_cli
 
 from rigid_body_sim.bag import BagError, BagWriter, message_definition, type_hash
 from rigid_body_sim.bag.reader import is_finished, read_info
@@ -40,8 +40,9 @@ def write_bag(directory, n=300, period_ns=10_000_000, **kwargs):
 
 
 def cli(*args):
-    return subprocess.run([venv_exe('rigid-body-sim'), 'bag', *args], capture_output=True,
-                          text=True, timeout=60)
+    """`rigid-body-sim bag ARGS` in this process: its exit status, output and error lines
+    are the command's, not its interpreter's (an interpreter's start-up less, issue 32)."""
+    return run_cli('bag', *args)
 
 
 def test_schema_text_is_rosbag2_full_text():

@@ -1,6 +1,8 @@
 """The command line as users meet it: options checked by name, pipes, unstable steps.
 
-Real processes of the installed ``rigid-body-sim``, ``replay`` and friends.
+Real processes of the installed ``rigid-body-sim``, ``replay`` and friends where the process
+is the point (pipes, the installed script); what a command says and its exit code in this
+test's process (cli_inprocess.run_cli: an interpreter's start-up less each, issue 32).
 """
 import math
 import subprocess
@@ -8,6 +10,7 @@ import subprocess
 import numpy as np
 import pytest
 
+from cli_inprocess import run_cli
 from ros_helpers import venv_exe
 
 from rigid_body_sim.physics import Dissipation, Dynamics
@@ -29,7 +32,7 @@ def _run(*args, timeout=120):
 ])
 def test_numeric_options_are_checked_by_name(args, option):
     """The error names the option and its range, not the scene file; exit code 2."""
-    out = _run(venv_exe('rigid-body-sim'), *args)
+    out = run_cli(*args)  # argparse's exit 2 and its message, as the process gives them
     assert out.returncode == 2
     assert f'argument {option}' in out.stderr and 'config/' not in out.stderr, out.stderr
     assert 'Traceback' not in out.stderr
@@ -53,17 +56,16 @@ def test_unstable_steps_are_refused_or_warned_before_the_run():
     """RK4 far beyond its imaginary-axis limit 2√2/(|ω|/2) is refused before any step,
     naming the largest stable step; Euler (unstable at any step for free rotation) gets a
     warning with the growth over the run; a stable RK4 step passes silently."""
-    out = _run(venv_exe('rigid-body-sim'), 'run', 'rigid_earth', '--integrator', 'rk4',
-               '--step', '86400', '--set', 'publish_rate=1.1574074074e-05',  # one a day
-               '--no-bag', '--no-plots')
+    out = run_cli('run', 'rigid_earth', '--integrator', 'rk4',
+                  '--step', '86400', '--set', 'publish_rate=1.1574074074e-05',  # one a day
+                  '--no-bag', '--no-plots')
     assert out.returncode == 2 and 'largest stable step here is 7.7' in out.stderr, out.stderr
     assert 'steps' not in out.stdout  # refused before the run
-    out = _run(venv_exe('rigid-body-sim'), 'run', 'tennis_racket', '--integrator', 'euler',
-               '--no-bag', '--no-plots')
+    out = run_cli('run', 'tennis_racket', '--integrator', 'euler', '--no-bag', '--no-plots')
     assert out.returncode == 0 and out.stderr.startswith('warning: euler') and \
         'unstable for free rotation at any step' in out.stderr, out.stderr
-    out = _run(venv_exe('rigid-body-sim'), 'run', 'tennis_racket', '--integrator', 'rk4',
-               '--duration', '2', '--no-bag', '--no-plots')
+    out = run_cli('run', 'tennis_racket', '--integrator', 'rk4', '--duration', '2',
+                  '--no-bag', '--no-plots')
     assert out.returncode == 0 and out.stderr == '', out.stderr
 
 

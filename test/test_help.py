@@ -7,6 +7,7 @@ import sys
 import time
 
 import pytest
+from cli_inprocess import run_cli
 from ros_helpers import venv_exe
 
 from rigid_body_sim.engine import specs
@@ -133,8 +134,9 @@ def test_scene_parameter_on_a_node_says_how_nodes_take_a_scene(tmp_path, namespa
 
 
 def test_numbers_that_may_be_negative_parse_and_get_a_range_error(tmp_path):
-    res = run([venv_exe('rigid-body-sim'), 'run', 'explorer1', '--accuracy', '-1e-3',
-               '--out', str(tmp_path / 'o')], tmp_path)
+    # the command's status and message, in this process (an interpreter less, issue 32)
+    res = run_cli('run', 'explorer1', '--accuracy', '-1e-3', '--out', tmp_path / 'o',
+                  cwd=tmp_path)
     assert res.returncode == 2
     assert 'expected one argument' not in res.stderr
     assert "--accuracy: must be a finite number >= 1e-15 and <= 1, got '-1e-3'" in res.stderr
@@ -146,8 +148,7 @@ def test_numbers_that_may_be_negative_parse_and_get_a_range_error(tmp_path):
 
 
 def test_a_scene_typo_gets_did_you_mean(tmp_path):
-    res = run([venv_exe('rigid-body-sim'), 'run', 'tenis_racket', '--out', str(tmp_path / 'o')],
-              tmp_path)
+    res = run_cli('run', 'tenis_racket', '--out', tmp_path / 'o', cwd=tmp_path)
     assert res.returncode != 0
     assert 'did you mean tennis_racket?' in res.stdout + res.stderr, res.stderr
 
