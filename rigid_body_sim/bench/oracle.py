@@ -16,6 +16,10 @@ Reference (:func:`reference`), with a bound on its own error:
   (the ladder goes on down while they disagree); the one with the smaller own bound is
   the reference, its bound at least their distance. Without that agreement (they differ,
   or rk4 would pass the cap) the bound is infinite and ``what`` says why: undecided.
+* under an in-process detumble law alone: first a Taylor series in long double
+  (:mod:`.extended`), with its bound from a finer run and from the same run in float64.
+  Over 10⁴–10⁵ rad at 1e-9 rad both float64 references above meet their round-off floor
+  first (seed 20261127, scenes 46, 119, 154 stayed undecided); this one does not.
 
 Judging with a bound r: an error e (against the reference) meets the budget b if e + r ≤ b
 and misses it if e − r > b (both proven); in between the row says it is undecided, with r.
@@ -187,7 +191,22 @@ def reference(scene, cap: float = REF_CAP) -> Reference:
         result = simulate(f, integrator='exact')
         return Reference(result.samples['attitude'], _exact_bound(result.samples),
                          'exact (checked against the 40-digit closed form)')
-    start = time.process_time()
+    start, fallback = time.process_time(), ''
+    if f.controlled:  # the law alone on the body: extended precision, when it applies
+        from . import extended
+        try:
+            attitude, bound, what, _ = extended.reference(f)
+            return Reference(attitude, bound, what)
+        except extended.Unavailable as exc:
+            fallback = f' (no extended reference: {exc})'
+    ref = _float64_reference(scene, f, start, cap)
+    if not math.isfinite(ref.error):
+        ref.what += fallback
+    return ref
+
+
+def _float64_reference(scene, f, start, cap) -> Reference:
+    """dop853's ladder checked by rk4 (module docstring)."""
     best, coarse, rung, left = _ladder(f, scene.budget, start, cap)
     if best is None:  # one run already costs most of the cap: no second one to bound it
         return Reference(coarse, math.inf, f'dop853 rtol {REF_LADDER[0]:g}, unbounded: one '
