@@ -56,7 +56,7 @@ def test_a_direct_period_is_the_general_one_bit_for_bit(scene, method, overrides
         if k % 5 == 4:
             command = (command[0] * 1e4,) + command[1:]
         general.apply_command(command)
-        stepped.apply(*(float(v) for v in command))  # the node's way (sim_lockstep)
+        direct.apply_command(tuple(float(v) for v in command))  # as sim_lockstep does
         assert _state(direct) == _state(general), k
         block = general.advance((k + 1) * period)
         assert len(block) == 1

@@ -170,32 +170,6 @@ class DirectPeriod:
             not e.dynamics.environment_active  # Stepping._free_exact but the torque
         self._end = e.end_ns
 
-    def apply(self, x: float, y: float, z: float):
-        """``engine.apply_command((x, y, z))`` for finite Python floats, the held command
-        its only torque source (a direct period's engine, its torque seen already): the
-        same clipping, counters, expiry and held torques, without the general path's
-        generator, list and numpy conversion (the held instant's command, every exchange:
-        hot ~1.4 µs through ``apply_command``; see ``sim_lockstep``). Anything else (a
-        zero command, which ends the hold; other sources; per-axis limits) goes the
-        general way."""
-        e = self.engine
-        c = e.command
-        mx = c.max_torque
-        if len(e.sources) != 1 or e.actuators is not None or not e._torque_seen or \
-                type(mx) is not float:
-            return e.apply_command((x, y, z))
-        saturated = abs(x) > mx or abs(y) > mx or abs(z) > mx
-        if saturated:  # CommandHold.set's clipping, in its order
-            x, y, z = min(max(x, -mx), mx), min(max(y, -mx), mx), min(max(z, -mx), mx)
-        if x == 0.0 and y == 0.0 and z == 0.0:
-            return e.apply_command((x, y, z))  # ends the hold (and the torque-free baseline)
-        c.saturated += saturated
-        c.accepted += 1
-        c.torque = e._tau_body = tau = np.array((x, y, z))
-        c.expiry = e.t_ns + c.timeout_ns
-        e._tau_p = tau if e._aligned else e.body.to_principal(tau)
-        e._anchor = None
-
     def step(self, until_ns: int):
         """The sample values (a list of 17 floats, ``SampleBlock.values``) at ``until_ns``,
         the engine advanced there as ``advance(until_ns)`` would advance it; None (the

@@ -208,10 +208,9 @@ class Exchange:
                 frame.lstrip('/') not in ('', craft.p['child_frame_id']) or \
                 not (math.isfinite(x) and math.isfinite(y) and math.isfinite(z)):
             return False
-        direct = self._direct
-        if direct is None or direct.engine is not craft.engine:
-            direct = self._direct = DirectPeriod(craft.engine)
-        direct.apply(x, y, z)  # engine.apply_command's, shorter (lockstep_direct)
+        craft.engine.apply_command((x, y, z))
+        if self._direct is None or self._direct.engine is not craft.engine:
+            self._direct = DirectPeriod(craft.engine)
         self._awaiting.clear()
         self._release()
         self._direct_exchange(craft)
@@ -260,10 +259,7 @@ class Exchange:
                     except RCLError as exc:  # a paced reader's history is full (sim_acks)
                         acks.refused(topic, exc)
             self._published += len(craft.active)
-        # paced (as fast as possible): Acknowledgements.published, inline
-        acks.pending += 1
-        if acks.pending >= acks.window:
-            acks.wait()
+        acks.published()  # paced: as fast as possible (above)
         # what the instant just answered awaited (_take_held), without asking each
         # spacecraft again
         self._hold({('', 'torque')})
