@@ -327,6 +327,10 @@ def test_the_lockstep_benchmark_reports_the_simulators_figures():
     # its own thread's share, within the process's (the rest: the middleware's threads)
     assert 0 < got['sim_thread_cpu_per_period_us'] <= got['sim_cpu_per_period_us'], got
     assert got['achieved_rate_hz'] > 0, got
+    # and where the rest went: each thread's part (RoundTrips.thread_parts), Fast DDS's
+    # among them (named dds.*)
+    parts = got['sim_threads_us']
+    assert parts['main'] > 0 and any(k.startswith('dds.') for k in parts), got
 
 
 def test_the_floor_tool_measures_a_bare_rclpy_exchange():
@@ -411,14 +415,15 @@ def test_the_lockstep_benchmark_writes_its_target_rows():
     from rigid_body_sim.tools.lockstep import targets_from
 
     def row(rate, cpu, achieved):
-        fast = {'sim_cpu_per_period_us': cpu, 'sim_thread_cpu_per_period_us': cpu / 2}
+        fast = {'sim_cpu_per_period_us': cpu, 'sim_thread_cpu_per_period_us': cpu / 2,
+                'sim_threads_us': {'main': cpu / 2, 'dds.ev': 0.2 * cpu, 'dds.shm': 0.3 * cpu}}
         return {'control_rate_hz': rate, 'as_fast_as_possible': fast,
                 'real_time': {'achieved_rate_hz': achieved}}
     got = targets_from([row(100.0, 90.0, 99.5), row(1000.0, 140.0, 900.0)], [3.0, 4.0])
     assert [(r['measured'], r['required'], r['verdict']) for r in got] == [
         (140.0, 100.0, 'MISS'), (99.5, 100.0, 'PASS'), (900.0, 1000.0, 'MISS')]
-    assert '1000 Hz: 140 (70 in its thread)' in got[0]['note'] and 'load 3.0-4.0' in \
-        got[0]['note']
+    assert '1000 Hz: 140 (70 in its thread, dds.shm 42, dds.ev 28)' in got[0]['note'] and \
+        'load 3.0-4.0' in got[0]['note']
     got = targets_from([row(100.0, 90.0, 98.0)], [3.0, 4.0])
     assert [r['verdict'] for r in got] == ['PASS', 'MISS']
 
@@ -451,6 +456,50 @@ def test_round_trips_read_the_cpu_clocks_only_now_and_then(monkeypatch):
     assert abs(v['lockstep_round_trip_wall_us'] - 100.0) < 1e-6, v
     assert abs(v['lockstep_cpu_per_period_us'] - 70.0) < 1e-6, v
     assert abs(v['lockstep_thread_cpu_per_period_us'] - 35.0) < 1e-6, v
+
+
+def test_round_trips_give_each_threads_part_of_the_cpu():
+    """``RoundTrips.thread_parts``: from the first command whose CPU was read to the end,
+    the CPU per period of each kind of thread (its name without trailing numbers, as Fast
+    DDS names its threads), this one's as 'main', and what threads that ended meanwhile
+    spent as 'ended' (the process's CPU less the others'). Two threads started after the
+    first read burn 50 ms each: one is still there at the end, one ended."""
+    import threading
+    import time
+    from rigid_body_sim.engine import lockstep
+    trips = lockstep.RoundTrips()
+    trips.sent()
+    trips.applied()  # the first read: the threads there are then
+    done, spent = threading.Event(), {}
+
+    def burn(name, keep):
+        with open(f'/proc/self/task/{threading.get_native_id()}/comm', 'w') as f:
+            f.write(name)
+        t0 = time.thread_time()
+        while time.thread_time() - t0 < 0.05:
+            pass
+        spent[name] = time.thread_time()  # all of it after the first read
+        if keep:
+            done.wait(60)
+    kept = threading.Thread(target=burn, args=('burner.7', True))
+    ended = threading.Thread(target=burn, args=('gone.3', False))
+    kept.start()
+    ended.start()
+    ended.join(60)
+    while 'burner.7' not in spent and kept.is_alive():
+        time.sleep(0.001)
+    for _ in range(9):
+        trips.sent()
+        trips.applied()
+    try:
+        parts = trips.thread_parts()
+    finally:
+        done.set()
+        kept.join(60)
+    n = 9  # periods from the first read
+    assert abs(parts['burner'] * n / 1e6 - spent['burner.7']) < 1e-3, (parts, spent)
+    assert abs(parts['ended'] * n / 1e6 - spent['gone.3']) < 0.01, (parts, spent)
+    assert 'gone' not in parts and parts['main'] > 0, parts
 
 
 # one side of a lockstep-like ping-pong between two processes, with Fast DDS's synchronous

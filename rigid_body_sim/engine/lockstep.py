@@ -10,6 +10,9 @@ It never advances past an instant without its command and never guesses one: aft
 This module is the ROS-free part: the checks on the parameters, and the round-trip
 statistics (sim-side wall and CPU per exchange) that the node reports.
 """
+import os
+import re
+import threading
 import time
 
 from .config import NS, seconds_to_ns
@@ -86,6 +89,40 @@ def law_bandwidth(controller) -> float:
         return 0.0
 
 
+def thread_clocks() -> list:
+    """(kind, CPU clock id) of each other thread of this process, its kind its name
+    without the trailing numbers (Fast DDS names its threads dds.shm.<port>,
+    dds.udp.<port>, dds.ev.<n>, ...); [] where /proc does not list them (not Linux)."""
+    out = []
+    try:
+        tids = os.listdir('/proc/self/task')
+    except OSError:
+        return out
+    me = threading.get_native_id()
+    for tid in tids:
+        if int(tid) == me:
+            continue
+        try:
+            with open(f'/proc/self/task/{tid}/comm') as f:
+                name = re.sub(r'[.\d]+$', '', f.read().strip())
+        except OSError:  # ended meanwhile
+            continue
+        # the thread's CPU clock (Linux: MAKE_THREAD_CPUCLOCK(tid, CPUCLOCK_SCHED))
+        out.append((name, (~int(tid) << 3) | 6))
+    return out
+
+
+def clock_seconds(threads) -> list:
+    """Each of ``threads``' (``thread_clocks``) CPU seconds so far (0 for one that ended)."""
+    out = []
+    for _, clock in threads:
+        try:
+            out.append(time.clock_gettime(clock))
+        except OSError:
+            out.append(0.0)
+    return out
+
+
 # the CPU clocks are read at the first CPU_EVERY exchanges, then at every CPU_EVERY-th:
 # each read is a system call (~0.45 µs hot, several on a loaded machine, for two clocks
 # per exchange), and the CPU per period is a difference over the window they span
@@ -96,15 +133,17 @@ class RoundTrips:
     """Sim-side cost of the exchanges: wall time from publishing a control instant's state
     to applying its command, and the simulator's CPU per control period (stepping,
     publishing and receiving included): the process's, and its own thread's (the rest is
-    the middleware's threads: with Fast DDS, most of it its asynchronous sender's),
-    averaged over the periods between the first and the last command whose CPU was read
-    (CPU_EVERY)."""
+    the middleware's threads), averaged over the periods between the first and the last
+    command whose CPU was read (CPU_EVERY); and at the end each thread's part
+    (``thread_parts``: in lockstep, synchronous, mostly Fast DDS's shared-memory receiver,
+    which takes each command and wakes the waiting thread)."""
 
     def __init__(self):
         self.count = 0
         self.wall_total = self.wall_max = 0.0
         self._sent = None      # wall time when the held instant's state went out
         self._first = self._last = None  # (exchanges, cpu, thread cpu) at two commands
+        self._threads = ()  # the other threads at the first read, and their CPU seconds
 
     def sent(self):
         self._sent = time.monotonic()  # (the CPU clocks are read at commands, below)
@@ -123,6 +162,8 @@ class RoundTrips:
             read = (n, time.process_time(), time.thread_time())
             if self._first is None:
                 self._first = read
+                threads = thread_clocks()  # once a run (~0.1 ms): thread_parts
+                self._threads = (threads, clock_seconds(threads))
             else:
                 self._last = read
 
@@ -138,10 +179,32 @@ class RoundTrips:
                 'lockstep_thread_cpu_per_period_us':
                     1e6 * (last[2] - first[2]) / periods if periods else 0.0}
 
+    def thread_parts(self) -> dict:
+        """Where the process's CPU went, from the first command whose CPU was read to now
+        (the end of the run): µs per control period in each kind of thread
+        (``thread_clocks``), the one applying the commands as 'main', and as 'ended' what
+        threads that ended meanwhile spent (the process's CPU less the others'). {} before
+        two commands."""
+        if self._first is None or self.count <= self._first[0]:
+            return {}
+        main, cpu = time.thread_time(), time.process_time()
+        before = {clock: c for (_, clock), c in zip(*self._threads)}
+        threads = thread_clocks()
+        n, first = self.count - self._first[0], self._first
+        parts = {'main': main - first[2]}
+        for (name, clock), c in zip(threads, clock_seconds(threads)):
+            # a thread started meanwhile: all of its CPU
+            parts[name] = parts.get(name, 0.0) + max(c - before.get(clock, 0.0), 0.0)
+        parts['ended'] = max(cpu - first[1] - sum(parts.values()), 0.0)
+        return {k: round(1e6 * v / n, 1) for k, v in sorted(parts.items(), key=lambda kv:
+                                                               -kv[1]) if 1e6 * v / n >= 0.05}
+
     def summary(self) -> str:
         v = self.values()
+        parts = ', '.join(f'{k} {p:g}' for k, p in self.thread_parts().items())
         return (f'lockstep: {v["lockstep_exchanges"]} exchanges, round trip '
                 f'{v["lockstep_round_trip_wall_us"]:.0f} µs wall on average (max '
                 f'{v["lockstep_round_trip_wall_max_us"]:.0f} µs), simulator CPU '
                 f'{v["lockstep_cpu_per_period_us"]:.0f} µs per control period ('
-                f'{v["lockstep_thread_cpu_per_period_us"]:.0f} µs in its own thread)')
+                f'{v["lockstep_thread_cpu_per_period_us"]:.0f} µs in its own thread)'
+                + (f'; by thread to the end: {parts} µs' if parts else ''))

@@ -8,7 +8,9 @@ For each control rate (publishing at the same rate, the slew scene, ``splitting4
   simulator's own figures (``engine.lockstep.RoundTrips``, logged at the end of its run):
   wall time from publishing a control instant's state to applying its command, and the
   simulator's CPU per control period (stepping, publishing and receiving; target ≤ 100 µs),
-  the process's and its own thread's (the rest is the middleware's threads);
+  the process's (every thread: that is the figure) and its own thread's, and each other
+  thread's part (``sim_threads_us``: Fast DDS's shared-memory receiver ``dds.shm``, its
+  timed events ``dds.ev``, ...);
 * at real time (``real_time_factor: 1``), ``--seconds`` of sim time: the achieved control
   rate, exchanges per wall second between t = 0 and the end (the simulator's log stamps).
 Real processes and real DDS, in a ROS domain of their own; nothing else is started.
@@ -32,6 +34,9 @@ SUMMARY = re.compile(r'lockstep: (\d+) exchanges, round trip (\d+) µs wall on a
                      r'(\d+) µs\), simulator CPU (\d+) µs per control period'
                      r'(?: \((\d+) µs in its own thread\))?')
 STAMP = re.compile(r'\[(\d+\.\d+)\]')
+# RoundTrips.thread_parts, after the summary: 'main 84, dds.shm 22.5, dds.ev 4'
+THREADS = re.compile(r'; by thread to the end: (.*) µs')
+PART = re.compile(r'(\S+) ([\d.]+)')
 
 
 def _exe(name):
@@ -85,10 +90,13 @@ def exchange(rate: float, rtf: float, duration: float, timeout: float = 600.0) -
     t0 = next(_stamp(x) for x in lines if 'starting at t = 0' in x)
     t1 = next(_stamp(x) for x in lines if 'reached at t =' in x)
     n = int(m.group(1))
+    parts = THREADS.search(log)
     return {'control_rate_hz': rate, 'real_time_factor': rtf, 'exchanges': n,
             'round_trip_wall_us': int(m.group(2)), 'round_trip_wall_max_us': int(m.group(3)),
             'sim_cpu_per_period_us': int(m.group(4)),
             'sim_thread_cpu_per_period_us': int(m.group(5)) if m.group(5) else None,
+            'sim_threads_us': {k: float(v) for k, v in PART.findall(parts.group(1))}
+            if parts else {},
             'achieved_rate_hz': n / (t1 - t0) if t1 > t0 else None}
 
 
@@ -102,6 +110,10 @@ def repeated(runs: int, *args) -> dict:
         values = [g[key] for g in got]
         out[key] = statistics.median(values) if isinstance(value, (int, float)) and \
             None not in values else value
+    # each thread's part: its median over the runs (0 in a run that had none of it)
+    kinds = {k for g in got for k in g['sim_threads_us']}
+    out['sim_threads_us'] = {k: statistics.median(g['sim_threads_us'].get(k, 0.0) for g in got)
+                             for k in sorted(kinds)}
     out['runs'] = got
     return out
 
@@ -114,6 +126,14 @@ def spread(row: dict, key: str) -> str:
     if len(values) == 1:
         return f'{values[0]:.0f}'
     return f'{row[key]:.0f} ({min(values):.0f}-{max(values):.0f})'
+
+
+def others(row: dict) -> str:
+    """', dds.shm 22, dds.ev 4': the parts of the simulator's CPU per exchange outside its
+    own thread (``sim_threads_us``, medians), the larger first; '' without them."""
+    parts = sorted(((v, k) for k, v in row.get('sim_threads_us', {}).items()
+                    if k != 'main' and v >= 0.5), reverse=True)
+    return ''.join(f', {k} {v:.0f}' for v, k in parts)
 
 
 TARGET_CPU = 'lockstep simulator CPU per exchange as fast as possible (µs)'
@@ -131,8 +151,9 @@ def targets_from(rows, load) -> list:
     cpu = fast['sim_cpu_per_period_us']
     out = [targets.simple(TARGET_CPU, cpu, 100.0, cpu <= 100.0, '; '.join(
         f'{r["control_rate_hz"]:g} Hz: {spread(r["as_fast_as_possible"], "sim_cpu_per_period_us")}'
-        f' ({spread(r["as_fast_as_possible"], "sim_thread_cpu_per_period_us")} in its thread)'
-        for r in rows) + f'; load {load[0]:.1f}-{load[1]:.1f}')]
+        f' ({spread(r["as_fast_as_possible"], "sim_thread_cpu_per_period_us")} in its thread'
+        f'{others(r["as_fast_as_possible"])})' for r in rows) +
+        f'; load {load[0]:.1f}-{load[1]:.1f}')]
     for r in rows:
         real, rate = r['real_time'], r['control_rate_hz']
         got = real['achieved_rate_hz'] or 0.0
@@ -168,7 +189,8 @@ def main(argv=None):
               f'trip {spread(fast, "round_trip_wall_us")} µs wall (max '
               f'{fast["round_trip_wall_max_us"]:.0f} µs), simulator CPU '
               f'{spread(fast, "sim_cpu_per_period_us")} µs per period ('
-              f'{spread(fast, "sim_thread_cpu_per_period_us")} µs in its own thread), '
+              f'{spread(fast, "sim_thread_cpu_per_period_us")} µs in its own thread'
+              f'{others(fast)}), '
               f'{fast["achieved_rate_hz"]:.0f} exchanges/s; at real time '
               f'{real["achieved_rate_hz"]:.1f} exchanges/s (target {rate:g}), simulator CPU '
               f'{real["sim_cpu_per_period_us"]:.0f} µs per period', flush=True)

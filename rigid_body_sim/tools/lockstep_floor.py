@@ -23,15 +23,14 @@ import argparse
 import json
 import os
 import random
-import re
 import statistics
 import subprocess
 import sys
 import tempfile
-import threading
 import time
 
 from ..bench.common import report
+from ..engine.lockstep import clock_seconds as _clocks, thread_clocks as _threads
 from . import argument_parser, command_line, stop
 from .lockstep import SCENE, _exe
 
@@ -56,34 +55,6 @@ def _config(text: str) -> tuple:
             f'{text!r}: expected MODE:TAKEN:TRANSPORT:LOOP, each one of '
             + ' / '.join('|'.join(c) for c in choices))
     return parts
-
-
-def _threads() -> list:
-    """(name, CPU clock id) of each other thread of this process, by its name (Fast DDS
-    names its threads: dds.shm.<port>, dds.udp.<port>, dds.ev.<n>, ...)."""
-    out = []
-    for tid in os.listdir('/proc/self/task'):
-        if int(tid) == threading.get_native_id():
-            continue
-        try:
-            with open(f'/proc/self/task/{tid}/comm') as f:
-                name = re.sub(r'[.\d]+$', '', f.read().strip())
-        except OSError:  # ended meanwhile
-            continue
-        # the thread's CPU clock (Linux: MAKE_THREAD_CPUCLOCK(tid, CPUCLOCK_SCHED))
-        out.append((name, (~int(tid) << 3) | 6))
-    return out
-
-
-def _clocks(threads) -> list:
-    """Each of ``threads``' CPU seconds so far (0 for one that ended)."""
-    out = []
-    for _, clock in threads:
-        try:
-            out.append(time.clock_gettime(clock))
-        except OSError:
-            out.append(0.0)
-    return out
 
 
 def _per_thread(threads, before, after, main: float, periods: int) -> dict:
