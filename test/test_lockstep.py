@@ -328,9 +328,11 @@ def test_the_lockstep_benchmark_reports_the_simulators_figures():
     assert 0 < got['sim_thread_cpu_per_period_us'] <= got['sim_cpu_per_period_us'], got
     assert got['achieved_rate_hz'] > 0, got
     # and where the rest went: each thread's part (RoundTrips.thread_parts), Fast DDS's
-    # among them (named dds.*)
-    parts = got['sim_threads_us']
+    # among them (named dds.*); the exchange thread sleeps once a period at least (the
+    # wait for each command), save the commands it found at once
+    parts, wakes = got['sim_threads_us'], got['sim_wakes_per_period']
     assert parts['main'] > 0 and any(k.startswith('dds.') for k in parts), got
+    assert wakes['main'] > 0.5 and any(k.startswith('dds.') for k in wakes), got
 
 
 def test_the_floor_tool_measures_a_bare_rclpy_exchange():
@@ -462,8 +464,9 @@ def test_round_trips_give_each_threads_part_of_the_cpu():
     """``RoundTrips.thread_parts``: from the first command whose CPU was read to the end,
     the CPU per period of each kind of thread (its name without trailing numbers, as Fast
     DDS names its threads), this one's as 'main', and what threads that ended meanwhile
-    spent as 'ended' (the process's CPU less the others'). Two threads started after the
-    first read burn 50 ms each: one is still there at the end, one ended."""
+    spent as 'ended' (the process's CPU less the others'); and ``wakes``, how often each
+    kind slept and was woken. Two threads started after the first read burn 50 ms each:
+    one then sleeps 20 times and is still there at the end, one ended."""
     import threading
     import time
     from rigid_body_sim.engine import lockstep
@@ -480,19 +483,22 @@ def test_round_trips_give_each_threads_part_of_the_cpu():
             pass
         spent[name] = time.thread_time()  # all of it after the first read
         if keep:
+            for _ in range(20):  # slept and woken 20 times at least (RoundTrips.wakes)
+                time.sleep(0.001)
+            spent['slept'] = True
             done.wait(60)
     kept = threading.Thread(target=burn, args=('burner.7', True))
     ended = threading.Thread(target=burn, args=('gone.3', False))
     kept.start()
     ended.start()
     ended.join(60)
-    while 'burner.7' not in spent and kept.is_alive():
+    while 'slept' not in spent and kept.is_alive():
         time.sleep(0.001)
     for _ in range(9):
         trips.sent()
         trips.applied()
     try:
-        parts = trips.thread_parts()
+        parts, wakes = trips.thread_parts(), trips.wakes()
     finally:
         done.set()
         kept.join(60)
@@ -500,6 +506,8 @@ def test_round_trips_give_each_threads_part_of_the_cpu():
     assert abs(parts['burner'] * n / 1e6 - spent['burner.7']) < 1e-3, (parts, spent)
     assert abs(parts['ended'] * n / 1e6 - spent['gone.3']) < 0.01, (parts, spent)
     assert 'gone' not in parts and parts['main'] > 0, parts
+    # how often each kind slept and was woken, per period: the ended thread is not counted
+    assert wakes['burner'] * n >= 20 and 'gone' not in wakes and 'main' in wakes, wakes
 
 
 # one side of a lockstep-like ping-pong between two processes, with Fast DDS's synchronous

@@ -123,6 +123,29 @@ def clock_seconds(threads) -> list:
     return out
 
 
+def wake_ups() -> dict:
+    """{thread id: (kind, times it has slept and been woken)} of each thread of this
+    process (its voluntary context switches: each wait for a message, a lock or a timer
+    that was not met at once), this one's kind 'main', the others' as ``thread_clocks``';
+    {} where /proc does not list them."""
+    out = {}
+    try:
+        tids = os.listdir('/proc/self/task')
+    except OSError:
+        return out
+    me = str(threading.get_native_id())
+    for tid in tids:
+        try:
+            with open(f'/proc/self/task/{tid}/comm') as f:
+                name = 'main' if tid == me else re.sub(r'[.\d]+$', '', f.read().strip())
+            with open(f'/proc/self/task/{tid}/status') as f:
+                woken = next(int(x.split()[1]) for x in f if x.startswith('voluntary_ctxt'))
+        except (OSError, StopIteration):  # ended meanwhile
+            continue
+        out[tid] = (name, woken)
+    return out
+
+
 # the CPU clocks are read at the first CPU_EVERY exchanges, then at every CPU_EVERY-th:
 # each read is a system call (~0.45 µs hot, several on a loaded machine, for two clocks
 # per exchange), and the CPU per period is a difference over the window they span
@@ -163,7 +186,7 @@ class RoundTrips:
             if self._first is None:
                 self._first = read
                 threads = thread_clocks()  # once a run (~0.1 ms): thread_parts
-                self._threads = (threads, clock_seconds(threads))
+                self._threads = (threads, clock_seconds(threads), wake_ups())
             else:
                 self._last = read
 
@@ -188,7 +211,7 @@ class RoundTrips:
         if self._first is None or self.count <= self._first[0]:
             return {}
         main, cpu = time.thread_time(), time.process_time()
-        before = {clock: c for (_, clock), c in zip(*self._threads)}
+        before = {clock: c for (_, clock), c in zip(*self._threads[:2])}
         threads = thread_clocks()
         n, first = self.count - self._first[0], self._first
         parts = {'main': main - first[2]}
@@ -199,12 +222,26 @@ class RoundTrips:
         return {k: round(1e6 * v / n, 1) for k, v in sorted(parts.items(), key=lambda kv:
                                                                -kv[1]) if 1e6 * v / n >= 0.05}
 
+    def wakes(self) -> dict:
+        """How often each kind of thread (``wake_ups``) slept and was woken per control
+        period, from the first command whose CPU was read to now; threads that ended
+        meanwhile are not counted. {} before two commands."""
+        if self._first is None or self.count <= self._first[0]:
+            return {}
+        before, n, out = self._threads[2], self.count - self._first[0], {}
+        for tid, (name, woken) in wake_ups().items():
+            out[name] = out.get(name, 0) + woken - before.get(tid, (name, 0))[1]
+        return {k: round(v / n, 2) for k, v in sorted(out.items(), key=lambda kv: -kv[1])
+                if v / n >= 0.005}
+
     def summary(self) -> str:
         v = self.values()
         parts = ', '.join(f'{k} {p:g}' for k, p in self.thread_parts().items())
+        wakes = ', '.join(f'{k} {w:g}' for k, w in self.wakes().items())
         return (f'lockstep: {v["lockstep_exchanges"]} exchanges, round trip '
                 f'{v["lockstep_round_trip_wall_us"]:.0f} µs wall on average (max '
                 f'{v["lockstep_round_trip_wall_max_us"]:.0f} µs), simulator CPU '
                 f'{v["lockstep_cpu_per_period_us"]:.0f} µs per control period ('
                 f'{v["lockstep_thread_cpu_per_period_us"]:.0f} µs in its own thread)'
-                + (f'; by thread to the end: {parts} µs' if parts else ''))
+                + (f'; by thread to the end: {parts} µs' if parts else '')
+                + (f'; wake-ups per period: {wakes}' if wakes else ''))

@@ -10,7 +10,8 @@ For each control rate (publishing at the same rate, the slew scene, ``splitting4
   simulator's CPU per control period (stepping, publishing and receiving; target ≤ 100 µs),
   the process's (every thread: that is the figure) and its own thread's, and each other
   thread's part (``sim_threads_us``: Fast DDS's shared-memory receiver ``dds.shm``, its
-  timed events ``dds.ev``, ...);
+  timed events ``dds.ev``, ...) and how often each slept and was woken per period
+  (``sim_wakes_per_period``);
 * at real time (``real_time_factor: 1``), ``--seconds`` of sim time: the achieved control
   rate, exchanges per wall second between t = 0 and the end (the simulator's log stamps).
 Real processes and real DDS, in a ROS domain of their own; nothing else is started.
@@ -34,8 +35,9 @@ SUMMARY = re.compile(r'lockstep: (\d+) exchanges, round trip (\d+) µs wall on a
                      r'(\d+) µs\), simulator CPU (\d+) µs per control period'
                      r'(?: \((\d+) µs in its own thread\))?')
 STAMP = re.compile(r'\[(\d+\.\d+)\]')
-# RoundTrips.thread_parts, after the summary: 'main 84, dds.shm 22.5, dds.ev 4'
-THREADS = re.compile(r'; by thread to the end: (.*) µs')
+# RoundTrips.thread_parts and .wakes, after the summary: 'main 84, dds.shm 22.5, dds.ev 4'
+THREADS = re.compile(r'; by thread to the end: ([^;]*) µs')
+WAKES = re.compile(r'; wake-ups per period: ([^;\n]*)')
 PART = re.compile(r'(\S+) ([\d.]+)')
 
 
@@ -90,13 +92,15 @@ def exchange(rate: float, rtf: float, duration: float, timeout: float = 600.0) -
     t0 = next(_stamp(x) for x in lines if 'starting at t = 0' in x)
     t1 = next(_stamp(x) for x in lines if 'reached at t =' in x)
     n = int(m.group(1))
-    parts = THREADS.search(log)
+    parts, wakes = THREADS.search(log), WAKES.search(log)
     return {'control_rate_hz': rate, 'real_time_factor': rtf, 'exchanges': n,
             'round_trip_wall_us': int(m.group(2)), 'round_trip_wall_max_us': int(m.group(3)),
             'sim_cpu_per_period_us': int(m.group(4)),
             'sim_thread_cpu_per_period_us': int(m.group(5)) if m.group(5) else None,
             'sim_threads_us': {k: float(v) for k, v in PART.findall(parts.group(1))}
             if parts else {},
+            'sim_wakes_per_period': {k: float(v) for k, v in PART.findall(wakes.group(1))}
+            if wakes else {},
             'achieved_rate_hz': n / (t1 - t0) if t1 > t0 else None}
 
 
@@ -110,10 +114,10 @@ def repeated(runs: int, *args) -> dict:
         values = [g[key] for g in got]
         out[key] = statistics.median(values) if isinstance(value, (int, float)) and \
             None not in values else value
-    # each thread's part: its median over the runs (0 in a run that had none of it)
-    kinds = {k for g in got for k in g['sim_threads_us']}
-    out['sim_threads_us'] = {k: statistics.median(g['sim_threads_us'].get(k, 0.0) for g in got)
-                             for k in sorted(kinds)}
+    # each thread's part and wake-ups: their medians over the runs (0 in a run without)
+    for key in ('sim_threads_us', 'sim_wakes_per_period'):
+        kinds = sorted({k for g in got for k in g[key]})
+        out[key] = {k: statistics.median(g[key].get(k, 0.0) for g in got) for k in kinds}
     out['runs'] = got
     return out
 
