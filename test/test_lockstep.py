@@ -511,28 +511,41 @@ def test_round_trips_give_each_threads_part_of_the_cpu():
 
 
 # one side of a lockstep-like ping-pong between two processes, with Fast DDS's synchronous
-# publication and the profile FASTRTPS_DEFAULT_PROFILES_FILE names: 'echo' answers each
-# ping with a pong; 'ping' sends N pings, each after the last one's pong, and prints how
-# often its timed-events threads (dds.ev.*) woke per ping (voluntary context switches)
+# publication and the profile FASTRTPS_DEFAULT_PROFILES_FILE names, each reading from an rcl
+# wait set of its one subscription as the simulator does (sim_lockstep), keep-last 1:
+# 'echo' answers each ping with a pong; 'ping' sends N pings, each after the last one's
+# pong, and prints how often its timed-events threads (dds.ev.*) woke per ping (voluntary
+# context switches)
 _PING_PONG = r'''
 import os, sys, time
 import rclpy
 from geometry_msgs.msg import Vector3Stamped
+from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.qos import QoSProfile, ReliabilityPolicy
+from rclpy.serialization import serialize_message
 role, n, ns = sys.argv[1], int(sys.argv[2]), sys.argv[3]
 rclpy.init()
 node = rclpy.create_node(f'ping_pong_{role}', namespace=ns)
-qos = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
+qos = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE)
 out, back = ('pong', 'ping') if role == 'echo' else ('ping', 'pong')
 pub = node.create_publisher(Vector3Stamped, out, qos)
-got = []
-node.create_subscription(Vector3Stamped, back, pub.publish if role == 'echo' else got.append,
-                         qos)
-executor = rclpy.executors.SingleThreadedExecutor()
-executor.add_node(node)
+sub = node.create_subscription(Vector3Stamped, back, lambda m: None, qos, raw=True)
+waits = _rclpy.WaitSet(1, 0, 0, 0, 0, 0, node.context.handle)
+
+
+def take(timeout):
+    waits.clear_entities()
+    waits.add_subscription(sub.handle)
+    waits.wait(int(timeout * 1e9))
+    got = sub.handle.take_message(Vector3Stamped, True)
+    return None if got is None else got[0]
+
+
 if role == 'echo':
     while rclpy.ok():
-        executor.spin_once(timeout_sec=1.0)
+        data = take(1.0)
+        if data is not None:
+            pub.publish(data)
     sys.exit(0)
 
 
@@ -548,18 +561,16 @@ def wakes():
 
 
 deadline = time.monotonic() + 120
-while (pub.get_subscription_count() == 0 or node.count_publishers(back) == 0) and \
+while (pub.get_subscription_count() == 0 or sub.get_publisher_count() == 0) and \
         time.monotonic() < deadline:
-    executor.spin_once(timeout_sec=0.05)
-message = Vector3Stamped()
+    time.sleep(0.01)
+message = serialize_message(Vector3Stamped())
 
 
 def exchange():
-    k = len(got)
     pub.publish(message)
-    while len(got) == k:
+    while take(1.0) is None:
         assert time.monotonic() < deadline, 'no pong within 120 s'
-        executor.spin_once(timeout_sec=1.0)
 
 
 for _ in range(20):  # matched and warm
@@ -571,42 +582,62 @@ print((wakes() - before) / n)
 '''
 
 
-def test_a_synchronous_writer_does_not_wake_its_event_thread_per_message(tmp_path):
+def _event_thread_wakes(profile: str, pings: int = 500) -> float:
+    """The pinging process's timed-events thread's wake-ups per ping (_PING_PONG) with the
+    Fast DDS profile of text ``profile``, both processes publishing synchronously."""
+    import subprocess
+    from rigid_body_sim.nodes import process
+    env = dict(os.environ, RMW_FASTRTPS_PUBLICATION_MODE='SYNCHRONOUS',
+               FASTRTPS_DEFAULT_PROFILES_FILE=process.heartbeat_profile(profile))
+    ns = f'/ping_pong_{os.getpid()}_{len(profile)}'
+    echo = subprocess.Popen([sys.executable, '-c', _PING_PONG, 'echo', '0', ns], env=env,
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    try:
+        ping = subprocess.run([sys.executable, '-c', _PING_PONG, 'ping', str(pings), ns],
+                              env=env, capture_output=True, text=True, timeout=240)
+    finally:
+        echo.send_signal(signal.SIGINT)
+        try:
+            echo.wait(timeout=30)
+        except subprocess.TimeoutExpired:
+            echo.kill()
+            echo.wait()
+    assert ping.returncode == 0, ping.stderr[-2000:]
+    return float(ping.stdout.split()[-1])
+
+
+def test_a_synchronous_writer_does_not_wake_its_event_thread_per_message():
     """The Fast DDS profile of the lockstep nodes (``process.heartbeat_profile``): a
     writer's nack suppression lasts a heartbeat period, so that a message sent does not
     wake the timed-events thread to end a suppression of 0 s (Fast DDS's default). Counted
     in a ping-pong of two processes as lockstep exchanges (synchronous publication): the
     pinging process's event-thread wake-ups per ping, with the profile and with the same
-    profile without that element (0.35-0.99 against 1.8-4.3, 5 runs at load 10-12)."""
-    import subprocess
+    profile without that element (0.05-0.06 against 1.1-3.9, 3 runs at load 6)."""
     from rigid_body_sim.nodes import process
     element = (f'        <nackSupressionDuration>\n          <sec>0</sec><nanosec>'
                f'{process.NACK_SUPPRESSION_NS}</nanosec>\n        </nackSupressionDuration>\n')
     without = process._PROFILE.replace(element, '')
     assert without != process._PROFILE  # the element this test is about
-
-    def wakes(profile):
-        env = dict(os.environ, RMW_FASTRTPS_PUBLICATION_MODE='SYNCHRONOUS',
-                   FASTRTPS_DEFAULT_PROFILES_FILE=process.heartbeat_profile(profile))
-        ns = f'/ping_pong_{os.getpid()}_{len(profile)}'
-        echo = subprocess.Popen([sys.executable, '-c', _PING_PONG, 'echo', '0', ns], env=env,
-                                stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-        try:
-            ping = subprocess.run([sys.executable, '-c', _PING_PONG, 'ping', '200', ns],
-                                  env=env, capture_output=True, text=True, timeout=240)
-        finally:
-            echo.send_signal(signal.SIGINT)
-            try:
-                echo.wait(timeout=30)
-            except subprocess.TimeoutExpired:
-                echo.kill()
-                echo.wait()
-        assert ping.returncode == 0, ping.stderr[-2000:]
-        return float(ping.stdout.split()[-1])
-    ours, default = wakes(process._PROFILE), wakes(without)
+    ours, default = _event_thread_wakes(process._PROFILE), _event_thread_wakes(without)
     # a ratio of two runs, not a bound: under load the exchanges slow down and the
     # periodic heartbeat's wake-ups (every 20 ms with unacknowledged data) add to both
     assert ours <= default / 2, (ours, default)
+
+
+def test_a_synchronous_writer_sends_no_heartbeat_its_reader_must_answer_per_message():
+    """The same profile turns Fast DDS's piggybacked heartbeats off: with them, many of a
+    lockstep exchange's messages carry a heartbeat that the reader must answer, its
+    timed-events thread woken for each answer. The pinging process's event-thread
+    wake-ups per ping, with the profile and with the same profile without that element
+    (0.046-0.056 against 0.11-0.15 in 3 runs of 500 pings, 0.033-0.056 against
+    0.087-0.117 in 3 of 1,000; load 6-7)."""
+    from rigid_body_sim.nodes import process
+    element = '      <qos><disable_heartbeat_piggyback>true</disable_heartbeat_piggyback></qos>\n'
+    without = process._PROFILE.replace(element, '')
+    assert without != process._PROFILE  # the element this test is about
+    ours, piggybacked = _event_thread_wakes(process._PROFILE), _event_thread_wakes(without)
+    # a ratio of two runs, as above (the periodic heartbeats' wake-ups add to both)
+    assert ours <= 0.8 * piggybacked, (ours, piggybacked)
 
 
 @pytest.mark.parametrize('frame', ['', 'b', 'base_link', '/base_link', 'body_frame_1',
