@@ -40,10 +40,15 @@ from .state_messages import N_VALUES
 
 _AWAITING = {('', 'torque')}  # the unnamed spacecraft's torque command only (_awaiting)
 # held for the exchange's command, the executor (services, parameters, SimulateSteps, other
-# commands) turns this often, without waiting (as CHUNK_WALL_S of engine work as fast as
-# possible): a turn with nothing to do costs ~28 µs of CPU and ~0.1 ms of wall, loaded up
-# to 1.5 ms (a hand-over to its thread), so not once an exchange
-EXECUTOR_SLICE_S = 0.02
+# commands) turns this often, without waiting: a turn with nothing to do costs ~28 µs of
+# CPU and ~0.1 ms of wall, loaded up to 1.5 ms (a hand-over to its thread), so not once an
+# exchange; and each slice costs two turns of run's loop besides (run_once, its subscriber
+# counts every SUBSCRIBER_REFRESH_S), ~0.2 ms of the thread's CPU a slice at load 12. So a
+# call is answered within 0.1 s, as a named spacecraft's command is read (_serve_exchange),
+# not 0.02 s: in process (tools.lockstep_parts' timers, 5,000 exchanges at 100 Hz, 3 runs
+# alternating at load 12-13) run_once and the executor's turns 4.6-9.9 -> 2.6-3.2 µs of
+# the thread per exchange.
+EXECUTOR_SLICE_S = 0.1
 # held for torque_command and something else (a dipole_command, a named spacecraft's):
 # the executor waits at most this long, so that a torque_command that came meanwhile is
 # read by the next turn of the loop
