@@ -10,6 +10,7 @@ from typing import Optional
 
 from ..physics import INTEGRATORS, IntegrationError, create
 from ..physics.auto import select, selecting
+from ..physics.auto.selection import free_choice
 from . import law_pilot
 from .config import NS
 from .specs import AUTO
@@ -71,16 +72,15 @@ class MethodChoice:
         # the environment's torques act from the start, as a torque the pilot cannot foresee
         terms = self.environment_terms
         torque = self._torque_seen or bool(terms)
-        # the budget covers the rest of the run (what went before was exact or is done)
-        left = (self.end_ns - self.t_ns) / NS if c.duration_ns > 0 else 0.0
-        state = (self.body, c.dissipation, self.attitude, self.angular_velocity)
         if not torque and not c.dissipation.active:  # the free body: exact, no model needed
-            sel = select(*state, torque=False, accuracy=c.accuracy, duration=left,
-                         max_step=self._spacing(), momentum=self._m.copy())
+            sel = free_choice(self.body.principal_moments, self._m, c.accuracy,
+                              self._spacing())
             self.selection_cpu += time.process_time() - cpu0
             self._use(sel.name, sel.step,
                       f'auto: {sel.reason}; evaluated at sample and event instants only')
             return
+        # the budget covers the rest of the run (what went before was exact or is done)
+        left = (self.end_ns - self.t_ns) / NS if c.duration_ns > 0 else 0.0
         kw = dict(torque=self._torque_seen, accuracy=c.accuracy, duration=left,
                   max_step=self._spacing(),
                   torque_rate=c.torque_rate(self._torque_seen) if torque else 0.0,
@@ -100,6 +100,7 @@ class MethodChoice:
                   # the state's own momentum (a copy: the pilot may outlive this instant),
                   # not I·ω from the ω it gives: two array operations of the selection's time
                   momentum=self._m.copy())
+        state = (self.body, c.dissipation, self.attitude, self.angular_velocity)
         runner = self._law_runner() if torque else None
         if runner is not None:  # the law runs here: a pilot can measure it
             kw.update(law_runner=runner, control_period=c.control.period_ns / NS)

@@ -63,7 +63,7 @@ from .kinds import applicable, free_flow_exact, least as least_costs, usable as 
 from .model import (CANDIDATES, H_OMEGA_PRIOR, MEASURED_K, RTOL_RANGE, RUN_COST, RunModel,
                     is_symmetric)
 
-__all__ = ['CANDIDATES', 'Candidate', 'Selection', 'select', 'selecting']
+__all__ = ['CANDIDATES', 'Candidate', 'Selection', 'free_choice', 'select', 'selecting']
 
 
 # what choosing costs, in the units of the run's cost model (RUN_COST, CANDIDATES), set
@@ -126,10 +126,27 @@ def select(body: RigidBody, dissipation: Dissipation, attitude, angular_velocity
             return done.value
 
 
+def _checked(accuracy, max_step):
+    """ValueError naming a budget or an event spacing that no choice can be made for."""
+    if not (accuracy > 0 and math.isfinite(accuracy)):
+        raise ValueError(f'accuracy must be a positive attitude error in rad, got {accuracy}')
+    if not (max_step > 0 and math.isfinite(max_step)):
+        raise ValueError(f'max_step must be positive, got {max_step}')
+
+
+def free_choice(moments, momentum, accuracy: float, max_step: float) -> Selection:
+    """:func:`select`'s choice for a torque-free body without dissipation (``exact``), from
+    the principal ``moments`` and ``momentum`` (I·ω, principal frame) alone: the engine's
+    start takes it at every auto run, where building the general selection's arguments
+    (the attitude and ω in the body frame, the torque's rate) cost more than the choice."""
+    _checked(accuracy, max_step)
+    return _free_choice(moments, max_step, momentum)
+
+
 def _free_choice(moments, max_step, m):
     shape = 'symmetric body: closed-form free precession' if is_symmetric(moments) else \
         'Jacobi elliptic functions + Carlson integrals'
-    if not np.any(m):
+    if not any(m.tolist() if isinstance(m, np.ndarray) else m):  # numpy's any: 1.5 µs
         return Selection('exact', max_step, 'body at rest: exact', 0.0)
     return Selection('exact', max_step, 'torque-free, no dissipation → exact solution '
                      f'({shape}); no stepping error at any horizon', 0.0)
@@ -191,10 +208,7 @@ def selecting(body: RigidBody, dissipation: Dissipation, attitude, angular_veloc
             ``angular_velocity``.
     """
     commanded, torque = torque, torque or bool(environment)
-    if not (accuracy > 0 and math.isfinite(accuracy)):
-        raise ValueError(f'accuracy must be a positive attitude error in rad, got {accuracy}')
-    if not (max_step > 0 and math.isfinite(max_step)):
-        raise ValueError(f'max_step must be positive, got {max_step}')
+    _checked(accuracy, max_step)
     moments = body.principal_moments
     m = moments * body.to_principal(angular_velocity) if momentum is None else momentum
     if not torque and not dissipation.active:
