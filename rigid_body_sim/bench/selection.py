@@ -86,7 +86,9 @@ def share(scene, duration, runs=9):
 # calibration read, the per-kind candidate facts of physics/auto/kinds.py kept since its
 # first selection), but no choice is kept: each run chooses afresh
 SHARE_NOTE = ('median of 9 runs in one warm process (kernels, costs and per-kind candidate '
-              'facts loaded), each choosing afresh; a fresh process\'s first selection, '
+              'facts loaded), each choosing afresh; all of its choosing counted (the free '
+              'body\'s choice at the start and building the selection\'s arguments '
+              'included); a fresh process\'s first selection, '
               'which also reads the calibration, is not among them')
 
 
