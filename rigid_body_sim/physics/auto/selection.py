@@ -134,16 +134,10 @@ def _checked(accuracy, max_step):
         raise ValueError(f'max_step must be positive, got {max_step}')
 
 
-def free_choice(moments, momentum, accuracy: float, max_step: float) -> Selection:
-    """:func:`select`'s choice for a torque-free body without dissipation (``exact``), from
-    the principal ``moments`` and ``momentum`` (I·ω, principal frame) alone: the engine's
-    start takes it at every auto run, where building the general selection's arguments
-    (the attitude and ω in the body frame, the torque's rate) cost more than the choice."""
+def free_choice(moments, m, accuracy: float, max_step: float) -> Selection:
+    """The choice for a torque-free body without dissipation (``exact``), from the principal
+    moments and m = I·ω alone: cheaper than building :func:`selecting`'s arguments."""
     _checked(accuracy, max_step)
-    return _free_choice(moments, max_step, momentum)
-
-
-def _free_choice(moments, max_step, m):
     shape = 'symmetric body: closed-form free precession' if is_symmetric(moments) else \
         'Jacobi elliptic functions + Carlson integrals'
     if not any(m.tolist() if isinstance(m, np.ndarray) else m):  # numpy's any: 1.5 µs
@@ -212,7 +206,7 @@ def selecting(body: RigidBody, dissipation: Dissipation, attitude, angular_veloc
     moments = body.principal_moments
     m = moments * body.to_principal(angular_velocity) if momentum is None else momentum
     if not torque and not dissipation.active:
-        return _free_choice(moments, max_step, m)
+        return free_choice(moments, m, accuracy, max_step)
     horizon = duration if duration > 0 else DEFAULT_HORIZON
     # the attitude matters to the pilot only (set below): the a-priori pass skips its cost
     s = RunModel(dynamics or Dynamics(moments, dissipation), None, m, accuracy, horizon,
@@ -299,8 +293,7 @@ def selecting(body: RigidBody, dissipation: Dissipation, attitude, angular_veloc
         if (_better(c, cost, best, accuracy) if err <= accuracy
                 else best[3] > accuracy and err < best[3]):
             best = (c, max_step, cost, err)
-    head = (f'{what} → cheapest method meeting '
-            f'{accuracy:g} rad over '
+    head = (f'{what} → cheapest method meeting {accuracy:g} rad over '
             f'{horizon:g} s; Ω = {s.omega:.3g} rad/s; {s.costs.source}')
     prior = 'a priori (k·(hΩ)^p·ΩT): ' + ', '.join(why)
     if torque and law_runner is not None and s.law_alone and not prior_only:
