@@ -16,10 +16,10 @@ Q = (0.1, 0.2, 0.3, 0.9)
 
 
 def _bodies():
-    """(moments, q0, m0): the first 150 generated scenes' bodies (seed 20261125, m = I·ω),
+    """(moments, q0, m0): the first 100 generated scenes' bodies (seed 20261125, m = I·ω),
     and the closed forms and edges the generated ones never reach."""
     out = []
-    for i in range(150):
+    for i in range(100):
         s = draw(20261125, i)
         out.append((s.moments, s.attitude, np.multiply(s.moments, s.omega)))
     sep = np.array([np.sqrt(0.3 ** 2 * (3 - 2) / 3 * 1 / (2 - 1)), 0.5, 0.3])  # Δ2 = 0
@@ -36,14 +36,21 @@ def _bodies():
     return out
 
 
-@pytest.mark.parametrize('moments, q0, m0', _bodies())
-def test_one_body_set_up_is_the_batch_path_s_to_the_bit(moments, q0, m0):
+def test_one_body_set_up_is_the_batch_path_s_to_the_bit():
+    # one test: pytest's per-case cost was most of it; at_numpy (its set-up reads the
+    # attributes compared above, 1.5 ms a body) on every tenth generated body and the edges
+    for i, (moments, q0, m0) in enumerate(_bodies()):
+        _same(moments, q0, m0, numpy=i % 10 == 0 or i >= 100)
+
+
+def _same(moments, q0, m0, numpy):
     one = TorqueFreeSolution(moments, q0, m0)
     batch = TorqueFreeSolution(moments, np.asarray(q0, float)[None], np.asarray(m0, float)[None])
-    assert one.batch_shape == () and one.regime == batch.regime[0]
+    assert one.batch_shape == () and one.regime == batch.regime[0], (moments, m0)
     for name in ARRAYS:
         a, b = getattr(one, name), getattr(batch, name)
-        assert (a.dtype, a.shape, a.tobytes()) == (b.dtype, b.shape, b.tobytes()), name
+        assert (a.dtype, a.shape, a.tobytes()) == (b.dtype, b.shape, b.tobytes()), \
+            (name, moments, m0)
     for name in BATCHED:
         a, b = getattr(one, name), getattr(batch, name)
         assert a.shape == () and a.tobytes() == b.tobytes(), name
@@ -52,7 +59,7 @@ def test_one_body_set_up_is_the_batch_path_s_to_the_bit(moments, q0, m0):
     t = np.array([0.0, 0.7, 123.4])
     for a, b in zip(one.at(t), batch.at(t[:, None])):
         assert a.tobytes() == b[:, 0].tobytes()
-    for a, b in zip(one.at_numpy(t), batch.at_numpy(t[:, None])):
+    for a, b in zip(one.at_numpy(t), batch.at_numpy(t[:, None])) if numpy else ():
         assert a.tobytes() == b[:, 0].tobytes()
 
 
