@@ -29,10 +29,7 @@ def test_local_cluster_campaign_writes_dataset_summary_plots_and_reruns(tmp_path
     args = ['detumble', '--disperse', 'inertia=uniform:5%', '--disperse',
             'initial_angular_velocity=normal:0.2', '--runs', '24', '--seed', '11',
             '--workers', '2', '--chunk', '3', '--out', str(out)] + SHORT
-    # from this process: the local cluster's two workers (and their nannies) are processes
-    # of their own, as a user's; a fresh CLI process imported dask, pyarrow and matplotlib
-    # again (the other tests here run the real CLI process against a scheduler: issue 32)
-    res = run_cli('campaign', *args)
+    res = cli(*args)
     assert res.returncode == 0, res.stderr
     assert 'Traceback' not in res.stderr
     assert '24 runs: 24 ok, 0 failed' in res.stdout and 'worst detumble_time' in res.stdout
