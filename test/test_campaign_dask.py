@@ -211,7 +211,10 @@ def test_interrupt_keeps_finished_runs_and_resume_runs_only_the_rest(tmp_path, h
     rest = args[:at] + args[at + 2:]
     at = rest.index('--workers')
     rest[at + 1] = '1'
-    res = cli(*rest, '--resume')
+    # and from this process (its cluster's worker is still a process of its own): the
+    # resume is about what it runs, not about a fresh CLI process, which imported dask,
+    # pyarrow and the engine again (the interrupted run above is the real CLI process)
+    res = run_cli('campaign', *rest, '--resume')
     assert res.returncode == 0, res.stderr
     assert f'{n - len(kept)} runs now, {n} in' in res.stdout
     final = store.read(str(out))

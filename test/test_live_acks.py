@@ -13,15 +13,18 @@ from test_simulator import IMU_TOPICS, start_simulator
 from ros_helpers import spin_until
 
 PERIOD_NS = 10_000_000  # publish_rate 100 Hz
-DURATION_S = 40.0
+# 2,001 samples: four windows and the end's wait (the old every-50-samples pacing: 41
+# waits). 40 s (4,001 samples) cost this test's process twice the ~40,000 messages it
+# takes in Python, for the same assertions (issue 32)
+DURATION_S = 20.0
 
 
 def test_as_fast_as_possible_waits_once_a_window_and_every_topic_gets_every_sample(
         ros_process, namespace, rclpy_node):
-    """Every state topic subscribed (keep-all, reliable), 4,001 samples as fast as
+    """Every state topic subscribed (keep-all, reliable), 2,001 samples as fast as
     possible: each topic receives all of them from t = 0, and the node waited for
     acknowledgements once per KEEP_ALL_WINDOW samples and once at the end. Before, it
-    stopped every 50 samples (81 waits here), each a heartbeat round trip of
+    stopped every 50 samples (41 waits here), each a heartbeat round trip of
     milliseconds: three quarters of the run's wall time."""
     assert KEEP_ALL_WINDOW >= 500
     got = {topic: [] for topic in IMU_TOPICS}

@@ -107,15 +107,9 @@ def test_installed_simulator_starts_publishes_and_stops_on_sigint(where, request
     assert 'Traceback' not in proc.output()
 
 
-@pytest.mark.parametrize('exe', ['controller', 'recorder'])
-def test_installed_nodes_stop_cleanly_on_sigint(exe, ros_process, namespace, tmp_path):
-    args = ['-p', f'output:={tmp_path / "bag"}'] if exe == 'recorder' else []
-    proc = ros_process(venv_exe(exe), '--ros-args', '-r', f'__ns:={namespace}', *args)
-    import time
-    time.sleep(3.0)  # past start-up (the wheels re-exec Python once) into spinning
-    assert proc.poll() is None, proc.output()
-    assert proc.stop() == 0, proc.output()
-    assert 'Traceback' not in proc.output()
+# The installed controller and recorder stopping cleanly on SIGINT (exit 0, no traceback)
+# while they run: test_signals.py, which signals the same executables in a running graph
+# (issue 32: this file started each once more for it).
 
 
 def test_replay_help_and_bad_path_are_clean():

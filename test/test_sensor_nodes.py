@@ -60,7 +60,8 @@ def test_gyro_and_star_tracker_topics_and_the_loop_closed_on_them(ros_process, n
     assert spin_until(node, lambda: len(got['gyro']) > 10 and got['torque'], 30.0), \
         sim.output()[-2000:] + ctl.output()[-2000:]
     assert spin_until(node, lambda: len(got['gyro']) > 600, 40.0)
-    spin_until(node, lambda: False, 1.5)  # a last diagnostics message
+    n_diag = len(got['diag'])  # a last diagnostics message (1 Hz), waited for, not slept
+    assert spin_until(node, lambda: len(got['diag']) > n_diag, 30.0), ctl.output()[-2000:]
     assert sim.poll() is None and ctl.poll() is None
     assert 'sensors: gyro 50 Hz, star_tracker 5 Hz (1 outages), seed 1' in sim.output()
 

@@ -360,10 +360,12 @@ def test_garbage_and_unknown_channel_are_ignored_and_counted(live, client_js):
     (s,) = finish_client(proc, 4.0)
     assert s['counts'].get('/tf', 0) >= 0.5 * 4.0 * RATE  # still served after the garbage
     assert any('Unknown channel ID: 987654' in m for m in s['statuses']), s['statuses']
-    probe.spin(3.0)  # the next diagnostics period
 
     def delta(key):
         return int(probe.latest('attitude_viewer')[key]) - int(before[key])
+    # the diagnostics (1 Hz) that count them, waited for: the counts then must be exact
+    probe.spin(30.0, lambda: delta('rejected_invalid_message') >= 3 and
+               delta('rejected_unknown_channel') >= 1)
     # a non-JSON text, an unknown binary opcode, an unknown op; one unknown channel
     assert delta('rejected_invalid_message') == 3
     assert delta('rejected_unknown_channel') == 1
