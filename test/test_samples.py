@@ -402,6 +402,24 @@ def test_dop853_samples_inside_a_step_are_one_loop_not_one_call_each():
     assert 0 < out['advance'] < 50 and out['_interpolated'] <= 2 * out['advance'] + 2, out
 
 
+def test_the_free_bodys_rk4_steps_and_hermite_ends_are_inlined_into_the_loop():
+    """A sample between rk4 steps calls the step loop twice and sample_kernel._end twice;
+    for the free body (env None) the loop inlines both, the very functions (compiled,
+    ``inline='always'``): out of line each call paid a reference-count round trip per
+    array and view, ~1/3 of the CPU of rk4 at 100 samples/s. The same numbers:
+    test_compiled_samples_are_the_event_loop_samples_bit_for_bit (rk4, and the laws'
+    scenes) compares them with the event path, which calls rk4 out of line."""
+    from rigid_body_sim.engine import sample_kernel
+    from rigid_body_sim.physics.integrators import explicit_kernel
+    from rigid_body_sim.physics.jit import COMPILED
+    assert COMPILED, 'this interpreter runs the kernels as plain Python'
+    for inlined, kernel in ((sample_kernel._free_steps, explicit_kernel.rk4_steps),
+                            (sample_kernel._free_end, sample_kernel._end)):
+        assert inlined.targetoptions.get('inline') == 'always'
+        assert kernel.targetoptions.get('inline', 'never') == 'never'  # orbits: by type
+        assert inlined.py_func is kernel.py_func
+
+
 @pytest.mark.parametrize('span_ns', [5 * 10**6, 10**6])  # within one CHUNK; across two
 def test_dense_samples_are_interpolated_calls_bit_for_bit(span_ns):
     """sample_kernel.dense_samples gives the rows, the state and the memory that calling

@@ -5,7 +5,8 @@ in-process user gets), at 1 and at 100 samples/s, kernels warm, the engine built
 the clock (as the CLI does); the ratio of the two CPU times. CLI overhead: ``rigid-body-sim
 run SCENE --json`` in a fresh process (bag written; its ``cpu_seconds`` is the run, the
 bag's cost is ``output_cpu_seconds``) against the same run in-process with the kernels
-warm. Both are minima of a few runs: the machine may be shared.
+warm. Both are minima of a few runs, the CLI's alternated with the in-process ones: the
+machine may be shared.
 
     python -m rigid_body_sim.bench.sampling [--quick] [--update docs/bench]
 """
@@ -36,20 +37,36 @@ CLI_REPEATS = {True: 2, False: 5}
 
 def _simulate_cpu(name, duration, rate, overrides, repeats, counts=None):
     """Least CPU (s) of ``repeats`` in-process runs, samples kept, engine built outside;
-    ``counts`` (a dict), if given, gets the last run's evaluations and samples."""
+    ``counts`` (a dict), if given, gets the last run's evaluations and samples, and the
+    page faults in the clock of the least run and the most of any run (``faults``): a
+    run whose sample arrays got pages the process had not touched (glibc's malloc gave
+    back the previous run's) pays ~1.5-2 µs a 4 KiB page here, 88 bytes a sample; the
+    least run is often one that reused them (generated scene 2, 30,000 samples: 1.3-1.5
+    ms without its 613 faults, 1.9-2.4 ms with them)."""
     from ..offline import engine_for, simulate
     from ..scene import load
     scene = load(name, [f'publish_rate={rate:g}']) if isinstance(name, str) else \
         _at_rate(name, rate)
-    best = float('inf')
+    best, faults = float('inf'), [0, 0]
     for _ in range(repeats):
         engine = engine_for(scene, duration=duration, **overrides)
+        f0 = _faults()
         t0 = cpu()
         result = simulate(scene, engine=engine, keep='all')
-        best = min(best, cpu() - t0 - (engine.selection_cpu - result.selection_cpu_seconds))
+        spent = cpu() - t0 - (engine.selection_cpu - result.selection_cpu_seconds)
+        n = _faults() - f0
+        faults = [n if spent < best else faults[0], max(faults[1], n)]
+        best = min(best, spent)
     if counts is not None:
-        counts.update(evaluations=engine.total_evaluations, samples=result.sample_count)
+        counts.update(evaluations=engine.total_evaluations, samples=result.sample_count,
+                      faults=faults)
     return best
+
+
+def _faults():
+    """This process's minor page faults so far."""
+    import resource
+    return resource.getrusage(resource.RUSAGE_SELF).ru_minflt
 
 
 def _dense_cost(slow, fast, a, b):
@@ -89,6 +106,22 @@ def _cli_cpu(name, duration, repeats):
     return min(runs)
 
 
+def _cli_and_inprocess(scene, target, duration, rate, repeats, cli_repeats):
+    """(least in-process CPU, the CLI's least (cpu_seconds, output_cpu_seconds, kernels
+    loaded in the clock)) of ``scene`` (a name or a SceneFile; ``target``: what the CLI
+    runs) at ``rate``: the two alternated, two in-process runs (the second warm, as the
+    CLI's run is after its rehearsals) before each CLI run, so that both minima come from
+    the same stretch of the machine's load. Measured one after the other (the in-process
+    runs within ~20 ms, then the CLI's over ~3 s), a change of load between them read as
+    CLI overhead: generated scene 6 read 1.43 in one full run, 0.97-1.07 alone (load 8)."""
+    inproc, cli = float('inf'), []
+    for i in range(max(repeats, cli_repeats)):
+        inproc = min(inproc, _simulate_cpu(scene, duration, rate, {}, 2))
+        if i < cli_repeats:
+            cli.append(_cli_cpu(target, duration, 1))
+    return inproc, min(cli)
+
+
 def run(quick, log=print, generated_count=None):
     """Rows, and the target rows (``targets.simple``): the bench's scenes, then the
     generated ones (:func:`generated_rows`)."""
@@ -112,8 +145,8 @@ def run(quick, log=print, generated_count=None):
                                   SAMPLING_MAX, ratio <= SAMPLING_MAX,
                                   f'{duration:g} s, samples kept in-process', scene=name))
     for name, duration in CLI_SCENES:
-        inproc = _simulate_cpu(name, duration, _scene_rate(name), {}, repeats)
-        cli_cpu, output, loaded = _cli_cpu(name, duration, CLI_REPEATS[quick])
+        inproc, (cli_cpu, output, loaded) = _cli_and_inprocess(
+            name, name, duration, _scene_rate(name), repeats, CLI_REPEATS[quick])
         ratio = cli_cpu / inproc
         rows.append({'what': 'CLI overhead', 'scene': name, 'duration': duration,
                      'rate_a': _scene_rate(name), 'cpu_a_s': inproc,
@@ -167,15 +200,16 @@ def generated_rows(quick, log=print, count=None):
                      'rate_a': 1.0, 'cpu_a_s': slow, 'rate_b': 100.0, 'cpu_b_s': fast,
                      'ratio': fast / slow, 'note': f'{scene.kind}, {fixed["integrator"]} '
                      f'h {fixed["step"]:.3g} s, |ω| {np.linalg.norm(scene.omega):.3g} '
-                     f'rad/s{dense}'})
+                     f'rad/s; 100/s page faults in the clock: {b["faults"][0]} in the least '
+                     f'run, up to {b["faults"][1]}{dense}'})
         log(f'  {scene.name:16s} {scene.kind:14s} {duration:7.4g} s: sampling x{sampling[-1]:.3g}'
             f' ({slow * 1e3:.3g} → {fast * 1e3:.3g} ms, {fixed["integrator"]})')
         if len(cli) >= CLI_GENERATED[quick][0]:
             continue
-        inproc = _simulate_cpu(f, duration, scene.publish_rate, {}, repeats)
         with tempfile.TemporaryDirectory() as tmp:
             path = scene.write_params_file(os.path.join(tmp, f'{scene.name}.yaml'))
-            cli_cpu, output, loaded = _cli_cpu(path, duration, CLI_GENERATED[quick][1])
+            inproc, (cli_cpu, output, loaded) = _cli_and_inprocess(
+                f, path, duration, scene.publish_rate, repeats, CLI_GENERATED[quick][1])
         cli.append(cli_cpu / inproc)
         rows.append({'what': 'CLI overhead', 'scene': scene.name, 'duration': duration,
                      'rate_a': scene.publish_rate, 'cpu_a_s': inproc,

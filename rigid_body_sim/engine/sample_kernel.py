@@ -7,17 +7,17 @@ are the method's own, splitting only the intervals between the events that chang
 physics (control instants, the end, a command's expiry), and a sample inside a step is
 the cubic Hermite interpolant of the step's two ends and their derivatives (two
 right-hand-side evaluations per step holding a sample, shared by consecutive steps;
-evaluated a chunk of samples at a time, :func:`hermite_run`): its
-error is ~(hΩ)⁴/384 of the rotation, checked against the accuracy budget before it is
-used (:func:`interpolation_allowed`). The state only ever advances by whole steps;
-interpolated values go to the block, never back into the trajectory.
+evaluated a chunk of samples at a time, :func:`hermite_run`): its error is ~(hΩ)⁴/384 of
+the rotation, checked against the accuracy budget before it is used
+(:func:`interpolation_allowed`). The state only ever advances by whole steps; interpolated
+values go to the block, never back into the trajectory.
 
 :func:`fixed_steps` runs n steps of any fixed-step method's compiled loop (the closed
 loop's dispatch, shared by both paths); :func:`segment` runs one interval between events
 with its samples interpolated. Frames and arguments as in ``closed_loop.closed_loop_run``.
-All but :func:`_end` (its ``env is not None`` is decided by the argument's type, which
-inlining loses) are inlined into it: a call between kernels costs a reference-count round
-trip per array argument (~0.1 µs for these ~20), per sample where steps land on samples.
+All are inlined into it, and for the free body :func:`_end` and rk4's loop too (see
+``_free_end``): a call between kernels costs a reference-count round trip per array
+argument (~0.1 µs for these ~20), per sample where steps land on samples.
 """
 import math
 
@@ -63,8 +63,11 @@ def fixed_steps(method, q, m, h, n, weights, split_axes, moments, tau_p, has_tau
         return splitting_kernel.splitting_run(q, m, h, n, weights, split_axes, moments, tau_p,
                                               has_tau, model, coefficient, inner, t0, env)
     if method == RK4:
-        failed = explicit_kernel.rk4_steps(q, m, h, n, moments, tau_p, model, coefficient,
-                                           scratch, t0, env)
+        if env is None:  # inlined (_free_end)
+            failed = _free_steps(q, m, h, n, moments, tau_p, model, coefficient, scratch, t0, None)
+        else:
+            failed = explicit_kernel.rk4_steps(q, m, h, n, moments, tau_p, model, coefficient,
+                                               scratch, t0, env)
         return failed, 4 * (n if failed < 0 else failed + 1)
     if method == EXACT:
         return exact_flow_kernel.exact_steps(q, m, h, n, moments, tau_p, has_tau, model,
@@ -86,6 +89,13 @@ def _end(q, m, moments, tau_p, model, coefficient, t, env, herm, at):
            herm[at + 3, :3])
     if env is not None:
         _environment(herm[at], t, env, moments, herm[at + 3, :3])
+
+
+# The functions themselves inlined, for env None only, passed as the constant (it prunes the
+# orbit's terms, which inlined no longer go by env's type): a sample between rk4 steps makes
+# two calls of the step loop and two of _end, each a refcount round trip per array and view.
+_free_steps = inline(getattr(explicit_kernel.rk4_steps, 'py_func', explicit_kernel.rk4_steps))
+_free_end = inline(getattr(_end, 'py_func', _end))
 
 
 @inline
@@ -192,6 +202,9 @@ def segment(method, q, m, a_ns, b_ns, n, sample_ns, sample_period_ns, weights, s
                     herm[0, i], herm[2, i] = herm[4, i], herm[6, i]
                 for i in range(3):
                     herm[1, i], herm[3, i] = herm[5, i], herm[7, i]
+            elif env is None:  # inlined (_free_end)
+                _free_end(q, m, moments, tau_p, model, coefficient, t0 + k * h, None, herm, 0)
+                evals += 1
             else:
                 _end(q, m, moments, tau_p, model, coefficient, t0 + k * h, env, herm, 0)
                 evals += 1
@@ -202,7 +215,10 @@ def segment(method, q, m, a_ns, b_ns, n, sample_ns, sample_period_ns, weights, s
             if failed >= 0:
                 return k + failed, evals, rows
             k += 1
-            _end(q, m, moments, tau_p, model, coefficient, t0 + k * h, env, herm, 4)
+            if env is None:
+                _free_end(q, m, moments, tau_p, model, coefficient, t0 + k * h, None, herm, 4)
+            else:
+                _end(q, m, moments, tau_p, model, coefficient, t0 + k * h, env, herm, 4)
             evals += 1
             held = j
         if theta != 0.0:  # this sample and the next ones inside the same step
