@@ -21,11 +21,16 @@ follows by h^p, never above the piloted one; where it moved far (VERIFY_SHRINK) 
 piloted again. Candidates go best first by what they could cost; one is piloted only if
 it could beat the best choice so far.
 
-dop853 is not piloted: its error under a law jumps late in a run (the same 15 scenes,
-r against r/100: 10–100× within the last half of the run on scenes 4 and 107, after
-t^1 before), 27× above a linear extrapolation from T/32 and 1.6× above a power law fitted
-on the pilot's quarters, so a pilot on a share of the run cannot promise it. Its
-a-priori handling stands (``model.RunModel.tolerance``, ``measured_law_holds``).
+dop853 is not piloted for a promise: its error under a law jumps late in a run (the same
+15 scenes, r against r/100: 10–100× within the last half of the run on scenes 4 and 107,
+after t^1 before), 27× above a linear extrapolation from T/32 and 1.6× above a power law
+fitted on the pilot's quarters, so a pilot on a share of the run cannot promise it. Its
+a-priori handling stands (``model.RunModel.tolerance``, ``measured_law_holds``); only
+where nothing promises does a pilot set its rtol (below), as a guess.
+
+Under a law, rk4's rounding is what its pilot reads where that is less than the a-priori
+figure, fitted torque-free (:func:`_rounding`): a law that damps the rate damps its
+rounding too.
 
 Where nothing promises the budget a priori (the fixed methods' most accurate step
 predicts more than it), :func:`weigh` runs that step and dop853 at its floor rtol and at
