@@ -103,9 +103,10 @@ def _rounding(s, c, piloted, errors, horizon, reached):
     """h ↦ c's rounding error over the run at step h: the a-priori one (``s.roundoff``),
     or for a random rounding (rk4) where less, SAFETY × the pilot's step-doubling reading
     at ``piloted`` (``errors``: the rounding of both its runs is in their distance) grown
-    as t^1.5 (a random walk of the rate's rounding errors) and as √N to h's steps. Under a law that
-    damps the rate the a-priori one, fitted torque-free, read 30–75× high (seed 20261125
-    scene 13: 1.97e-8 rad a priori at h = 1.2 ms, 2.6e-10 in all measured)."""
+    as t^1.5 (a random walk of the rate's rounding errors) and as √N to h's steps. Under
+    a law that damps the rate the a-priori one, fitted torque-free, read 30–75× high
+    (seed 20261125 scene 13: 1.97e-8 rad a priori at h = 1.2 ms, 2.6e-10 in all
+    measured)."""
     if c.rounding != 'random' or not all(map(math.isfinite, errors)):
         return lambda h: s.roundoff(c, h)
     at = SAFETY * max(errors) * max(1.0, horizon / reached) ** 1.5
@@ -228,7 +229,7 @@ def weigh(s, best, adaptive, make_runner, period):
     RTOL_FLOOR (d) and at PROBE (e). e's error is |e − d| over 1 − RTOL_FLOOR/PROBE (d's
     own is RTOL_FLOOR/PROBE of it by dop853's measured law, linear in rtol), extrapolated
     to the run as t^DOP853_GROWTH; dop853's rtol is the one that law puts MARGIN under the
-    budget, within [RTOL_FLOOR, PROBE] (:func:`_rtol`). a's error is |a − d| less d's,
+    budget, within [RTOL_FLOOR, PROBE] (:func:`_rtol`). a's error is |a − d| plus d's,
     extrapolated by :func:`_extrapolate` (its rounding as t^1.5). dop853 is taken where it
     errs less at that rtol and costs less (both costs as the pilot measured them, scaled to
     the run); it promises nothing (its error jumps late in some runs: module docstring),
