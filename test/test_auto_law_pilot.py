@@ -24,13 +24,12 @@ def weighed():
 
 
 def test_where_nothing_promises_under_a_law_a_pilot_weighs_dop853(weighed):
-    """The pilot runs rk4 at its step and half of it and dop853 at its floor rtol with the
-    law in the loop, finds dop853 the more accurate, and takes it; it promises nothing
+    """The pilot runs rk4 at its step and dop853 at its floor rtol and at PROBE with the law
+    in the loop, finds dop853 the more accurate, and takes it; it promises nothing
     (predicted error over the budget) and meets the budget against a reference with its
     own bound."""
     scene, result = weighed
     assert result.integrator == 'dop853', result.reason
-    assert dict(result.selection.options)['rtol'] == model.RTOL_FLOOR
     assert result.selection.pilot_steps > 0
     assert 'dop853 errs less' in result.reason, result.reason
     assert result.selection.predicted_error > scene.budget  # no promise claimed
@@ -38,6 +37,36 @@ def test_where_nothing_promises_under_a_law_a_pilot_weighs_dop853(weighed):
     assert ref.error * generated.JUDGE <= scene.budget  # the reference can judge it
     err = generated.error(result, ref.attitude)
     assert ref.decide(err, scene.budget) == 'met', (err, ref.error)
+
+
+def test_the_weighed_dop853_runs_at_the_rtol_its_measured_error_asks(weighed):
+    """It ran at the floor rtol (3e-15) wherever it was taken. Its error at PROBE, measured
+    against the floor run, puts 1.8e-14 at a tenth of this budget: it runs there (0.74×
+    the floor's CPU), still within the budget (above)."""
+    scene, result = weighed
+    rtol = dict(result.selection.options)['rtol']
+    assert 3 * model.RTOL_FLOOR < rtol <= law_pilot.PROBE, result.reason
+    assert f'at rtol {rtol:.2g} E=' in result.reason and '10× under the budget' in \
+        result.reason, result.reason
+
+
+class _Run:
+    accuracy = 1e-10
+
+
+def test_dop853s_rtol_is_linear_in_its_measured_error_grown_as_t_to_1_5():
+    """The error at PROBE grown from the pilot's share to the run as (T/H)^1.5, then the
+    rtol that puts it MARGIN under the budget, never past [RTOL_FLOOR, PROBE]."""
+    s, probe = _Run(), law_pilot.PROBE
+    rtol, err = law_pilot._rtol(s, [1e-14, 2e-14, 4e-14, 5e-14], 400.0, 4.0)
+    at_probe = 5e-14 * 100.0 ** 1.5
+    assert rtol == pytest.approx(probe * 1e-10 / (law_pilot.MARGIN * at_probe))
+    assert err == pytest.approx(1e-10 / law_pilot.MARGIN)
+    assert law_pilot._rtol(s, [1e-15] * 4, 8.0, 4.0)[0] == probe  # never looser
+    rtol, err = law_pilot._rtol(s, [1e-9] * 4, 8.0, 4.0)
+    assert rtol == model.RTOL_FLOOR and err > 1e-10 / law_pilot.MARGIN  # its floor
+    assert law_pilot._rtol(s, [1e-9, float('inf')], 8.0, 4.0) == (model.RTOL_FLOOR,
+                                                                  float('inf'))
 
 
 def test_the_pilot_leaves_the_run_as_the_chosen_method_alone_makes_it(weighed):
@@ -73,3 +102,47 @@ def test_the_extrapolation_grows_with_the_pilots_measured_growth():
     assert fast == pytest.approx(16.0 * 10.0 ** 2.0)
     assert law_pilot._extrapolate([1.0, 1.0, 1.0, 1.0], 2.0, 4.0) == 1.0
     assert law_pilot._extrapolate([1.0, float('inf'), 1.0, 1.0], 8.0, 4.0) == float('inf')
+
+
+class _Rounds:
+    def __init__(self, kind):
+        self.rounding = kind
+
+
+class _Prior:
+    @staticmethod
+    def roundoff(c, h):
+        return 1e-6 * (1e-3 / h) ** 0.5
+
+
+def test_rk4s_rounding_under_a_law_is_the_pilots_reading_grown_as_t_to_1_5():
+    """Where the pilot reads less than the a-priori round-off: SAFETY × its largest
+    step-doubling reading × (T/H)^1.5, × √(h₀/h) at a step h below the piloted h₀; a
+    systematic rounding (growing as N) keeps the a-priori one."""
+    errors, at = [1e-12, 1.5e-12, 2e-12, 2e-12], law_pilot.SAFETY * 2e-12 * 100.0 ** 1.5
+    rounding = law_pilot._rounding(_Prior, _Rounds('random'), 1e-3, errors, 400.0, 4.0)
+    assert rounding(1e-3) == pytest.approx(at)
+    assert rounding(0.25e-3) == pytest.approx(2.0 * at)
+    assert law_pilot._rounding(_Prior, _Rounds('random'), 1e-3, [1e-9] * 4, 400.0,
+                               4.0)(1e-3) == 1e-6  # never above the a-priori one
+    assert law_pilot._rounding(_Prior, _Rounds('systematic'), 1e-3, errors, 400.0,
+                               4.0)(1e-3) == 1e-6
+
+
+@pytest.mark.slow
+def test_where_rk4s_torque_free_rounding_bound_rules_out_a_step_the_pilot_measures_it():
+    """Seed 20261125 scene 13 (detumble, 1e-8 rad over 1.5e4 s): the a-priori round-off of
+    rk4 (fitted torque-free, where nothing damps the rate) left no step meeting the budget,
+    so auto ran its most accurate one (1.2 ms, 3.7× the oracle's CPU) and erred 7.7e-10.
+    Under the law the pilot measures it: rk4 at a step at least 1.5× longer, promised
+    within the budget and meeting it against a reference with its own bound."""
+    scene = generated.draw(generated.SEED, 13)
+    assert scene.kind == 'detumble'
+    result = simulate(scene.scene_file())
+    assert result.integrator == 'rk4' and result.step > 1.5 * 1.2e-3, result.reason
+    assert result.selection.pilot_steps > 0
+    assert result.selection.predicted_error <= scene.budget, result.reason
+    ref = oracle.reference(scene)
+    assert ref.error * generated.JUDGE <= scene.budget
+    err = generated.error(result, ref.attitude)
+    assert ref.decide(err, scene.budget) == 'met', (err, ref.error)

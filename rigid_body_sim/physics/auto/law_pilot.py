@@ -21,17 +21,25 @@ follows by h^p, never above the piloted one; where it moved far (VERIFY_SHRINK) 
 piloted again. Candidates go best first by what they could cost; one is piloted only if
 it could beat the best choice so far.
 
-dop853 is not piloted: its error under a law jumps late in a run (the same 15 scenes,
-r against r/100: 10–100× within the last half of the run on scenes 4 and 107, after
-t^1 before), 27× above a linear extrapolation from T/32 and 1.6× above a power law fitted
-on the pilot's quarters, so a pilot on a share of the run cannot promise it. Its
-a-priori handling stands (``model.RunModel.tolerance``, ``measured_law_holds``).
+dop853 is not piloted for a promise: its error under a law jumps late in a run (the same
+15 scenes, r against r/100: 10–100× within the last half of the run on scenes 4 and 107,
+after t^1 before), 27× above a linear extrapolation from T/32 and 1.6× above a power law
+fitted on the pilot's quarters, so a pilot on a share of the run cannot promise it. Its
+a-priori handling stands (``model.RunModel.tolerance``, ``measured_law_holds``); only
+where nothing promises does a pilot set its rtol (below), as a guess.
+
+Under a law, rk4's rounding is what its pilot reads where that is less than the a-priori
+figure, fitted torque-free (:func:`_rounding`): a law that damps the rate damps its
+rounding too.
 
 Where nothing promises the budget a priori (the fixed methods' most accurate step
-predicts more than it), :func:`weigh` runs that step, its half and dop853 at its floor
-rtol side by side over a share of the run and takes dop853 where it errs less and costs
-less, as measured (seed 7 scene 158, seed 8 scene 98, seed 20261125 scene 105: dop853 at
-3e-15 met budgets rk4's most accurate step met at 4–7× its CPU); a guess, not a promise.
+predicts more than it), :func:`weigh` runs that step and dop853 at its floor rtol and at
+PROBE side by side over a share of the run, and takes dop853 where it errs less and costs
+less, as measured (seed 7 scene 158, seed 8 scene 98, seed 20261125 scene 105: dop853 met
+budgets rk4's most accurate step met at 4–7× its CPU), at the rtol its own measured error
+puts MARGIN under the budget; a guess, not a promise. (It ran at the floor rtol, 3e-15,
+wherever it was taken: seed 20261125 scene 106 at 3.2× the CPU of dop853 at 1e-13, which
+met the budget, two thirds of it the pilot's.)
 
 What the pilot may cost: SHARE of the a-priori choice's run (the run's cost model), its
 first round FIRST_ROUND of that; H is the longest share of the run that fits, at least
@@ -42,7 +50,8 @@ import math
 import time
 
 from . import pilot
-from .model import RTOL_FLOOR, RUN_COST
+from .kinds import applicable
+from .model import RTOL_FLOOR, RTOL_RANGE, RUN_COST
 from .pilot_search import PREFER
 
 SHARE = 0.1          # the pilot at most this share of the a-priori choice's run
@@ -56,10 +65,24 @@ MAX_PLANS = 3        # candidates piloted at most
 # dop853 weighed where nothing promises: only where its model cost is WEIGH_GAIN× below the
 # fixed method's (where the pilot keeps the fixed method its cost is lost: seed 20261125
 # scenes 13 and 105 went from 2.95× to 3.3× the oracle's CPU), the pilot at most
-# WEIGH_SHARE of that run (at 5 % seed 7 scene 158 and seed 8 scene 98, where dop853 errs
-# 8× less at a fifth of rk4's CPU, read too short to tell and kept rk4)
+# WEIGH_SHARE of that run: over about H = 3 % of the run, as it was with rk4's step
+# doubling (a 10 % budget, three runs; at 5 %, H = 1.5 %, seed 7 scene 158 and seed 8 scene
+# 98, where dop853 errs 8× less at a fifth of rk4's CPU, read too short to tell), now at
+# 40 % of that CPU
 WEIGH_GAIN = 3.0
-WEIGH_SHARE = 0.1
+WEIGH_SHARE = 0.04
+# dop853's rtol where it is weighed: its error measured at PROBE against its floor run,
+# taken linear in rtol (model.MEASURED_K's law), then MARGIN under the budget. PROBE: the
+# bound's tightest rtol, never looser (the error is not monotonic in rtol: seed 20261125
+# scene 106 erred 7.6e-11 at 3e-14, 2.5e-11 at 1e-13).
+PROBE = RTOL_RANGE[0]
+MARGIN = 10.0
+# dop853's error under a law from the pilot's share H to the run's T: as (T/H)^1.5. On the
+# pilot's quarters it grew as t^1.9–2.3 (seed 20261125 scenes 105, 106, 136, seed 7 scene
+# 158, seed 8 scene 98, at rtol 1e-13 against 3e-15), over the run as t^0.8–1.7: the
+# power law of its quarters read the end 7–38× high, the linear law 0.5–10× low; t^1.5
+# (a random walk of the rate's errors) read it 0.09–1.9×.
+DOP853_GROWTH = 1.5
 SPREAD = 100.0       # a pilot starts where the a-priori truncation is this × the budget
 
 
@@ -74,6 +97,20 @@ def _extrapolate(errors, horizon, reached):
     if growth > pilot.SUPERLINEAR:
         return m2 * later ** math.log2(growth)
     return m2 * later
+
+
+def _rounding(s, c, piloted, errors, horizon, reached):
+    """h ↦ c's rounding error over the run at step h: the a-priori one (``s.roundoff``),
+    or for a random rounding (rk4) where less, SAFETY × the pilot's step-doubling reading
+    at ``piloted`` (``errors``: the rounding of both its runs is in their distance) grown
+    as t^1.5 (a random walk of the rate's rounding errors) and as √N to h's steps. Under
+    a law that damps the rate the a-priori one, fitted torque-free, read 30–75× high
+    (seed 20261125 scene 13: 1.97e-8 rad a priori at h = 1.2 ms, 2.6e-10 in all
+    measured)."""
+    if c.rounding != 'random' or not all(map(math.isfinite, errors)):
+        return lambda h: s.roundoff(c, h)
+    at = SAFETY * max(errors) * max(1.0, horizon / reached) ** 1.5
+    return lambda h: min(s.roundoff(c, h), at * math.sqrt(piloted / h))
 
 
 def _pilot_cost(s, c, h, share):
@@ -109,7 +146,12 @@ def _plans(s, best, usable):
         # where its round-off alone (a priori) takes the budget at that step, no pilot can
         # promise it (generated detumble scenes at 1e-8–1e-9 rad over 10⁴ rad: rk4's
         # most accurate step, piloted for nothing at 5–7 % of the run)
-        if s.roundoff(c, h) >= s.accuracy / SAFETY:
+        # (a random rounding, rk4's, is measured by the pilot instead, :func:`_rounding`,
+        # but not where dop853 is weighed: there the pilot of rk4 was paid for nothing,
+        # seed 20261125 scenes 105, 106, 136, seed 7 scene 158, seed 8 scene 98: 20–70 %
+        # more CPU, each kept dop853)
+        if s.roundoff(c, h) >= s.accuracy / SAFETY and (
+                c.rounding != 'random' or _weighed(s, cost0, _adaptive(s))):
             continue
         if err0 > s.accuracy or cost < cost0:
             plans.append((cost, i, c, h))
@@ -158,7 +200,8 @@ def refine(s, best, usable, make_runner, period):
             continue
         steps += a[-1][2] + b[-1][2]
         errors = [pilot.angle(x[1], y[1]) * ratio for x, y in zip(a, b)]
-        floor = s.roundoff(c, h)
+        rounding = _rounding(s, c, h, errors, T, a[-1][0])
+        floor = rounding(h)
         err = SAFETY * _extrapolate(errors, T, a[-1][0]) + floor
         notes.append(f'{c.name} h={h:.3g}: E={err:.2g}')
         if err <= s.accuracy:
@@ -169,7 +212,7 @@ def refine(s, best, usable, make_runner, period):
         if room <= 0.0 or not math.isfinite(err) or rounds >= 1:
             continue
         h_new = s.snap(h * 0.9 * (room / (err - floor)) ** (1.0 / order))
-        e_new = (err - floor) * (h_new / h) ** order + s.roundoff(c, h_new)
+        e_new = (err - floor) * (h_new / h) ** order + rounding(h_new)
         if h_new * VERIFY_SHRINK <= h:  # far from what was measured: pilot it again
             queue.append((s.run_cost(c, h_new), i, c, h_new, rounds + 1))
         elif e_new <= s.accuracy and (best[3] > s.accuracy
@@ -181,22 +224,25 @@ def refine(s, best, usable, make_runner, period):
 
 def weigh(s, best, adaptive, make_runner, period):
     """Generator: where nothing promises the budget (``best``, the fixed method's most
-    accurate step, predicts more), whether dop853 at its most accurate rtol (RTOL_FLOOR)
-    errs less, measured: over a share H of the run the fixed method runs at h (a) and h/2
-    (b), dop853 at the floor (d). a's error is |a − b|·2^p/(2^p − 1); d's at most
-    |d − b| + b's own (|a − b|/(2^p − 1)). dop853 is taken where that bound, extrapolated
-    as a's error is (the growth law of :func:`_extrapolate`; a's rounding as t^1.5), is
-    under a's and it costs less (both costs as the pilot measured them, scaled to the
-    run); it promises nothing (its error jumps late in some runs: module docstring), so
-    its predicted error stays over the budget. Returns (best, rtol or None, pilot cost s,
-    pilot steps, notes)."""
+    accurate step, predicts more), whether dop853 errs less, and at which rtol, measured:
+    over a share H of the run the fixed method runs at h (a), dop853 at its floor
+    RTOL_FLOOR (d) and at PROBE (e). e's error is |e − d| over 1 − RTOL_FLOOR/PROBE (d's
+    own is RTOL_FLOOR/PROBE of it by dop853's measured law, linear in rtol), extrapolated
+    to the run as t^DOP853_GROWTH; dop853's rtol is the one that law puts MARGIN under the
+    budget, within [RTOL_FLOOR, PROBE] (:func:`_rtol`). a's error is |a − d| plus d's,
+    extrapolated by :func:`_extrapolate` (its rounding as t^1.5). dop853 is taken where it
+    errs less at that rtol and costs less (both costs as the pilot measured them, scaled to
+    the run); it promises nothing (its error jumps late in some runs: module docstring),
+    so its predicted error stays over the budget. Returns (best, rtol or None, pilot cost
+    s, pilot steps, notes)."""
     c, h, cost0, err0 = best
     T = s.horizon
-    dop_cost = s.at_tolerance(adaptive, RTOL_FLOOR)[0]
-    if dop_cost * WEIGH_GAIN >= cost0:  # the pilot is paid back only where it switches
+    if not _weighed(s, cost0, adaptive):  # the pilot is paid back only where it switches
         return best, None, 0.0, 0, []
+    dop_cost = s.at_tolerance(adaptive, RTOL_FLOOR)[0]
     budget = WEIGH_SHARE * cost0
-    unit = _pilot_cost(s, c, h, 1.0) + dop_cost - 3 * RUN_COST - 8 * CALL
+    probe_cost = s.at_tolerance(adaptive, PROBE)[0]
+    unit = s.run_cost(c, h) + dop_cost + probe_cost - 3 * RUN_COST
     least = max(MIN_PERIODS * period, pilot.ROTATIONS * 2 * math.pi / s.omega)
     share = min(1.0, (budget - SETUP - 12 * CALL) / unit) if unit > 0 else 1.0
     if share * T < least or least > T:
@@ -204,41 +250,81 @@ def weigh(s, best, adaptive, make_runner, period):
                                     f'cost over {WEIGH_SHARE:.0%} of the run)']
     runner, H = make_runner(), share * T
     ends = [H * (k + 1) / 4 for k in range(4)]
-    order = s.order(c, h)
-    ratio = 2.0 ** order / (2.0 ** order - 1.0)
-    cpu_a, cpu_d = [0.0], [0.0]
+    cpu_a, cpu_d, cpu_e = [0.0], [0.0], [0.0]
     a = yield from _timed(runner(c.name, (), h, ends), cpu_a)
-    b = yield from runner(c.name, (), s.snap(0.5 * h), ends)
-    d = yield from _timed(runner(adaptive.name, _floor_options(s), s.max_step, ends), cpu_d)
+    d = yield from _timed(runner(adaptive.name, _rtol_options(s, RTOL_FLOOR), s.max_step,
+                                 ends), cpu_d)
+    e = yield from _timed(runner(adaptive.name, _rtol_options(s, PROBE), s.max_step, ends),
+                          cpu_e)
     spent = SETUP + share * unit + 12 * CALL
-    if a is None or b is None or d is None:
+    if a is None or d is None or e is None:
         return best, None, spent, 0, ['dop853 not weighed (a pilot run failed)']
-    steps = a[-1][2] + b[-1][2] + d[-1][2]
-    # a's error from step doubling; d's at most its distance from b plus b's own error (b
-    # at twice a's steps: a's over 2^p). (The three-cornered hat, each run's error from
-    # the three distances as independent errors, read 0 for one run as often as not: seed
-    # 20261125 scene 105 kept rk4 where dop853 met the budget at a quarter of its CPU.)
-    own = [pilot.angle(x[1], y[1]) * ratio for x, y in zip(a, b)]
-    dop = [pilot.angle(z[1], y[1]) + e / 2.0 ** order for z, y, e in zip(d, b, own)]
-    e_fixed, e_dop = (_extrapolate(e, T, a[-1][0]) for e in (own, dop))
+    steps = a[-1][2] + d[-1][2] + e[-1][2]
+    probe = [pilot.angle(z[1], y[1]) / (1.0 - RTOL_FLOOR / PROBE) for z, y in zip(e, d)]
+    rtol, e_dop = _rtol(s, probe, T, e[-1][0])
+    # a's error: at most its distance from d plus d's own (dop853's law: RTOL_FLOOR/PROBE
+    # of e's). (b, a at h/2, as the reference of both, was dropped: its error, not
+    # dop853's, then bounded dop853's, at two thirds of the pilot's CPU: seed 20261125
+    # scene 106 ran at rtol 3e-15 where 1e-13 erred 2.5e-11 rad of a 1e-10 budget)
+    own = [pilot.angle(x[1], y[1]) + p * RTOL_FLOOR / PROBE for x, y, p in zip(a, d, probe)]
+    e_fixed = _extrapolate(own, T, a[-1][0])
     if c.rounding == 'random':
         # at its most accurate step its rounding rules, and a random walk of rounding
         # errors in the rate turns the attitude as t^1.5, beyond the linear law (seed 7
         # scene 158: rk4 at 5.3e-5 s read 1.2e-10 rad by it, 1.1e-9 at the end)
         e_fixed *= math.sqrt(max(1.0, T / a[-1][0]))
+    room = (f'{MARGIN:g}× under the budget' if e_dop * MARGIN <= s.accuracy * (1 + 1e-9)
+            else 'its floor')
     note = (f'measured over {H:.3g} s of {T:.3g} s: {c.name} h={h:.3g} E={e_fixed:.2g}, '
-            f'dop853 rtol {RTOL_FLOOR:.0e} E≤{e_dop:.2g}')
+            f'dop853 rtol {PROBE:.0e} E={e_dop * PROBE / rtol:.2g} (by its run at '
+            f'{RTOL_FLOOR:.0e}), at rtol {rtol:.2g} E={e_dop:.2g} ({room})')
     if not e_dop < e_fixed:
         return best, None, spent, steps, [note + f'; {c.name} stays']
     # both runs' costs as the pilot measured them, over the whole run: the model read
     # dop853's restarts at the law's instants low (seed 20261125 scenes 60 and 132: taken
     # at a predicted 0.6× rk4's cost, it ran at 1.1–1.3×)
-    run = RUN_COST + cpu_d[0] * T / d[-1][0]
+    run = RUN_COST + T * _per_second(rtol, (cpu_d[0] / d[-1][0], cpu_e[0] / e[-1][0]))
     if run >= RUN_COST + cpu_a[0] * T / a[-1][0]:
         return best, None, spent, steps, [note + f'; dop853 no cheaper: {c.name} stays']
     err = max(SAFETY * e_dop, math.nextafter(s.accuracy, math.inf))
-    return ((adaptive, s.max_step, run, err), RTOL_FLOOR, spent, steps,
+    return ((adaptive, s.max_step, run, err), rtol, spent, steps,
             [note + '; dop853 errs less: taken, a measured guess, not a promise'])
+
+
+def _rtol(s, errors, horizon, reached):
+    """(rtol, its error rad over the run): dop853's rtol in [RTOL_FLOOR, PROBE] whose error,
+    linear in rtol from ``errors`` (at PROBE, at the pilot's quarters, which reached
+    ``reached`` s) grown as t^DOP853_GROWTH to ``horizon``, is MARGIN under the budget."""
+    at_probe = max(errors) * max(1.0, horizon / reached) ** DOP853_GROWTH
+    if not math.isfinite(at_probe):
+        return RTOL_FLOOR, math.inf
+    rtol = PROBE if at_probe <= 0.0 else \
+        min(PROBE, max(RTOL_FLOOR, PROBE * s.accuracy / (MARGIN * at_probe)))
+    return rtol, at_probe * rtol / PROBE
+
+
+def _per_second(rtol, measured):
+    """dop853's CPU s per simulated second at ``rtol``: log-linear in rtol between its two
+    pilot runs' (``measured``: at RTOL_FLOOR and at PROBE)."""
+    floor, probe = measured
+    if floor <= 0.0 or probe <= 0.0:
+        return max(floor, probe)
+    x = math.log(rtol / RTOL_FLOOR) / math.log(PROBE / RTOL_FLOOR)
+    return math.exp((1.0 - x) * math.log(floor) + x * math.log(probe))
+
+
+def _weighed(s, cost, adaptive):
+    """Whether dop853 (``adaptive``, None where none applies) is weighed against a fixed
+    choice costing ``cost`` s: where its cost at RTOL_FLOOR is WEIGH_GAIN× below."""
+    return adaptive is not None and \
+        s.at_tolerance(adaptive, RTOL_FLOOR)[0] * WEIGH_GAIN < cost
+
+
+def _adaptive(s):
+    """The adaptive candidate :func:`weigh` is given (``selection``: the first that applies
+    under a law alone), or None."""
+    found = applicable(True, s.damping, False)[1]
+    return found[0] if found else None
 
 
 def _timed(work, cpu):
@@ -255,9 +341,9 @@ def _timed(work, cpu):
         return done.value
 
 
-def _floor_options(s):
-    """dop853's options at RTOL_FLOOR, as :func:`.selection._options` gives them."""
-    return (('rtol', RTOL_FLOOR), ('atol', RTOL_FLOOR * 1e-3 * min(1.0, s.G)))
+def _rtol_options(s, rtol):
+    """dop853's options at ``rtol``, as :func:`.selection._options` gives them."""
+    return (('rtol', rtol), ('atol', rtol * 1e-3 * min(1.0, s.G)))
 
 
 def _cheaper(c, cost, best):
