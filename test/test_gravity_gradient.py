@@ -38,13 +38,10 @@ def lvlh_start(offset, a=A, inclination=0.3, raan=0.7, **overrides):
 
 
 def relative_angles(o, block):
-    """Rotation vectors (roll, pitch, yaw about LVLH x, y, z) of the body from LVLH."""
-    out = np.empty((len(block), 3))
-    for k, (t, q) in enumerate(zip(block.t_ns / 1e9, block.q)):
-        r, v = o.state(t)
-        rel = frames.lvlh_axes(r, v).T @ Rotation.from_quat(q).as_matrix()
-        out[k] = Rotation.from_matrix(rel).as_rotvec()
-    return out
+    """Rotation vectors (roll, pitch, yaw about LVLH x, y, z) of the body from LVLH: the
+    libration figure's (plots.orbit.lvlh_angles), all samples at once."""
+    from rigid_body_sim.plots.orbit import lvlh_angles
+    return lvlh_angles(block.t_ns / 1e9, block.q, o)
 
 
 def run(p):
