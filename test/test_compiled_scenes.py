@@ -33,6 +33,9 @@ def test_every_scene_and_method_runs_and_their_loops_are_loaded():
     assert runs >= 200, runs
     # dop853's loop twice: the free body's types and an orbit's environment's
     assert loaded['dop853_dense.advance'] >= 2, loaded
+    # the gyrostat's twice: the wheels' and CMGs' types, and wheels in an orbit (no scene
+    # has those; compiled in test_facets' worker before, ~5-7 CPU-s)
+    assert loaded['gyrostat_run'] >= 2, loaded
     assert all(count > 0 for count in loaded.values()), loaded
 
 

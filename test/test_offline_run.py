@@ -226,24 +226,68 @@ def test_the_cli_rehearses_its_run_through_the_runs_own_code(tmp_path, capsys, m
     assert copy is not engine and copy.config == engine.config
     assert 0 < until < engine.end_ns  # its first periods, not the run
 
-# a fresh process runs the CLI, then lists the package's modules whose kernels hold a
-# compiled version (loaded from the cache or compiled): what the run loaded
+# One fresh process imports what the CLI's process imports before its main (cli, numba)
+# and forks a child a case: each child runs the CLI, then lists the package's modules whose
+# kernels hold a compiled version (loaded from the cache or compiled): what the run loaded.
+# Nothing is loaded before the fork (no kernel called), so each child starts as a fresh
+# CLI process does, without its interpreter's start-up (~0.7 CPU-s a case, issue 32).
 _RUN_AND_LIST = '''
-import json, sys
+import json, os, sys, traceback
 from numba.core.registry import CPUDispatcher
 from rigid_body_sim import cli
-code = cli.main(sys.argv[1:])
-print(json.dumps({'code': code, 'loaded': sorted(
-    name for name, module in list(sys.modules.items())
-    if name.startswith('rigid_body_sim') and module is not None
-    and any(isinstance(v, CPUDispatcher) and v.signatures for v in vars(module).values()))}))
+codes = []
+for argv, out in json.load(sys.stdin):
+    sys.stdout.flush(); sys.stderr.flush()
+    pid = os.fork()
+    if pid == 0:
+        status = 1
+        try:
+            os.dup2(os.open(out, os.O_WRONLY | os.O_CREAT | os.O_TRUNC), 1)
+            code = cli.main(argv)
+            print(json.dumps({'code': code, 'loaded': sorted(
+                name for name, module in list(sys.modules.items())
+                if name.startswith('rigid_body_sim') and module is not None
+                and any(isinstance(v, CPUDispatcher) and v.signatures
+                        for v in vars(module).values()))}))
+            status = 0
+        except BaseException:
+            traceback.print_exc()
+        finally:
+            sys.stdout.flush(); sys.stderr.flush()
+            os._exit(status)
+    codes.append(os.waitstatus_to_exitcode(os.waitpid(pid, 0)[1]))
+print(json.dumps(codes))
 '''
+CLI_CASES = [('tennis_racket', '1'), ('slew', '1'), ('explorer1', '1'), ('explorer1', '50'),
+             ('explorer1_orbit', '1')]
+_CLI_RUNS = {}
 
 
-@pytest.mark.parametrize('scene, duration', [
-    ('tennis_racket', '1'), ('slew', '1'), ('explorer1', '1'), ('explorer1', '50'),
-    ('explorer1_orbit', '1')])
-def test_the_cli_loads_the_kernels_its_run_uses_and_no_others(scene, duration, tmp_path):
+def cli_run_and_list(case, tmp_path_factory):
+    """(exit status, stdout) of the case's CLI run in a fresh process (see _RUN_AND_LIST):
+    the first call runs every case's, in one process (loadfile keeps this file on one
+    worker)."""
+    import json
+    import subprocess
+    import sys
+    if case not in _CLI_RUNS:
+        jobs = []
+        for scene, duration in CLI_CASES:
+            tmp = tmp_path_factory.mktemp('cli_run')
+            jobs.append((['run', scene, '--json', '--duration', duration, '--no-bag',
+                          '--no-plots', '--out', str(tmp)], str(tmp / 'stdout.txt')))
+        proc = subprocess.run([sys.executable, '-c', _RUN_AND_LIST], input=json.dumps(jobs),
+                              capture_output=True, text=True, timeout=600)
+        assert proc.returncode == 0, proc.stderr[-3000:]
+        for c, code, (_, out) in zip(CLI_CASES, json.loads(proc.stdout), jobs):
+            with open(out) as f:
+                _CLI_RUNS[c] = code, f.read(), proc.stderr
+    return _CLI_RUNS[case]
+
+
+@pytest.mark.parametrize('scene, duration', CLI_CASES)
+def test_the_cli_loads_the_kernels_its_run_uses_and_no_others(scene, duration,
+                                                               tmp_path_factory):
     """Free tumble, a slew whose law's torque makes auto choose again, a dissipative scene
     (auto's pilot), the same over 50 s (auto takes exact a priori: its split steps' loop
     with the engine's read-only arrays, 11 ms of a 0.3 ms run when loaded in the clock), an
@@ -251,13 +295,9 @@ def test_the_cli_loads_the_kernels_its_run_uses_and_no_others(scene, duration, t
     be), and the kernels of methods the scene cannot use are not loaded at all (loading
     all 19 cost every run ~0.15 CPU-s)."""
     import json
-    import subprocess
-    import sys
-    proc = subprocess.run([sys.executable, '-c', _RUN_AND_LIST, 'run', scene, '--json',
-                           '--duration', duration, '--no-bag', '--no-plots', '--out',
-                           str(tmp_path)], capture_output=True, text=True, timeout=600)
-    assert proc.returncode == 0, proc.stderr[-3000:]
-    summary, listing = (json.loads(line) for line in proc.stdout.strip().splitlines()[-2:])
+    code, stdout, stderr = cli_run_and_list((scene, duration), tmp_path_factory)
+    assert code == 0, stderr[-3000:]
+    summary, listing = (json.loads(line) for line in stdout.strip().splitlines()[-2:])
     assert listing['code'] == 0
     assert summary['kernels_loaded_during_run'] == 0, (summary['integrator'], listing)
     assert 'rigid_body_sim.physics.integrators.gyrostat_kernel' not in listing['loaded'], \

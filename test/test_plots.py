@@ -35,12 +35,12 @@ def scene(name):
     return load(os.path.join(CONFIG, f'{name}.yaml'))
 
 
-def figures_of(name, tmp_path):
+def figures_of(name, tmp_path, only=None):
     sc = scene(name)
     r = simulate(sc, keep='plot')
     s = r.samples
     return sc, s, {os.path.basename(f.path): f for f in write_figures(
-        s, r.body, str(tmp_path), name, free_until(s.t, s.torque), sc)}
+        s, r.body, str(tmp_path), name, free_until(s.t, s.torque), sc, only)}
 
 
 @pytest.fixture(scope='module')
@@ -191,6 +191,14 @@ def test_bench_chart_never_plots_the_reference_against_itself(tmp_path):
     path = tmp_path / 'wp.png'
     charts.work_precision(rows, scene, str(path), reference_label='exact')
     assert path.stat().st_size > 10_000
+
+
+def test_only_the_figures_asked_for_are_drawn(tmp_path):
+    """``only`` (the tour's): the scene's figures of those names and no other file; a
+    name the scene has no figure for draws nothing."""
+    _, _, figs = figures_of('symmetric_top', tmp_path, only={'precession.png', 'flips.png'})
+    assert set(figs) == {'precession.png'}
+    assert sorted(os.listdir(tmp_path)) == ['precession.png']
 
 
 def test_tour_writes_five_small_thumbnails_that_the_docs_show(tmp_path):

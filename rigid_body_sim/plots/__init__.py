@@ -29,7 +29,7 @@ def free_until(t, torque):
     return float(t[applied[0]]) if applied.size else np.inf
 
 
-def write_figures(samples, body, out_dir, title, free_end=np.inf, scene=None):
+def write_figures(samples, body, out_dir, title, free_end=np.inf, scene=None, only=None):
     """Write the run's figures into ``out_dir``; returns their :class:`Figure` records.
 
     samples: t (N,) sim time s, attitude (N, 4) body→inertial, angular_velocity (N, 3) body
@@ -37,46 +37,56 @@ def write_figures(samples, body, out_dir, title, free_end=np.inf, scene=None):
     angular_momentum_body (N, 3) and torque (N, 3), body frame. Poinsot's picture holds
     only without torque: it shows the samples before ``free_end`` (s), and is not drawn
     when there are none. ``scene`` (a scene.SceneFile) says what the run is for: its
-    dissipation and its controller.
+    dissipation and its controller. ``only`` (a set of file names): draw just those of the
+    run's figures (the tour's thumbnails need one or two of a scene's four or five).
     """
+    def wanted(name):
+        return only is None or name in only
+
     s = {k: np.asarray(samples[k]) for k in ('t', 'attitude', 'angular_velocity',
                                               'angular_momentum', 'kinetic_energy')}
     w = s['angular_velocity']
     s['angular_momentum_body'] = _field(samples, 'angular_momentum_body', w @ body.inertia)
     s['torque'] = _field(samples, 'torque', np.zeros_like(w))
     unit, scale = time_unit(s['t'])
-    figures = [free.omega(s, out_dir, title, unit, scale),
-               free.invariants(s, out_dir, title, unit, scale)]
+    figures = [draw(s, out_dir, title, unit, scale)
+               for name, draw in (('omega.png', free.omega), ('invariants.png', free.invariants))
+               if wanted(name)]
     sim = scene.simulator if scene is not None else {}
     environment = _environment(sim)
     torque_free_end = free_end
     if environment is not None and environment.terms:
         free_end = min(free_end, float(s['t'][0]))  # the environment's torque acts all along
-    figure = free.poinsot(s, body, out_dir, title, unit, scale, free_end)
-    figures += [figure] if figure is not None else []  # None: no free phase
+    figure = free.poinsot(s, body, out_dir, title, unit, scale, free_end) \
+        if wanted('poinsot.png') else None
+    figures += [figure] if figure is not None else []  # None: no free phase (or not wanted)
     dissipative = sim.get('dissipation.model', 'none') != 'none'
     symmetric = analytic.symmetry_axis(body.principal_moments) is not None
     n_free = int(np.count_nonzero(s['t'] < free_end))
     if n_free >= 3 and not dissipative:
         w0 = body.to_principal(w[0])
         if symmetric:
-            figures.append(story.precession(s, body, out_dir, title, unit, scale))
-        elif np.isfinite(analytic.flip_interval(body.principal_moments, w0)):
+            if wanted('precession.png'):
+                figures.append(story.precession(s, body, out_dir, title, unit, scale))
+        elif np.isfinite(analytic.flip_interval(body.principal_moments, w0)) \
+                and wanted('flips.png'):
             figures.append(story.flips(s, body, out_dir, title, unit, scale, free_end))
     if dissipative and symmetric and sim.get('dissipation.model') == 'double_bracket' \
-            and not np.isfinite(torque_free_end):
+            and not np.isfinite(torque_free_end) and wanted('nutation.png'):
         figures.append(story.nutation(s, body, out_dir, title, unit, scale,
                                       sim['dissipation.coefficient']))
     if scene is not None and scene.controlled and scene.controller.get('mode') == 'bdot':
-        figures.append(orbit.bdot_detumble(s, body.principal_moments, scene.controller,
-                                           out_dir, title, unit, scale))
-    elif scene is not None and scene.controlled:
+        if wanted('bdot.png'):
+            figures.append(orbit.bdot_detumble(s, body.principal_moments, scene.controller,
+                                               out_dir, title, unit, scale))
+    elif scene is not None and scene.controlled and wanted('control.png'):
         ctl = dict(scene.controller)
         ctl.setdefault('max_torque', sim.get('max_torque', np.inf))
         figures.append(story.control(s, out_dir, title, unit, scale, ctl, free_end))
     if environment is not None and environment.gravity_gradient \
             and sim.get('orbit.eccentricity') == 0.0 and sim.get('orbit.model') == 'kepler' \
-            and sim.get('initial_attitude_frame') == 'lvlh' and len(s['t']) >= 20:
+            and sim.get('initial_attitude_frame') == 'lvlh' and len(s['t']) >= 20 \
+            and wanted('libration.png'):
         figures.append(orbit.libration(s, environment.orbit, np.diag(body.inertia), out_dir,
                                        title, unit, scale))
     return figures
@@ -90,9 +100,9 @@ def _environment(sim):
     return environment_from_parameters(sim)
 
 
-def write_plots(samples, body, out_dir, title, free_end=np.inf, scene=None):
+def write_plots(samples, body, out_dir, title, free_end=np.inf, scene=None, only=None):
     """:func:`write_figures`, returning the paths only."""
-    return [f.path for f in write_figures(samples, body, out_dir, title, free_end, scene)]
+    return [f.path for f in write_figures(samples, body, out_dir, title, free_end, scene, only)]
 
 
 def _field(samples, key, default):

@@ -8,13 +8,14 @@ from ..rotation import from_matrix
 
 
 def lvlh_axes(r, v) -> np.ndarray:
-    """The LVLH axes as the columns of a matrix (LVLH → inertial) at position r, velocity v."""
+    """The LVLH axes as the columns of a matrix (LVLH → inertial) at position r, velocity v;
+    r and v (N, 3) give the (N, 3, 3) matrices of N states."""
     r, v = np.asarray(r, float), np.asarray(v, float)
-    z = -r / np.linalg.norm(r)
+    z = -r / np.linalg.norm(r, axis=-1, keepdims=True)
     h = np.cross(r, v)
-    y = -h / np.linalg.norm(h)
+    y = -h / np.linalg.norm(h, axis=-1, keepdims=True)
     x = np.cross(y, z)
-    return np.column_stack((x, y, z))
+    return np.stack((x, y, z), axis=-1)
 
 
 def lvlh_attitude(r, v) -> np.ndarray:
