@@ -309,6 +309,42 @@ def test_an_offline_run_keeps_its_samples_without_copying_them():
     assert short.q.base is None and len(short) == 1
 
 
+def test_a_torque_free_exact_run_writes_no_torque_column(monkeypatch):
+    """An exact torque-free stretch (Engine._free_samples) writes t, q and m only: its
+    rows' torque is zeros, 24 of a sample's 88 bytes, which a one-shot run paid in page
+    faults and writes. Every reader still gets an (n, 3) array of zeros; a builder whose
+    torque column exists (a torque written before, a block copied out of it) gets zeros
+    written over its old rows; rows added later keep their torque beside the free ones."""
+    from rigid_body_sim.engine.samples import BlockBuilder
+    from rigid_body_sim.offline import simulate
+    made = []
+    torque = BlockBuilder._torque
+    monkeypatch.setattr(BlockBuilder, '_torque', lambda self: made.append(1) or torque(self))
+    scene = load('tennis_racket', ['publish_rate=100.0'])
+    result = simulate(scene, engine=engine_for(scene, duration=3.0), keep='all')
+    assert result.integrator == 'exact' and result.sample_count == 301 and not made
+    t = result.samples.torque
+    assert t.shape == (301, 3) and t.dtype == np.float64 and not t.any()
+    assert t.flags.c_contiguous and t.flags.writeable
+    assert result.samples.values(300)[-3:] == [0.0, 0.0, 0.0]
+    builder = BlockBuilder(result.samples.body, 1024)
+    q, m = np.array([0.0, 0.0, 0.0, 1.0]), np.ones(3)
+    builder.add(0, q, m, np.array([1.0, 2.0, 3.0]))  # the column now exists, row 0 written
+    builder.block()  # copied out (short): the builder keeps its arrays, row 0's torque too
+    t_col, q_col, m_col, tau_col = builder.free_columns(2)
+    assert tau_col is not None and np.shares_memory(tau_col, builder._tau)
+    fresh = BlockBuilder(result.samples.body, 1024)
+    assert fresh.free_columns(2)[3] is None
+    for b in (builder, fresh):  # as _free_samples: two free rows, then one with a torque
+        t_col, q_col, m_col, tau_col = b.free_columns(2)
+        t_col[:], q_col[:], m_col[:] = [0, 1], q, m
+        if tau_col is not None:
+            tau_col[:] = 0.0
+        b.n = 2
+        b.add(2, q, m, np.array([4.0, 5.0, 6.0]))
+        np.testing.assert_array_equal(b.block().torque, [[0, 0, 0], [0, 0, 0], [4, 5, 6]])
+
+
 def test_a_run_keeping_every_sample_takes_them_as_one_block():
     """A run longer than OFFLINE_BLOCK samples that keeps them all (keep='all': the bench,
     in-process users) fills one block and returns its arrays: concatenating blocks of
