@@ -314,6 +314,42 @@ def test_an_offline_run_keeps_its_samples_without_copying_them():
     assert short.q.base is None and len(short) == 1
 
 
+def test_a_torque_free_exact_run_writes_no_torque_column(monkeypatch):
+    """An exact torque-free stretch (Engine._free_samples) writes t, q and m only: its
+    rows' torque is zeros, 24 of a sample's 88 bytes, which a one-shot run paid in page
+    faults and writes. Every reader still gets an (n, 3) array of zeros; a builder whose
+    torque column exists (a torque written before, a block copied out of it) gets zeros
+    written over its old rows; rows added later keep their torque beside the free ones."""
+    from rigid_body_sim.engine.samples import BlockBuilder
+    from rigid_body_sim.offline import simulate
+    made = []
+    torque = BlockBuilder._torque
+    monkeypatch.setattr(BlockBuilder, '_torque', lambda self: made.append(1) or torque(self))
+    scene = load('tennis_racket', ['publish_rate=100.0'])
+    result = simulate(scene, engine=engine_for(scene, duration=3.0), keep='all')
+    assert result.integrator == 'exact' and result.sample_count == 301 and not made
+    t = result.samples.torque
+    assert t.shape == (301, 3) and t.dtype == np.float64 and not t.any()
+    assert t.flags.c_contiguous and t.flags.writeable
+    assert result.samples.values(300)[-3:] == [0.0, 0.0, 0.0]
+    builder = BlockBuilder(result.samples.body, 1024)
+    q, m = np.array([0.0, 0.0, 0.0, 1.0]), np.ones(3)
+    builder.add(0, q, m, np.array([1.0, 2.0, 3.0]))  # the column now exists, row 0 written
+    builder.block()  # copied out (short): the builder keeps its arrays, row 0's torque too
+    t_col, q_col, m_col, tau_col = builder.free_columns(2)
+    assert tau_col is not None and np.shares_memory(tau_col, builder._tau)
+    fresh = BlockBuilder(result.samples.body, 1024)
+    assert fresh.free_columns(2)[3] is None
+    for b in (builder, fresh):  # as _free_samples: two free rows, then one with a torque
+        t_col, q_col, m_col, tau_col = b.free_columns(2)
+        t_col[:], q_col[:], m_col[:] = [0, 1], q, m
+        if tau_col is not None:
+            tau_col[:] = 0.0
+        b.n = 2
+        b.add(2, q, m, np.array([4.0, 5.0, 6.0]))
+        np.testing.assert_array_equal(b.block().torque, [[0, 0, 0], [0, 0, 0], [4, 5, 6]])
+
+
 def test_a_run_keeping_every_sample_takes_them_as_one_block():
     """A run longer than OFFLINE_BLOCK samples that keeps them all (keep='all': the bench,
     in-process users) fills one block and returns its arrays: concatenating blocks of
@@ -407,22 +443,43 @@ def test_dop853_samples_inside_a_step_are_one_loop_not_one_call_each():
     assert 0 < out['advance'] < 50 and out['_interpolated'] <= 2 * out['advance'] + 2, out
 
 
-def test_the_free_bodys_rk4_steps_and_hermite_ends_are_inlined_into_the_loop():
-    """A sample between rk4 steps calls the step loop twice and sample_kernel._end twice;
-    for the free body (env None) the loop inlines both, the very functions (compiled,
-    ``inline='always'``): out of line each call paid a reference-count round trip per
-    array and view, ~1/3 of the CPU of rk4 at 100 samples/s. The same numbers:
-    test_compiled_samples_are_the_event_loop_samples_bit_for_bit (rk4, and the laws'
-    scenes) compares them with the event path, which calls rk4 out of line."""
+def test_the_free_bodys_rk4_steps_and_hermite_ends_are_the_out_of_line_ones_bit_for_bit():
+    """A sample between rk4 steps runs the step loop twice and the Hermite end twice; for
+    the free body (env None) the loop inlines versions whose stages are numbers
+    (explicit_kernel.rk4_free_steps, rk4_free_end): the views of the scratch cost a
+    reference-count round trip each, per call. They are inlined
+    (``inline='always'``) and give rk4_steps' and _end's numbers to the bit, on random
+    bodies, torques, each damping model, and a step that fails (the same step, the same
+    state left). test_compiled_samples_are_the_event_loop_samples_bit_for_bit compares the
+    whole loop's samples with the event path's."""
     from rigid_body_sim.engine import sample_kernel
     from rigid_body_sim.physics.integrators import explicit_kernel
     from rigid_body_sim.physics.jit import COMPILED
     assert COMPILED, 'this interpreter runs the kernels as plain Python'
-    for inlined, kernel in ((sample_kernel._free_steps, explicit_kernel.rk4_steps),
-                            (sample_kernel._free_end, sample_kernel._end)):
-        assert inlined.targetoptions.get('inline') == 'always'
-        assert kernel.targetoptions.get('inline', 'never') == 'never'  # orbits: by type
-        assert inlined.py_func is kernel.py_func
+    for kernel in (explicit_kernel.rk4_free_steps, explicit_kernel.rk4_free_end):
+        assert kernel.targetoptions.get('inline') == 'always'
+    rng = np.random.default_rng(20261127)
+    for trial in range(60):
+        model = trial % 3
+        moments = rng.uniform(0.5, 3.0, 3)
+        q0 = rng.normal(size=4)
+        q0 /= np.linalg.norm(q0)
+        m0 = rng.normal(size=3) * rng.uniform(0.1, 5.0)
+        tau = rng.normal(size=3) * 0.1 if trial % 2 else np.zeros(3)
+        h, n, coefficient = rng.uniform(1e-3, 0.05), int(rng.integers(1, 40)), 0.05
+        if trial == 59:  # it overflows within a few steps: both stop at the same one
+            m0, h, n = np.array([1e150, -3e150, 2e150]), 1.0, 30
+        q1, m1, q2, m2 = q0.copy(), m0.copy(), q0.copy(), m0.copy()
+        failed = explicit_kernel.rk4_steps(q1, m1, h, n, moments, tau, model, coefficient,
+                                           np.empty((10, 4)), 0.0, None)
+        assert explicit_kernel.rk4_free_steps(q2, m2, h, n, moments, tau, model,
+                                              coefficient) == failed
+        assert (failed >= 0) == (trial == 59)
+        assert np.array_equal(q1, q2, equal_nan=True) and np.array_equal(m1, m2, equal_nan=True)
+        herm1, herm2 = np.full((8, 4), 7.0), np.full((8, 4), 7.0)
+        sample_kernel._end(q0, m0, moments, tau, model, coefficient, 0.0, None, herm1, 4)
+        sample_kernel._free_end(q0, m0, moments, tau, model, coefficient, herm2, 4)
+        assert np.array_equal(herm1, herm2)  # the other end and the unused cells untouched
 
 
 @pytest.mark.parametrize('span_ns', [5 * 10**6, 10**6])  # within one CHUNK; across two

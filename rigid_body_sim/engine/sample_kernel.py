@@ -15,9 +15,9 @@ values go to the block, never back into the trajectory.
 :func:`fixed_steps` runs n steps of any fixed-step method's compiled loop (the closed
 loop's dispatch, shared by both paths); :func:`segment` runs one interval between events
 with its samples interpolated. Frames and arguments as in ``closed_loop.closed_loop_run``.
-All are inlined into it, and for the free body :func:`_end` and rk4's loop too (see
-``_free_end``): a call between kernels costs a reference-count round trip per array
-argument (~0.1 µs for these ~20), per sample where steps land on samples.
+All are inlined into it, and for the free body versions of :func:`_end` and rk4's loop
+with numbers for stages (``_free_end``): a call between kernels costs a reference-count
+round trip per array and view (~0.1 µs for these ~20), per sample between steps.
 """
 import math
 
@@ -63,8 +63,9 @@ def fixed_steps(method, q, m, h, n, weights, split_axes, moments, tau_p, has_tau
         return splitting_kernel.splitting_run(q, m, h, n, weights, split_axes, moments, tau_p,
                                               has_tau, model, coefficient, inner, t0, env)
     if method == RK4:
-        if env is None:  # inlined (_free_end)
-            failed = _free_steps(q, m, h, n, moments, tau_p, model, coefficient, scratch, t0, None)
+        if env is None:  # stages in numbers (_free_end)
+            failed = explicit_kernel.rk4_free_steps(q, m, h, n, moments, tau_p, model,
+                                                    coefficient)
         else:
             failed = explicit_kernel.rk4_steps(q, m, h, n, moments, tau_p, model, coefficient,
                                                scratch, t0, env)
@@ -91,11 +92,7 @@ def _end(q, m, moments, tau_p, model, coefficient, t, env, herm, at):
         _environment(herm[at], t, env, moments, herm[at + 3, :3])
 
 
-# The functions themselves inlined, for env None only, passed as the constant (it prunes the
-# orbit's terms, which inlined no longer go by env's type): a sample between rk4 steps makes
-# two calls of the step loop and two of _end, each a refcount round trip per array and view.
-_free_steps = inline(getattr(explicit_kernel.rk4_steps, 'py_func', explicit_kernel.rk4_steps))
-_free_end = inline(getattr(_end, 'py_func', _end))
+_free_end = explicit_kernel.rk4_free_end  # its rates in numbers (no views of herm)
 
 
 @inline
@@ -202,8 +199,8 @@ def segment(method, q, m, a_ns, b_ns, n, sample_ns, sample_period_ns, weights, s
                     herm[0, i], herm[2, i] = herm[4, i], herm[6, i]
                 for i in range(3):
                     herm[1, i], herm[3, i] = herm[5, i], herm[7, i]
-            elif env is None:  # inlined (_free_end)
-                _free_end(q, m, moments, tau_p, model, coefficient, t0 + k * h, None, herm, 0)
+            elif env is None:  # rates in numbers
+                _free_end(q, m, moments, tau_p, model, coefficient, herm, 0)
                 evals += 1
             else:
                 _end(q, m, moments, tau_p, model, coefficient, t0 + k * h, env, herm, 0)
@@ -216,7 +213,7 @@ def segment(method, q, m, a_ns, b_ns, n, sample_ns, sample_period_ns, weights, s
                 return k + failed, evals, rows
             k += 1
             if env is None:
-                _free_end(q, m, moments, tau_p, model, coefficient, t0 + k * h, None, herm, 4)
+                _free_end(q, m, moments, tau_p, model, coefficient, herm, 4)
             else:
                 _end(q, m, moments, tau_p, model, coefficient, t0 + k * h, env, herm, 4)
             evals += 1

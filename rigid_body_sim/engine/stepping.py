@@ -112,11 +112,12 @@ class Stepping:
         # a grid: by addition theorems from an evaluation every few samples (grid_kernel),
         # written straight into the block's rows; the instants in one compiled pass
         b = self._builder
-        t_col, q_col, m_col, tau_col = b.columns(b.n + k)
+        t_col, q_col, m_col, tau_col = b.free_columns(b.n + k)  # (tau: see BlockBuilder)
         ts = np.empty(k)
         sample_kernel.grid_instants(self._next_sample, p, t0, t_col[b.n:], ts)
         q, m = solution.at_grid(ts, p / NS, out=(q_col[b.n:], m_col[b.n:]))
-        tau_col[b.n:] = 0.0
+        if tau_col is not None:
+            tau_col[b.n:] = 0.0
         b.n += k
         self._q, self._m = q[-1].copy(), m[-1].copy()
         self.t_ns = int(t_col[b.n - 1])
