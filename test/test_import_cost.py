@@ -131,3 +131,37 @@ def test_the_figures_module_leaves_scipy_optimize_to_orbit_scenes():
                          timeout=120)
     assert out.returncode == 0, out.stderr
     assert json.loads(out.stdout.strip().splitlines()[-1]) == []
+
+
+_REFUSED_NODE = r'''
+import contextlib, io, json, sys
+from rigid_body_sim.nodes import simulator
+runs = []
+for args in sys.argv[1:]:
+    err = io.StringIO()
+    with contextlib.redirect_stderr(err):
+        code = simulator.main(['--ros-args', *json.loads(args)])
+    runs.append([code, 'numba' in sys.modules])
+from rigid_body_sim.physics import jit  # what a started node then loads: numba is there
+print(json.dumps([runs, 'numba' in sys.modules]))
+'''
+
+
+def test_a_simulator_refused_for_its_parameters_exits_without_importing_numba(tmp_path):
+    """The simulator node's module and its checks of the parameters load no numba (~0.4
+    CPU-s of each start): it loads with the first spacecraft's engine (nodes/spacecraft.py,
+    sim_warm.py, sim_lockstep.py, orbit_messages.py import the physics where they use it).
+    A refused params file, a refused value in a file and an out-of-range -p each exit 2,
+    numba still unimported; importing the kernels' settings then does load it."""
+    typo = tmp_path / 'typo.yaml'
+    typo.write_text('attitude_simulator:\n  ros__parameters:\n    intertia_typo: [1.0]\n')
+    bad = tmp_path / 'bad.yaml'
+    bad.write_text('/**:\n  ros__parameters:\n    inertia: [1.0, 2.0, 30.0]\n')
+    cases = [['--params-file', str(typo)], ['--params-file', str(bad)],
+             ['-p', 'publish_rate:=-1.0']]
+    out = subprocess.run([sys.executable, '-c', _REFUSED_NODE, *map(json.dumps, cases)],
+                         capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0, out.stderr
+    runs, loaded_after = json.loads(out.stdout.strip().splitlines()[-1])
+    assert runs == [[2, False]] * len(cases), (runs, out.stderr)
+    assert loaded_after, 'numba was not importable: the check above proved nothing'
