@@ -96,28 +96,38 @@ import json, sys
 import numpy as np
 from rigid_body_sim.engine import Engine, EngineConfig
 from rigid_body_sim.physics import jit
+from numba.core import base
+refreshes = []  # numba's registries' refresh, by the contexts it ran on
+refresh = base.BaseContext.refresh
+base.BaseContext.refresh = lambda self: (refreshes.append(1), refresh(self))[1]
 for _ in Engine(EngineConfig.from_parameters({'duration': 0.05})).run():
     pass
 loaded = {name: name in sys.modules for name in ('scipy.linalg', 'coverage')}
+loading = len(refreshes)
 import numba  # numba's BLAS still works when a kernel asks for it (compiled here, not cached)
 dot = numba.njit(lambda a, b: np.dot(a, b))
 a = np.arange(9.0).reshape(3, 3)
-print(json.dumps([jit.COMPILED, jit.signatures(), loaded, bool(np.array_equal(dot(a, a), a @ a))]))
+print(json.dumps([jit.COMPILED, jit.signatures(), loaded, bool(np.array_equal(dot(a, a), a @ a)),
+                  [loading, len(refreshes)]]))
 '''
 
 
 def test_loading_kernels_imports_neither_scipy_linalg_nor_coverage():
     """numba's start-up without ``import coverage`` (no coverage run in the process) and
     without ``import scipy.linalg`` for its BLAS check (physics/numba_start.py): 0.22 of
-    the ~0.7 CPU-s numba cost each simulator and CLI run. np.dot still compiles and runs."""
+    the ~0.7 CPU-s numba cost each simulator and CLI run. np.dot still compiles and runs.
+    Nor its registries' refresh while kernels load from the cache (~0.1-0.2 CPU-s of each
+    simulator's start); the compilation of np.dot then refreshes them itself."""
     env = {k: v for k, v in os.environ.items() if not k.startswith(('COVERAGE', 'NUMBA_D'))}
     out = subprocess.run([sys.executable, '-c', _KERNELS], capture_output=True, text=True,
                          timeout=300, env=env)
     assert out.returncode == 0, out.stderr
-    compiled, signatures, loaded, dot_ok = json.loads(out.stdout.strip().splitlines()[-1])
+    compiled, signatures, loaded, dot_ok, (loading, after) = json.loads(
+        out.stdout.strip().splitlines()[-1])
     assert compiled and signatures > 0, (compiled, signatures)
     assert loaded == {'scipy.linalg': False, 'coverage': False}, loaded
     assert dot_ok
+    assert loading == 0 and after > 0, (loading, after)
 
 
 def test_the_figures_module_leaves_scipy_optimize_to_orbit_scenes():
