@@ -13,7 +13,7 @@ def start_numba() -> None:
     """numba's own start-up now (the runtime a kernel loaded from the disk cache needs;
     its import paid the rest): a front that times its kernel loading counts it there, not
     in whatever first calls a kernel (an orbit scene's engine build). The registries'
-    refresh (~0.1 CPU-s) is left to a compilation, which does it itself
+    refresh (0.1-0.2 CPU-s) is left to a compilation, which does it itself
     (physics/numba_start.py). Nothing without the JIT."""
     from ..physics import jit
     if jit.COMPILED:
