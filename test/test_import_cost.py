@@ -96,28 +96,38 @@ import json, sys
 import numpy as np
 from rigid_body_sim.engine import Engine, EngineConfig
 from rigid_body_sim.physics import jit
+from numba.core import base
+refreshes = []  # numba's registries' refresh, by the contexts it ran on
+refresh = base.BaseContext.refresh
+base.BaseContext.refresh = lambda self: (refreshes.append(1), refresh(self))[1]
 for _ in Engine(EngineConfig.from_parameters({'duration': 0.05})).run():
     pass
 loaded = {name: name in sys.modules for name in ('scipy.linalg', 'coverage')}
+loading = len(refreshes)
 import numba  # numba's BLAS still works when a kernel asks for it (compiled here, not cached)
 dot = numba.njit(lambda a, b: np.dot(a, b))
 a = np.arange(9.0).reshape(3, 3)
-print(json.dumps([jit.COMPILED, jit.signatures(), loaded, bool(np.array_equal(dot(a, a), a @ a))]))
+print(json.dumps([jit.COMPILED, jit.signatures(), loaded, bool(np.array_equal(dot(a, a), a @ a)),
+                  [loading, len(refreshes)]]))
 '''
 
 
 def test_loading_kernels_imports_neither_scipy_linalg_nor_coverage():
     """numba's start-up without ``import coverage`` (no coverage run in the process) and
     without ``import scipy.linalg`` for its BLAS check (physics/numba_start.py): 0.22 of
-    the ~0.7 CPU-s numba cost each simulator and CLI run. np.dot still compiles and runs."""
+    the ~0.7 CPU-s numba cost each simulator and CLI run. np.dot still compiles and runs.
+    Nor its registries' refresh while kernels load from the cache (~0.1-0.2 CPU-s of each
+    simulator's start); the compilation of np.dot then refreshes them itself."""
     env = {k: v for k, v in os.environ.items() if not k.startswith(('COVERAGE', 'NUMBA_D'))}
     out = subprocess.run([sys.executable, '-c', _KERNELS], capture_output=True, text=True,
                          timeout=300, env=env)
     assert out.returncode == 0, out.stderr
-    compiled, signatures, loaded, dot_ok = json.loads(out.stdout.strip().splitlines()[-1])
+    compiled, signatures, loaded, dot_ok, (loading, after) = json.loads(
+        out.stdout.strip().splitlines()[-1])
     assert compiled and signatures > 0, (compiled, signatures)
     assert loaded == {'scipy.linalg': False, 'coverage': False}, loaded
     assert dot_ok
+    assert loading == 0 and after > 0, (loading, after)
 
 
 def test_the_figures_module_leaves_scipy_optimize_to_orbit_scenes():
@@ -131,3 +141,37 @@ def test_the_figures_module_leaves_scipy_optimize_to_orbit_scenes():
                          timeout=120)
     assert out.returncode == 0, out.stderr
     assert json.loads(out.stdout.strip().splitlines()[-1]) == []
+
+
+_REFUSED_NODE = r'''
+import contextlib, io, json, sys
+from rigid_body_sim.nodes import simulator
+runs = []
+for args in sys.argv[1:]:
+    err = io.StringIO()
+    with contextlib.redirect_stderr(err):
+        code = simulator.main(['--ros-args', *json.loads(args)])
+    runs.append([code, 'numba' in sys.modules])
+from rigid_body_sim.physics import jit  # what a started node then loads: numba is there
+print(json.dumps([runs, 'numba' in sys.modules]))
+'''
+
+
+def test_a_simulator_refused_for_its_parameters_exits_without_importing_numba(tmp_path):
+    """The simulator node's module and its checks of the parameters load no numba (~0.4
+    CPU-s of each start): it loads with the first spacecraft's engine (nodes/spacecraft.py,
+    sim_warm.py, sim_lockstep.py, orbit_messages.py import the physics where they use it).
+    A refused params file, a refused value in a file and an out-of-range -p each exit 2,
+    numba still unimported; importing the kernels' settings then does load it."""
+    typo = tmp_path / 'typo.yaml'
+    typo.write_text('attitude_simulator:\n  ros__parameters:\n    intertia_typo: [1.0]\n')
+    bad = tmp_path / 'bad.yaml'
+    bad.write_text('/**:\n  ros__parameters:\n    inertia: [1.0, 2.0, 30.0]\n')
+    cases = [['--params-file', str(typo)], ['--params-file', str(bad)],
+             ['-p', 'publish_rate:=-1.0']]
+    out = subprocess.run([sys.executable, '-c', _REFUSED_NODE, *map(json.dumps, cases)],
+                         capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0, out.stderr
+    runs, loaded_after = json.loads(out.stdout.strip().splitlines()[-1])
+    assert runs == [[2, False]] * len(cases), (runs, out.stderr)
+    assert loaded_after, 'numba was not importable: the check above proved nothing'

@@ -10,15 +10,15 @@ from ..physics import INTEGRATORS
 
 
 def start_numba() -> None:
-    """numba's own start-up now (its typing and target registries, and scipy.linalg for
-    its BLAS check: ~0.3 CPU-s, paid once per process by the first kernel compiled or
-    loaded): a front that times its kernel loading counts it there, not in whatever
-    first calls a kernel (an orbit scene's engine build). Nothing without the JIT."""
+    """numba's own start-up now (the runtime a kernel loaded from the disk cache needs;
+    its import paid the rest): a front that times its kernel loading counts it there, not
+    in whatever first calls a kernel (an orbit scene's engine build). The registries'
+    refresh (0.1-0.2 CPU-s) is left to a compilation, which does it itself
+    (physics/numba_start.py). Nothing without the JIT."""
     from ..physics import jit
     if jit.COMPILED:
-        from numba.core.registry import cpu_target
-        cpu_target.target_context.refresh()
-        cpu_target.typing_context.refresh()
+        from ..physics.numba_start import start_runtime
+        start_runtime()
 
 
 def warm_selection(integrator: str, dissipation_model: str) -> None:

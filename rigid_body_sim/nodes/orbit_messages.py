@@ -20,10 +20,8 @@ from geometry_msgs.msg import TransformStamped, WrenchStamped
 from nav_msgs.msg import Odometry
 from rclpy.serialization import serialize_message
 
-from ..engine.actuators import mass_inertia
 from ..engine.specs import frame_id_problem
 from ..physics import rotation
-from ..physics.environment import facets_kernel
 from .state_messages import type_name
 from ..physics.orbit import frames
 
@@ -50,7 +48,13 @@ class OrbitMessages:
         # where it is anchored to an interval (SGP4, NRLMSIS)
         self._facets = None if env.sunlight is None or not env.sunlight.terms else \
             env.elements(0.0, config.body.to_principal)
-        # the whole mass distribution (wheel rotors included), principal frame
+        if self._facets is not None:  # imported here, as mass_inertia below
+            from ..physics.environment.facets_kernel import facets_torque
+            self._facets_torque = facets_torque
+        # the whole mass distribution (wheel rotors included), principal frame; imported
+        # here: engine.actuators loads the gyrostat's kernels (numba), which a node's start
+        # before its first engine does not need (spacecraft.py)
+        from ..engine.actuators import mass_inertia
         self._inertia = mass_inertia(config.actuators, config.body)
         for msg in (self.odometry, self.transform) + ((self.torque,) if self.torque else ()):
             msg.header.stamp = self.stamp
@@ -93,8 +97,7 @@ class OrbitMessages:
             if self._facets is not None:
                 if env.anchored:
                     self._facets = env.elements(t, self.config.body.to_principal)
-                tau += facets_kernel.facets_torque(np.asarray(block.q[i], float), t,
-                                                   self._facets)
+                tau += self._facets_torque(np.asarray(block.q[i], float), t, self._facets)
             tau = self.config.body.to_body(tau)
             if env.magnetorquers and block.dipole is not None:  # body frame already
                 b = rotation.rotate(rotation.conjugate(block.attitude[i]),

@@ -18,7 +18,7 @@ from geometry_msgs.msg import QuaternionStamped, Vector3Stamped
 from rclpy.serialization import serialize_message
 from sensor_msgs.msg import Imu
 
-from ..sensors.noise import gauss_markov_sigma
+from ..sensors.gauss_markov import gauss_markov_sigma
 
 NS = 1_000_000_000
 

@@ -34,7 +34,6 @@ from geometry_msgs.msg import Vector3Stamped
 from rclpy._rclpy_pybind11 import RCLError
 from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 
-from ..engine.lockstep_direct import DirectPeriod
 from .commands import stamped_fields, vector3_stamped
 from .state_messages import N_VALUES
 
@@ -215,6 +214,9 @@ class Exchange:
             return False
         craft.engine.apply_command((x, y, z))
         if self._direct is None or self._direct.engine is not craft.engine:
+            # imported here (once per engine): it loads numba, which a node refused for
+            # its parameters before any engine never needs (spacecraft.py)
+            from ..engine.lockstep_direct import DirectPeriod
             self._direct = DirectPeriod(craft.engine)
         self._awaiting.clear()
         self._release()

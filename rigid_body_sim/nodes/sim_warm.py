@@ -6,9 +6,9 @@ and its diagnostics count what still came after t = 0 (``kernels_loaded_after_t0
 """
 import time
 
-from ..engine import lockstep_direct
-from ..engine.warm import warm_live
-from ..physics import jit
+# engine.warm, engine.lockstep_direct and physics.jit are imported in the methods: each
+# loads numba (~0.4 CPU-s), which the node needs only once it has an engine to warm
+# (a node refused for its parameters exits before; spacecraft.py)
 
 
 class Warming:
@@ -16,11 +16,15 @@ class Warming:
 
     def _mark_t0(self):
         """The first sample is next: what loads from now on stalls the loop."""
+        from ..physics import jit
         self._kernels_at_t0 = jit.signatures()
 
     def _warm(self):
         """Load every kernel the spacecraft will use before t = 0 (``warm_live``): one
         spacecraft per kind of model, since a fleet's alike share their kernels."""
+        from ..engine import lockstep_direct
+        from ..engine.warm import warm_live
+        from ..physics import jit
         kinds = {}
         for craft in self._crafts.values():
             c = craft.engine.config
@@ -40,4 +44,7 @@ class Warming:
 
     def kernels_after_t0(self) -> int:
         """Compiled versions loaded (or compiled) since t = 0: each stalled the loop."""
-        return jit.signatures() - self._kernels_at_t0 if self._started else 0
+        if not self._started:
+            return 0
+        from ..physics import jit
+        return jit.signatures() - self._kernels_at_t0

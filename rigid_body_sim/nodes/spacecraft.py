@@ -18,7 +18,7 @@ from rclpy._rclpy_pybind11 import RCLError
 from sensor_msgs.msg import MagneticField
 from std_msgs.msg import Float64MultiArray
 
-from ..engine import Engine, EngineConfig, lockstep
+from ..engine import EngineConfig, lockstep
 from .commands import CommandFilter
 from .common import qos_profile
 from .orbit_messages import OrbitPublishers
@@ -50,6 +50,9 @@ class Spacecraft:
                  on_command=None, on_actuator=None, controller=None, ready=None):
         self.name, self.p, self.controller = name, values, controller
         self.prefix = f'{name}/' if name else ''
+        # imported here: the physics and numba (~0.4 CPU-s) load with the first engine, not
+        # at the node's start, so that parameters refused before it never load them
+        from ..engine import Engine
         self.engine = Engine(check_parameters(values, controller), blocking_selection=False,
                              check_method=True, start_ns=start_ns)
         self.method = self.engine.method

@@ -17,7 +17,7 @@ from ..lazy_exports import lazy_exports
 # not load the integrators' kernels and numba, which --help and a refused input never run.
 _HOME = {'RigidBody': 'body', 'Dissipation': 'dissipation', 'Dynamics': 'dynamics',
          'DISSIPATION_MODELS': 'choices', 'INTEGRATORS': 'integrators',
-         'Integrator': 'integrators', 'IntegrationError': 'integrators',
+         'Integrator': 'integrators', 'IntegrationError': 'integration_error',
          'create': 'integrators', 'get_integrator': 'integrators', 'Propagator': 'propagator',
          'State': 'propagator', 'poinsot': 'propagator'}
 

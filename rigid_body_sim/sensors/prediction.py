@@ -23,7 +23,7 @@ import math
 
 import numpy as np
 
-from .noise import gauss_markov_sigma
+from .gauss_markov import gauss_markov_sigma
 
 
 def pointing_variance(sim, ctl, h=None, star_every=None, duration=300.0, settle=100.0):

@@ -12,14 +12,7 @@ import math
 import numpy as np
 
 from ..dynamics import Dynamics
-
-
-class IntegrationError(RuntimeError):
-    """The state became non-finite or a solver failed; names the method, step and time."""
-
-    def __init__(self, integrator: str, h: float, t: float, reason: str):
-        self.integrator, self.h, self.t, self.reason = integrator, h, t, reason
-        super().__init__(f'{integrator} failed at t = {t:.9g} s with step h = {h:.6g} s: {reason}')
+from ..integration_error import IntegrationError  # noqa: F401 - its home for the registry
 
 
 @dataclass(frozen=True)
