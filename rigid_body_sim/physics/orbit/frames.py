@@ -11,9 +11,13 @@ def lvlh_axes(r, v) -> np.ndarray:
     """The LVLH axes as the columns of a matrix (LVLH → inertial) at position r, velocity v;
     r and v (N, 3) give the (N, 3, 3) matrices of N states."""
     r, v = np.asarray(r, float), np.asarray(v, float)
-    z = -r / np.linalg.norm(r, axis=-1, keepdims=True)
+    # one state's norm as before (a dot product): along an axis numpy sums the squares
+    # in another order, a last-bit change that moved auto's atol on two orbit scenes
+    norm = np.linalg.norm if r.ndim == 1 else \
+        (lambda a: np.linalg.norm(a, axis=-1, keepdims=True))
+    z = -r / norm(r)
     h = np.cross(r, v)
-    y = -h / np.linalg.norm(h, axis=-1, keepdims=True)
+    y = -h / norm(h)
     x = np.cross(y, z)
     return np.stack((x, y, z), axis=-1)
 
