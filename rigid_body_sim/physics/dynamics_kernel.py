@@ -190,31 +190,43 @@ def _dissipate(m, t, moments, model, coefficient, symmetric):
     return 0
 
 
+@inline
+def rates(x, y, z, w, m0, m1, m2, i0, i1, i2, t0, t1, t2, model, coefficient):
+    """dq = ½ q ⊗ (Ω, 0) and dm = m × Ω + τ + dissipation (principal frame) of the state
+    (x, y, z, w; m0, m1, m2), moments (i0, i1, i2) and torque (t0, t1, t2), as 7 numbers:
+    rk4's free-body stages keep them in numbers (:func:`_rates` writes them into arrays,
+    whose views cost a reference-count round trip each per call)."""
+    o0 = m0 / i0
+    o1 = m1 / i1
+    o2 = m2 / i2
+    dq0 = 0.5 * (w * o0 + y * o2 - z * o1)
+    dq1 = 0.5 * (w * o1 - x * o2 + z * o0)
+    dq2 = 0.5 * (w * o2 + x * o1 - y * o0)
+    dq3 = 0.5 * (-x * o0 - y * o1 - z * o2)
+    c0 = m1 * o2 - m2 * o1
+    c1 = m2 * o0 - m0 * o2
+    c2 = m0 * o1 - m1 * o0
+    dm0 = c0 + t0
+    dm1 = c1 + t1
+    dm2 = c2 + t2
+    if model == 1:  # α m × (m × Ω)
+        dm0 += coefficient * (m1 * c2 - m2 * c1)
+        dm1 += coefficient * (m2 * c0 - m0 * c2)
+        dm2 += coefficient * (m0 * c1 - m1 * c0)
+    elif model == 2:  # −c ω
+        dm0 -= coefficient * o0
+        dm1 -= coefficient * o1
+        dm2 -= coefficient * o2
+    return dq0, dq1, dq2, dq3, dm0, dm1, dm2
+
+
 @jit
 def _rates(q, m, moments, tau, model, coefficient, dq, dm):
-    """dq = ½ q ⊗ (Ω, 0); dm = m × Ω + τ + dissipation (principal frame)."""
-    o0 = m[0] / moments[0]
-    o1 = m[1] / moments[1]
-    o2 = m[2] / moments[2]
-    x, y, z, w = q[0], q[1], q[2], q[3]
-    dq[0] = 0.5 * (w * o0 + y * o2 - z * o1)
-    dq[1] = 0.5 * (w * o1 - x * o2 + z * o0)
-    dq[2] = 0.5 * (w * o2 + x * o1 - y * o0)
-    dq[3] = 0.5 * (-x * o0 - y * o1 - z * o2)
-    c0 = m[1] * o2 - m[2] * o1
-    c1 = m[2] * o0 - m[0] * o2
-    c2 = m[0] * o1 - m[1] * o0
-    dm[0] = c0 + tau[0]
-    dm[1] = c1 + tau[1]
-    dm[2] = c2 + tau[2]
-    if model == 1:  # α m × (m × Ω)
-        dm[0] += coefficient * (m[1] * c2 - m[2] * c1)
-        dm[1] += coefficient * (m[2] * c0 - m[0] * c2)
-        dm[2] += coefficient * (m[0] * c1 - m[1] * c0)
-    elif model == 2:  # −c ω
-        dm[0] -= coefficient * o0
-        dm[1] -= coefficient * o1
-        dm[2] -= coefficient * o2
+    """dq = ½ q ⊗ (Ω, 0); dm = m × Ω + τ + dissipation (principal frame): :func:`rates`
+    into the arrays dq (4) and dm (3)."""
+    dq[0], dq[1], dq[2], dq[3], dm[0], dm[1], dm[2] = rates(
+        q[0], q[1], q[2], q[3], m[0], m[1], m[2], moments[0], moments[1], moments[2],
+        tau[0], tau[1], tau[2], model, coefficient)
 
 
 @inline

@@ -9,7 +9,8 @@ import math
 import numpy as np
 
 from .. import dynamics_kernel
-from ..dynamics_kernel import _environment, _environment_at, _finite, _normalise, _rates, orbit_at
+from ..dynamics_kernel import (_environment, _environment_at, _finite, _normalise, _rates,
+                              orbit_at, rates)
 from ..jit import COMPILED, depends_on, inline, jit
 from ..environment import facets_kernel, magnetic_kernel
 from ..orbit import kernel as orbit_kernel
@@ -95,35 +96,6 @@ def rk4_steps(q, m, h, n, moments, tau, model, coefficient, scratch, t0, env):
 
 
 @inline
-def free_rates(x, y, z, w, m0, m1, m2, i0, i1, i2, t0, t1, t2, model, coefficient):
-    """dynamics_kernel._rates on numbers, the same operations in the same order: (dq, dm)
-    as 7 numbers. Its arrays' views (rk4's stages) cost a reference-count round trip each
-    per call; numbers cost none."""
-    o0 = m0 / i0
-    o1 = m1 / i1
-    o2 = m2 / i2
-    dq0 = 0.5 * (w * o0 + y * o2 - z * o1)
-    dq1 = 0.5 * (w * o1 - x * o2 + z * o0)
-    dq2 = 0.5 * (w * o2 + x * o1 - y * o0)
-    dq3 = 0.5 * (-x * o0 - y * o1 - z * o2)
-    c0 = m1 * o2 - m2 * o1
-    c1 = m2 * o0 - m0 * o2
-    c2 = m0 * o1 - m1 * o0
-    dm0 = c0 + t0
-    dm1 = c1 + t1
-    dm2 = c2 + t2
-    if model == 1:  # α m × (m × Ω)
-        dm0 += coefficient * (m1 * c2 - m2 * c1)
-        dm1 += coefficient * (m2 * c0 - m0 * c2)
-        dm2 += coefficient * (m0 * c1 - m1 * c0)
-    elif model == 2:  # −c ω
-        dm0 -= coefficient * o0
-        dm1 -= coefficient * o1
-        dm2 -= coefficient * o2
-    return dq0, dq1, dq2, dq3, dm0, dm1, dm2
-
-
-@inline
 def rk4_free_steps(q, m, h, n, moments, tau, model, coefficient):
     """rk4_steps for the free body (env None), its stages in numbers, not scratch views:
     the same operations in the same order, so the same numbers to the bit (test_samples),
@@ -136,14 +108,14 @@ def rk4_free_steps(q, m, h, n, moments, tau, model, coefficient):
     m0, m1, m2 = m[0], m[1], m[2]
     failed = -1
     for k in range(n):
-        a = free_rates(x, y, z, w, m0, m1, m2, i0, i1, i2, t0, t1, t2, model, coefficient)
-        b = free_rates(x + 0.5 * h * a[0], y + 0.5 * h * a[1], z + 0.5 * h * a[2],
+        a = rates(x, y, z, w, m0, m1, m2, i0, i1, i2, t0, t1, t2, model, coefficient)
+        b = rates(x + 0.5 * h * a[0], y + 0.5 * h * a[1], z + 0.5 * h * a[2],
                        w + 0.5 * h * a[3], m0 + 0.5 * h * a[4], m1 + 0.5 * h * a[5],
                        m2 + 0.5 * h * a[6], i0, i1, i2, t0, t1, t2, model, coefficient)
-        c = free_rates(x + 0.5 * h * b[0], y + 0.5 * h * b[1], z + 0.5 * h * b[2],
+        c = rates(x + 0.5 * h * b[0], y + 0.5 * h * b[1], z + 0.5 * h * b[2],
                        w + 0.5 * h * b[3], m0 + 0.5 * h * b[4], m1 + 0.5 * h * b[5],
                        m2 + 0.5 * h * b[6], i0, i1, i2, t0, t1, t2, model, coefficient)
-        d = free_rates(x + h * c[0], y + h * c[1], z + h * c[2], w + h * c[3],
+        d = rates(x + h * c[0], y + h * c[1], z + h * c[2], w + h * c[3],
                        m0 + h * c[4], m1 + h * c[5], m2 + h * c[6], i0, i1, i2, t0, t1, t2,
                        model, coefficient)
         x += (h / 6.0) * (a[0] + 2.0 * b[0] + 2.0 * c[0] + d[0])
@@ -170,8 +142,8 @@ def rk4_free_steps(q, m, h, n, moments, tau, model, coefficient):
 @inline
 def rk4_free_end(q, m, moments, tau, model, coefficient, herm, at):
     """sample_kernel._end for the free body (env None), its rates in numbers (no views of
-    herm): (q, m, dq, dm) into herm[at:at + 4], the same numbers (see free_rates)."""
-    dq0, dq1, dq2, dq3, dm0, dm1, dm2 = free_rates(
+    herm): (q, m, dq, dm) into herm[at:at + 4], the same numbers (see dynamics_kernel.rates)."""
+    dq0, dq1, dq2, dq3, dm0, dm1, dm2 = rates(
         q[0], q[1], q[2], q[3], m[0], m[1], m[2], moments[0], moments[1], moments[2],
         tau[0], tau[1], tau[2], model, coefficient)
     herm[at, 0], herm[at, 1], herm[at, 2], herm[at, 3] = q[0], q[1], q[2], q[3]
