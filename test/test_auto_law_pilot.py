@@ -146,3 +146,72 @@ def test_where_rk4s_torque_free_rounding_bound_rules_out_a_step_the_pilot_measur
     assert ref.error * generated.JUDGE <= scene.budget
     err = generated.error(result, ref.attitude)
     assert ref.decide(err, scene.budget) == 'met', (err, ref.error)
+
+
+class _Weighed:
+    """A run weighed as seed 20261125 scene 191 was: budget 1e-8 rad over 400 s."""
+    horizon, accuracy, omega, max_step, G = 400.0, 1e-8, 10.0, 0.01, 1.0
+
+    @staticmethod
+    def at_tolerance(c, rtol):
+        return (0.01 + model.RUN_COST,)
+
+    @staticmethod
+    def run_cost(c, h):
+        return 1.0 + model.RUN_COST
+
+
+class _Method:
+    def __init__(self, name, rounding=''):
+        self.name, self.rounding = name, rounding
+
+
+def _about_z(angle):
+    return np.array([np.cos(angle / 2), 0.0, 0.0, np.sin(angle / 2)])
+
+
+def _runs(drift):
+    """make_runner for weigh: the fixed method exact, dop853 at its floor rtol off by
+    ``drift`` rad/s, at PROBE PROBE/RTOL_FLOOR times that (its measured law)."""
+    rates = iter([0.0, drift, drift * law_pilot.PROBE / model.RTOL_FLOOR])
+
+    def runner(name, options, h_max, ends):
+        rate, marks = next(rates), []
+        for end in ends:
+            marks.append((end, _about_z(rate * end), 100))
+            yield
+        return marks
+    return lambda: runner
+
+
+def _weigh(monkeypatch, prior):
+    """weigh on _Weighed, the fixed method's a-priori error ``prior``, each run's CPU
+    fixed (the fixed method 100× dop853's): (chosen method's name, reason)."""
+    cpu = iter([1.0, 0.01, 0.01])
+
+    def timed(work, into):
+        value = yield from work
+        into[0] += next(cpu)
+        return value
+    monkeypatch.setattr(law_pilot, '_timed', timed)
+    work = law_pilot.weigh(_Weighed, (_Method('rk4', 'random'), 1e-4, 1.0, prior),
+                           _Method('dop853'), _runs(1e-9), 0.1)
+    try:
+        while True:
+            next(work)
+    except StopIteration as done:
+        best, rtol, spent, steps, notes = done.value
+    return best[0].name, notes[-1]
+
+
+def test_dop853_is_not_taken_for_a_fixed_run_its_floor_cannot_measure(monkeypatch):
+    """Where the fixed method errs less than dop853's floor run, their distance is that
+    run's own error: it bounds the fixed method's only from above, and no better than its
+    a-priori figure. dop853, reading 10× over the budget, stays out where the fixed method
+    was predicted 1.5× (the sum alone read it twice dop853's, and dop853 was taken);
+    where the fixed method's a-priori figure is higher than dop853's reading, it is taken."""
+    name, note = _weigh(monkeypatch, 1.5e-8)
+    assert name == 'rk4' and 'rk4 stays' in note, note
+    assert 'E=1.5e-08' in note, note
+    name, note = _weigh(monkeypatch, 1.0)
+    assert name == 'dop853' and 'dop853 errs less' in note, note

@@ -230,7 +230,8 @@ def weigh(s, best, adaptive, make_runner, period):
     own is RTOL_FLOOR/PROBE of it by dop853's measured law, linear in rtol), extrapolated
     to the run as t^DOP853_GROWTH; dop853's rtol is the one that law puts MARGIN under the
     budget, within [RTOL_FLOOR, PROBE] (:func:`_rtol`). a's error is |a − d| plus d's,
-    extrapolated by :func:`_extrapolate` (its rounding as t^1.5). dop853 is taken where it
+    extrapolated by :func:`_extrapolate` (its rounding as t^1.5), at most its a-priori
+    figure (the distance bounds a's error only from above). dop853 is taken where it
     errs less at that rtol and costs less (both costs as the pilot measured them, scaled to
     the run); it promises nothing (its error jumps late in some runs: module docstring),
     so its predicted error stays over the budget. Returns (best, rtol or None, pilot cost
@@ -273,6 +274,12 @@ def weigh(s, best, adaptive, make_runner, period):
         # errors in the rate turns the attitude as t^1.5, beyond the linear law (seed 7
         # scene 158: rk4 at 5.3e-5 s read 1.2e-10 rad by it, 1.1e-9 at the end)
         e_fixed *= math.sqrt(max(1.0, T / a[-1][0]))
+    # and at most its a-priori figure: where a errs less than d, their distance is d's
+    # error and says nothing of a's (seed 20261125 scene 191: rk4 at 0.296 ms read 1.2e-6
+    # rad so, 2.8e-8 a priori, and erred 1.9e-9; seed 20261127 scene 18 read 4.4e-6, 1.4e-8
+    # a priori, erred 2e-10, and dop853, taken at its floor as erring less, predicted 8.3e-8
+    # and erred 6.5e-8 of a 1e-8 budget)
+    e_fixed = min(e_fixed, err0)
     room = (f'{MARGIN:g}× under the budget' if e_dop * MARGIN <= s.accuracy * (1 + 1e-9)
             else 'its floor')
     note = (f'measured over {H:.3g} s of {T:.3g} s: {c.name} h={h:.3g} E={e_fixed:.2g}, '
