@@ -134,12 +134,16 @@ def test_where_rk4s_torque_free_rounding_bound_rules_out_a_step_the_pilot_measur
     """Seed 20261125 scene 13 (detumble, 1e-8 rad over 1.5e4 s): the a-priori round-off of
     rk4 (fitted torque-free, where nothing damps the rate) left no step meeting the budget,
     so auto ran its most accurate one (1.2 ms, 3.7× the oracle's CPU) and erred 7.7e-10.
-    Under the law the pilot measures it: rk4 at a step at least 1.5× longer, promised
-    within the budget and meeting it against a reference with its own bound."""
+    Under the law the pilot measures it: at 2.17 ms the step-doubling reading, taken all
+    as rounding, put 4.1e-9 rad there (the run erred 1.1e-10) and the step stayed; its
+    rounding parted from the truncation (the third run) lets it pilot a longer step again
+    (3.34 ms, the oracle's 5.4 ms), promised within the budget and meeting it against a
+    reference with its own bound."""
     scene = generated.draw(generated.SEED, 13)
     assert scene.kind == 'detumble'
     result = simulate(scene.scene_file())
-    assert result.integrator == 'rk4' and result.step > 1.5 * 1.2e-3, result.reason
+    assert result.integrator == 'rk4' and result.step > 3e-3, result.reason
+    assert result.reason.count('rk4 h=') >= 2, result.reason  # piloted twice
     assert result.selection.pilot_steps > 0
     assert result.selection.predicted_error <= scene.budget, result.reason
     ref = oracle.reference(scene)
@@ -215,3 +219,31 @@ def test_dop853_is_not_taken_for_a_fixed_run_its_floor_cannot_measure(monkeypatc
     assert 'E=1.5e-08' in note, note
     name, note = _weigh(monkeypatch, 1.0)
     assert name == 'dop853' and 'dop853 errs less' in note, note
+
+
+def _errs(base, vectors):
+    """Attitudes ``base`` ⊗ exp(v), each v a body-frame error rotation vector."""
+    from rigid_body_sim.physics import rotation
+    return [(k, rotation.multiply(base, rotation.exp(v)), 0) for k, v in enumerate(vectors)]
+
+
+def test_the_rounding_reading_cancels_the_truncation_and_keeps_the_rounding():
+    """Runs at h, h/2 and h_r = h(1 − f)^(1/p) err T, T/2^p and (1 − f)·T by truncation
+    (body-frame rotation vectors), each plus its own rounding ρ: the reading is
+    |ρ_a − ρ_r − f·ratio·(ρ_a − ρ_b)| at each mark, whatever T (the step-doubling reading
+    is T's size: 1e-8 rad here against roundings of 1e-12)."""
+    rng = np.random.default_rng(5)
+    base = np.array([0.3, -0.5, 0.1, 0.8]) / np.linalg.norm([0.3, -0.5, 0.1, 0.8])
+    ratio, f = 16.0 / 15.0, 1.0 - (60.0 / 61.0) ** 4
+    trunc = [1e-8 * k * np.array([0.6, -0.8, 0.3]) for k in range(1, 5)]
+    rho = [rng.normal(scale=1e-12, size=(4, 3)) for _ in range(3)]
+    a = _errs(base, [t + p for t, p in zip(trunc, rho[0])])
+    b = _errs(base, [t / 16.0 + p for t, p in zip(trunc, rho[1])])
+    r = _errs(base, [(1.0 - f) * t + p for t, p in zip(trunc, rho[2])])
+    want = [np.linalg.norm(x - z - f * ratio * (x - y)) for x, y, z in zip(*rho)]
+    got = law_pilot._spread(a, b, r, ratio, f)
+    np.testing.assert_allclose(got, want, rtol=1e-3)
+    exact = _errs(base, trunc)
+    halves = _errs(base, [t / 16.0 for t in trunc])
+    nexts = _errs(base, [(1.0 - f) * t for t in trunc])
+    assert max(law_pilot._spread(exact, halves, nexts, ratio, f)) < 1e-14  # no rounding

@@ -17,9 +17,11 @@ exceeds pilot.SUPERLINEAR; then SAFETY and the a-priori round-off. On 15 generat
 detumble scenes (seed 20261125, e(t) at t = T/256 … T) rk4's error grew as t^0.1–t^1.1
 past T/32 on 13 and as t^1.7 at most on two (130, 189): the linear law reads high, the
 quarters' growth law catches the two. From the extrapolation, the step meeting the budget
-follows by h^p, never above the piloted one; where it moved far (VERIFY_SHRINK) it is
-piloted again. Candidates go best first by what they could cost; one is piloted only if
-it could beat the best choice so far.
+follows by h^p; where it moved far (VERIFY_SHRINK) it is piloted again, and a step longer
+than the piloted one only so (seed 20261125 scene 13: piloted at 2.17 ms, E = 4.1e-9 of a
+1e-8 budget, erring 1.1e-10; piloted again at 3.34 ms, E = 7.1e-9, erring 7.3e-10).
+Candidates go best first by what they could cost; one is piloted only if it could beat the
+best choice so far.
 
 dop853 is not piloted for a promise: its error under a law jumps late in a run (the same
 15 scenes, r against r/100: 10–100× within the last half of the run on scenes 4 and 107,
@@ -30,7 +32,10 @@ where nothing promises does a pilot set its rtol (below), as a guess.
 
 Under a law, rk4's rounding is what its pilot reads where that is less than the a-priori
 figure, fitted torque-free (:func:`_rounding`): a law that damps the rate damps its
-rounding too.
+rounding too. A third run, one step more an event spacing, parts it from the truncation
+(:func:`_spread`): on seed 20261125 scene 191 at 0.504 ms it read 6.5e-12 rad of the
+step-doubling's 1.1e-10 over the pilot's 124 s, and E fell from 2.6e-8 to 9.5e-9 (the run
+erred 2.0e-9).
 
 Where nothing promises the budget a priori (the fixed methods' most accurate step
 predicts more than it), :func:`weigh` runs that step and dop853 at its floor rtol and at
@@ -49,6 +54,9 @@ short run: the a-priori choice stands).
 import math
 import time
 
+import numpy as np
+
+from .. import rotation
 from . import pilot
 from .kinds import applicable
 from .model import RTOL_FLOOR, RTOL_RANGE, RUN_COST
@@ -99,24 +107,48 @@ def _extrapolate(errors, horizon, reached):
     return m2 * later
 
 
-def _rounding(s, c, piloted, errors, horizon, reached):
+def _rounding(s, c, piloted, spread, horizon, reached):
     """h ↦ c's rounding error over the run at step h: the a-priori one (``s.roundoff``),
-    or for a random rounding (rk4) where less, SAFETY × the pilot's step-doubling reading
-    at ``piloted`` (``errors``: the rounding of both its runs is in their distance) grown
-    as t^1.5 (a random walk of the rate's rounding errors) and as √N to h's steps. Under
-    a law that damps the rate the a-priori one, fitted torque-free, read 30–75× high
-    (seed 20261125 scene 13: 1.97e-8 rad a priori at h = 1.2 ms, 2.6e-10 in all
+    or for a random rounding (rk4) where less, SAFETY × its pilot's reading at ``piloted``
+    (``spread``: :func:`_spread`, at the pilot's quarters, which reached ``reached`` s)
+    grown as t^1.5 (a random walk of the rate's rounding errors) and as √N to h's steps.
+    Under a law that damps the rate the a-priori one, fitted torque-free, read 30–75×
+    high (seed 20261125 scene 13: 1.97e-8 rad a priori at h = 1.2 ms, 2.6e-10 in all
     measured)."""
-    if c.rounding != 'random' or not all(map(math.isfinite, errors)):
+    if c.rounding != 'random' or not spread or not all(map(math.isfinite, spread)):
         return lambda h: s.roundoff(c, h)
-    at = SAFETY * max(errors) * max(1.0, horizon / reached) ** 1.5
+    at = SAFETY * max(spread) * max(1.0, horizon / reached) ** 1.5
     return lambda h: min(s.roundoff(c, h), at * math.sqrt(piloted / h))
 
 
-def _pilot_cost(s, c, h, share):
-    """Predicted CPU s of a step-doubling pilot of c at h over ``share`` of the run."""
+def _spread(a, b, r, ratio, f):
+    """The rounding of run a, measured (rad, at each mark): runs a at h, b at h/2 and r at
+    the next shorter step h_r (one step more an event spacing) differ in truncation by
+    known shares of a's, T_a (1 − 2^−p and f = 1 − (h_r/h)^p), and in rounding at random.
+    In their rotation vectors ε_a − ε_r − f·ratio·(ε_a − ε_b) the truncation cancels and
+    ρ_a − ρ_r − f·ratio·(ρ_a − ρ_b) is left: about √2 × a's rounding, as a's and r's are
+    independent random walks. (The step-doubling reading, taken all as rounding and grown
+    as t^1.5, read the run's error 3–10× high: seed 20261125 scenes 13, 60, 191.)"""
+    def apart(x, y):  # rotation vector from y to x (small: twice the vector part)
+        d = rotation.multiply(rotation.conjugate(y[1]), x[1])
+        return (2.0 if d[3] >= 0.0 else -2.0) * d[:3]
+    return [float(np.linalg.norm(apart(x, z) - f * ratio * apart(x, y)))
+            for x, y, z in zip(a, b, r)]
+
+
+def _pilot_cost(s, c, h, share, rounding=True):
+    """Predicted CPU s of a step-doubling pilot of c at h over ``share`` of the run (and
+    of its rounding's run, :func:`_spread`, for a random rounding unless ``rounding`` is
+    false: a longer step piloted again, its rounding known from the first)."""
     per = s.run_cost(c, h) + s.run_cost(c, s.snap(0.5 * h)) - 2 * RUN_COST
-    return share * per + 8 * CALL
+    if c.rounding == 'random' and rounding:
+        per += s.run_cost(c, _next_step(s, h)) - RUN_COST
+    return share * per + 12 * CALL
+
+
+def _next_step(s, h):
+    """The next step shorter than h that divides the event spacing."""
+    return s.max_step / (round(s.max_step / h) + 1)
 
 
 def _start(s, c):
@@ -170,9 +202,9 @@ def refine(s, best, usable, make_runner, period):
     if not plans:
         return best, 0.0, 0, ['none (no candidate could beat the a-priori choice)']
     budget = SHARE * best[2]
-    unit = sum(_pilot_cost(s, c, h, 1.0) - 8 * CALL for _, _, c, h in plans)
+    unit = sum(_pilot_cost(s, c, h, 1.0) - 12 * CALL for _, _, c, h in plans)
     least = max(MIN_PERIODS * period, pilot.ROTATIONS * 2 * math.pi / s.omega)
-    room = FIRST_ROUND * budget - SETUP - 8 * CALL * len(plans)
+    room = FIRST_ROUND * budget - SETUP - 12 * CALL * len(plans)
     share = min(1.0, room / unit) if unit > 0 else 1.0
     if share * T < least or least > T:
         return best, 0.0, 0, [f'none (a pilot over {least:.3g} s would cost over '
@@ -180,13 +212,14 @@ def refine(s, best, usable, make_runner, period):
     runner, H = make_runner(), share * T
     ends = [H * (k + 1) / 4 for k in range(4)]
     spent, steps, notes = SETUP, 0, []
-    queue = [(cost, i, c, h, 0) for cost, i, c, h in plans]
+    queue = [(cost, i, c, h, 0, None) for cost, i, c, h in plans]
     while queue:
         queue.sort(key=lambda q: q[:2])
-        estimate, i, c, h, rounds = queue.pop(0)
+        estimate, i, c, h, rounds, known = queue.pop(0)
         if best[3] <= s.accuracy and not _cheaper(c, estimate, best):
             break  # nothing left can beat the best choice
-        cost = _pilot_cost(s, c, h, share)
+        # (piloted again, its rounding is the first pilot's: ``known``)
+        cost = _pilot_cost(s, c, h, share, known is None)
         if spent + cost > budget:
             notes.append(f'{c.name} h={h:.3g}: over the pilot budget ({budget:.2g} s)')
             continue
@@ -194,19 +227,28 @@ def refine(s, best, usable, make_runner, period):
         ratio = 2.0 ** order / (2.0 ** order - 1.0)
         a = yield from runner(c.name, (), h, ends)
         b = yield from runner(c.name, (), s.snap(0.5 * h), ends)
+        r = (yield from runner(c.name, (), _next_step(s, h), ends)) \
+            if c.rounding == 'random' and known is None else []
         spent += cost
-        if a is None or b is None:
+        if a is None or b is None or r is None:
             notes.append(f'{c.name} h={h:.3g}: failed')
             continue
-        steps += a[-1][2] + b[-1][2]
+        steps += a[-1][2] + b[-1][2] + (r[-1][2] if r else 0)
         errors = [pilot.angle(x[1], y[1]) * ratio for x, y in zip(a, b)]
-        rounding = _rounding(s, c, h, errors, T, a[-1][0])
+        f = 1.0 - (_next_step(s, h) / h) ** order
+        rounding = known or _rounding(s, c, h, _spread(a, b, r, ratio, f), T, a[-1][0])
         floor = rounding(h)
         err = SAFETY * _extrapolate(errors, T, a[-1][0]) + floor
-        notes.append(f'{c.name} h={h:.3g}: E={err:.2g}')
+        notes.append(f'{c.name} h={h:.3g}: E={err:.2g} (rounding {floor:.2g})')
         if err <= s.accuracy:
             if best[3] > s.accuracy or _cheaper(c, s.run_cost(c, h), best):
                 best = (c, h, s.run_cost(c, h), err)
+            # far under the budget: a longer step, piloted again (by h^p with the rounding
+            # at h, which shrinks as the step grows; at most the largest plausible step)
+            h_up = min(s.cap(c, True), s.snap(h * 0.9 * (
+                (s.accuracy - floor) / max(err - floor, 1e-300)) ** (1.0 / order)))
+            if rounds < 1 and h_up >= VERIFY_SHRINK * h:
+                queue.append((s.run_cost(c, h_up), i, c, h_up, rounds + 1, rounding))
             continue
         room = s.accuracy - floor
         if room <= 0.0 or not math.isfinite(err) or rounds >= 1:
@@ -214,7 +256,7 @@ def refine(s, best, usable, make_runner, period):
         h_new = s.snap(h * 0.9 * (room / (err - floor)) ** (1.0 / order))
         e_new = (err - floor) * (h_new / h) ** order + rounding(h_new)
         if h_new * VERIFY_SHRINK <= h:  # far from what was measured: pilot it again
-            queue.append((s.run_cost(c, h_new), i, c, h_new, rounds + 1))
+            queue.append((s.run_cost(c, h_new), i, c, h_new, rounds + 1, rounding))
         elif e_new <= s.accuracy and (best[3] > s.accuracy
                                       or _cheaper(c, s.run_cost(c, h_new), best)):
             best = (c, h_new, s.run_cost(c, h_new), e_new)
@@ -275,10 +317,8 @@ def weigh(s, best, adaptive, make_runner, period):
         # scene 158: rk4 at 5.3e-5 s read 1.2e-10 rad by it, 1.1e-9 at the end)
         e_fixed *= math.sqrt(max(1.0, T / a[-1][0]))
     # and at most its a-priori figure: where a errs less than d, their distance is d's
-    # error and says nothing of a's (seed 20261125 scene 191: rk4 at 0.296 ms read 1.2e-6
-    # rad so, 2.8e-8 a priori, and erred 1.9e-9; seed 20261127 scene 18 read 4.4e-6, 1.4e-8
-    # a priori, erred 2e-10, and dop853, taken at its floor as erring less, predicted 8.3e-8
-    # and erred 6.5e-8 of a 1e-8 budget)
+    # error (seed 20261125 scene 191: rk4 read 1.2e-6 rad so, 2.8e-8 a priori, erred 1.9e-9;
+    # seed 20261127 scene 18: dop853 taken so erred 6.5e-8 of a 1e-8 budget)
     e_fixed = min(e_fixed, err0)
     room = (f'{MARGIN:g}× under the budget' if e_dop * MARGIN <= s.accuracy * (1 + 1e-9)
             else 'its floor')
