@@ -247,3 +247,18 @@ def test_the_rounding_reading_cancels_the_truncation_and_keeps_the_rounding():
     halves = _errs(base, [t / 16.0 for t in trunc])
     nexts = _errs(base, [(1.0 - f) * t for t in trunc])
     assert max(law_pilot._spread(exact, halves, nexts, ratio, f)) < 1e-14  # no rounding
+
+
+class _Spacing:
+    max_step = 0.04
+
+
+def test_no_third_run_where_it_would_repeat_the_half_step_run():
+    """At h = the event spacing the next shorter step is h/2, the step-doubling's own run:
+    the rounding's reading would be 0 (seed 20261125 scene 125 at 39 ms read 'rounding 0').
+    There no third run is made and the step-doubling reading bounds the rounding."""
+    rk4 = _Rounds('random')
+    assert not law_pilot._parts(_Spacing, rk4, 0.04)
+    assert law_pilot._parts(_Spacing, rk4, 0.02)
+    assert law_pilot._next_step(_Spacing, 0.02) == pytest.approx(0.04 / 3)
+    assert not law_pilot._parts(_Spacing, _Rounds('systematic'), 0.02)

@@ -17,11 +17,10 @@ exceeds pilot.SUPERLINEAR; then SAFETY and the a-priori round-off. On 15 generat
 detumble scenes (seed 20261125, e(t) at t = T/256 … T) rk4's error grew as t^0.1–t^1.1
 past T/32 on 13 and as t^1.7 at most on two (130, 189): the linear law reads high, the
 quarters' growth law catches the two. From the extrapolation, the step meeting the budget
-follows by h^p; where it moved far (VERIFY_SHRINK) it is piloted again, and a step longer
-than the piloted one only so (seed 20261125 scene 13: piloted at 2.17 ms, E = 4.1e-9 of a
-1e-8 budget, erring 1.1e-10; piloted again at 3.34 ms, E = 7.1e-9, erring 7.3e-10).
-Candidates go best first by what they could cost; one is piloted only if it could beat the
-best choice so far.
+follows by h^p; where it moved far (VERIFY_SHRINK) it is piloted again, and a longer step
+only so (seed 20261125 scene 13: E 4.1e-9 of 1e-8 at 2.17 ms, erred 1.1e-10; at 3.34 ms
+E 7.1e-9, erred 7.3e-10). Candidates go best first by what they could cost; one is
+piloted only if it could beat the best choice so far.
 
 dop853 is not piloted for a promise: its error under a law jumps late in a run (the same
 15 scenes, r against r/100: 10–100× within the last half of the run on scenes 4 and 107,
@@ -32,10 +31,8 @@ where nothing promises does a pilot set its rtol (below), as a guess.
 
 Under a law, rk4's rounding is what its pilot reads where that is less than the a-priori
 figure, fitted torque-free (:func:`_rounding`): a law that damps the rate damps its
-rounding too. A third run, one step more an event spacing, parts it from the truncation
-(:func:`_spread`): on seed 20261125 scene 191 at 0.504 ms it read 6.5e-12 rad of the
-step-doubling's 1.1e-10 over the pilot's 124 s, and E fell from 2.6e-8 to 9.5e-9 (the run
-erred 2.0e-9).
+rounding too. A third run parts it from the truncation (:func:`_spread`; seed 20261125
+scene 191 at 0.504 ms: E 2.6e-8 → 9.5e-9, the run erred 2.0e-9).
 
 Where nothing promises the budget a priori (the fixed methods' most accurate step
 predicts more than it), :func:`weigh` runs that step and dop853 at its floor rtol and at
@@ -109,9 +106,9 @@ def _extrapolate(errors, horizon, reached):
 
 def _rounding(s, c, piloted, spread, horizon, reached):
     """h ↦ c's rounding error over the run at step h: the a-priori one (``s.roundoff``),
-    or for a random rounding (rk4) where less, SAFETY × its pilot's reading at ``piloted``
-    (``spread``: :func:`_spread`, at the pilot's quarters, which reached ``reached`` s)
-    grown as t^1.5 (a random walk of the rate's rounding errors) and as √N to h's steps.
+    or for a random rounding (rk4) where less, SAFETY × ``spread`` (:func:`_spread`, else
+    the step-doubling reading) at ``piloted`` grown as t^1.5 from ``reached`` s (a random
+    walk of the rate's rounding errors) and as √N to h's steps.
     Under a law that damps the rate the a-priori one, fitted torque-free, read 30–75×
     high (seed 20261125 scene 13: 1.97e-8 rad a priori at h = 1.2 ms, 2.6e-10 in all
     measured)."""
@@ -127,8 +124,7 @@ def _spread(a, b, r, ratio, f):
     known shares of a's, T_a (1 − 2^−p and f = 1 − (h_r/h)^p), and in rounding at random.
     In their rotation vectors ε_a − ε_r − f·ratio·(ε_a − ε_b) the truncation cancels and
     ρ_a − ρ_r − f·ratio·(ρ_a − ρ_b) is left: about √2 × a's rounding, as a's and r's are
-    independent random walks. (The step-doubling reading, taken all as rounding and grown
-    as t^1.5, read the run's error 3–10× high: seed 20261125 scenes 13, 60, 191.)"""
+    independent random walks. (The step-doubling reading as rounding read 3–10× high.)"""
     def apart(x, y):  # rotation vector from y to x (small: twice the vector part)
         d = rotation.multiply(rotation.conjugate(y[1]), x[1])
         return (2.0 if d[3] >= 0.0 else -2.0) * d[:3]
@@ -138,10 +134,9 @@ def _spread(a, b, r, ratio, f):
 
 def _pilot_cost(s, c, h, share, rounding=True):
     """Predicted CPU s of a step-doubling pilot of c at h over ``share`` of the run (and
-    of its rounding's run, :func:`_spread`, for a random rounding unless ``rounding`` is
-    false: a longer step piloted again, its rounding known from the first)."""
+    of the run parting its rounding, :func:`_parts`, if ``rounding``)."""
     per = s.run_cost(c, h) + s.run_cost(c, s.snap(0.5 * h)) - 2 * RUN_COST
-    if c.rounding == 'random' and rounding:
+    if rounding and _parts(s, c, h):
         per += s.run_cost(c, _next_step(s, h)) - RUN_COST
     return share * per + 12 * CALL
 
@@ -149,6 +144,11 @@ def _pilot_cost(s, c, h, share, rounding=True):
 def _next_step(s, h):
     """The next step shorter than h that divides the event spacing."""
     return s.max_step / (round(s.max_step / h) + 1)
+
+
+def _parts(s, c, h):
+    """Whether a third run parts c's (random) rounding at h: not where it would be b's."""
+    return c.rounding == 'random' and round(s.max_step / h) >= 2
 
 
 def _start(s, c):
@@ -218,7 +218,6 @@ def refine(s, best, usable, make_runner, period):
         estimate, i, c, h, rounds, known = queue.pop(0)
         if best[3] <= s.accuracy and not _cheaper(c, estimate, best):
             break  # nothing left can beat the best choice
-        # (piloted again, its rounding is the first pilot's: ``known``)
         cost = _pilot_cost(s, c, h, share, known is None)
         if spent + cost > budget:
             notes.append(f'{c.name} h={h:.3g}: over the pilot budget ({budget:.2g} s)')
@@ -228,7 +227,7 @@ def refine(s, best, usable, make_runner, period):
         a = yield from runner(c.name, (), h, ends)
         b = yield from runner(c.name, (), s.snap(0.5 * h), ends)
         r = (yield from runner(c.name, (), _next_step(s, h), ends)) \
-            if c.rounding == 'random' and known is None else []
+            if known is None and _parts(s, c, h) else []
         spent += cost
         if a is None or b is None or r is None:
             notes.append(f'{c.name} h={h:.3g}: failed')
@@ -236,7 +235,8 @@ def refine(s, best, usable, make_runner, period):
         steps += a[-1][2] + b[-1][2] + (r[-1][2] if r else 0)
         errors = [pilot.angle(x[1], y[1]) * ratio for x, y in zip(a, b)]
         f = 1.0 - (_next_step(s, h) / h) ** order
-        rounding = known or _rounding(s, c, h, _spread(a, b, r, ratio, f), T, a[-1][0])
+        rounding = known or _rounding(s, c, h, _spread(a, b, r, ratio, f) if r else errors,
+                                      T, a[-1][0])
         floor = rounding(h)
         err = SAFETY * _extrapolate(errors, T, a[-1][0]) + floor
         notes.append(f'{c.name} h={h:.3g}: E={err:.2g} (rounding {floor:.2g})')
