@@ -262,3 +262,55 @@ def test_no_third_run_where_it_would_repeat_the_half_step_run():
     assert law_pilot._parts(_Spacing, rk4, 0.02)
     assert law_pilot._next_step(_Spacing, 0.02) == pytest.approx(0.04 / 3)
     assert not law_pilot._parts(_Spacing, _Rounds('systematic'), 0.02)
+
+
+class _Tight:
+    """A run whose pilot fits its budget with two runs a step, not with three."""
+    horizon, accuracy, omega, max_step = 100.0, 1e-6, 10.0, 0.02
+
+    @staticmethod
+    def run_cost(c, h):
+        return model.RUN_COST + 0.0065 / h
+
+    @staticmethod
+    def order(c, h):
+        return 4
+
+    @staticmethod
+    def roundoff(c, h):
+        return 1e-12
+
+    @staticmethod
+    def cap(c, plausible=False):
+        return 0.02
+
+    @staticmethod
+    def snap(h):
+        return 0.02 / max(1.0, np.ceil(0.02 / h - 1e-9))  # as RunModel.snap
+
+
+def test_where_the_rounding_run_leaves_no_pilot_the_step_doubling_one_runs(monkeypatch):
+    """The third run (the rounding's) costs a share of the pilot: where with it no pilot
+    over the least horizon fits the budget, the pilot runs without it (held-out seed
+    20261127 scenes 45 and 94 lost their pilot to it) and its rounding is bounded by the
+    step-doubling reading, as before."""
+    rk4 = _Method('rk4', 'random')
+    rk4.geometric, rk4.adaptive = False, False
+    monkeypatch.setattr(law_pilot, '_plans', lambda s, best, usable: [(1.0, 0, rk4, 0.01)])
+    steps = []
+
+    def runner(name, options, h_max, ends):
+        steps.append(h_max)
+        marks = []
+        for end in ends:
+            marks.append((end, _about_z(0.0), 10))
+            yield
+        return marks
+    work = law_pilot.refine(_Tight, (rk4, 0.005, 1.0, 2e-6), [rk4], lambda: runner, 0.1)
+    try:
+        while True:
+            next(work)
+    except StopIteration as done:
+        best, spent, count, notes = done.value
+    assert steps[:2] == [0.01, 0.005] and 0.02 / 3 not in steps, (steps, notes)
+    assert 'rk4 h=0.01: E=' in notes[0], notes

@@ -133,8 +133,7 @@ def _spread(a, b, r, ratio, f):
 
 
 def _pilot_cost(s, c, h, share, rounding=True):
-    """Predicted CPU s of a step-doubling pilot of c at h over ``share`` of the run (and
-    of the run parting its rounding, :func:`_parts`, if ``rounding``)."""
+    """CPU s of c's pilot at h over ``share`` of the run (``rounding``: :func:`_parts`')."""
     per = s.run_cost(c, h) + s.run_cost(c, s.snap(0.5 * h)) - 2 * RUN_COST
     if rounding and _parts(s, c, h):
         per += s.run_cost(c, _next_step(s, h)) - RUN_COST
@@ -202,10 +201,13 @@ def refine(s, best, usable, make_runner, period):
     if not plans:
         return best, 0.0, 0, ['none (no candidate could beat the a-priori choice)']
     budget = SHARE * best[2]
-    unit = sum(_pilot_cost(s, c, h, 1.0) - 12 * CALL for _, _, c, h in plans)
     least = max(MIN_PERIODS * period, pilot.ROTATIONS * 2 * math.pi / s.omega)
     room = FIRST_ROUND * budget - SETUP - 12 * CALL * len(plans)
-    share = min(1.0, room / unit) if unit > 0 else 1.0
+    for third in (True, False):  # where the rounding's runs leave no pilot, none of them
+        unit = sum(_pilot_cost(s, c, h, 1.0, third) - 12 * CALL for _, _, c, h in plans)
+        share = min(1.0, room / unit) if unit > 0 else 1.0
+        if share * T >= least:
+            break
     if share * T < least or least > T:
         return best, 0.0, 0, [f'none (a pilot over {least:.3g} s would cost over '
                               f'{SHARE:.0%} of the run)']
@@ -218,7 +220,7 @@ def refine(s, best, usable, make_runner, period):
         estimate, i, c, h, rounds, known = queue.pop(0)
         if best[3] <= s.accuracy and not _cheaper(c, estimate, best):
             break  # nothing left can beat the best choice
-        cost = _pilot_cost(s, c, h, share, known is None)
+        cost = _pilot_cost(s, c, h, share, third and known is None)
         if spent + cost > budget:
             notes.append(f'{c.name} h={h:.3g}: over the pilot budget ({budget:.2g} s)')
             continue
@@ -227,7 +229,7 @@ def refine(s, best, usable, make_runner, period):
         a = yield from runner(c.name, (), h, ends)
         b = yield from runner(c.name, (), s.snap(0.5 * h), ends)
         r = (yield from runner(c.name, (), _next_step(s, h), ends)) \
-            if known is None and _parts(s, c, h) else []
+            if third and known is None and _parts(s, c, h) else []
         spent += cost
         if a is None or b is None or r is None:
             notes.append(f'{c.name} h={h:.3g}: failed')
@@ -243,8 +245,7 @@ def refine(s, best, usable, make_runner, period):
         if err <= s.accuracy:
             if best[3] > s.accuracy or _cheaper(c, s.run_cost(c, h), best):
                 best = (c, h, s.run_cost(c, h), err)
-            # far under the budget: a longer step, piloted again (by h^p with the rounding
-            # at h, which shrinks as the step grows; at most the largest plausible step)
+            # far under: a longer step (by h^p, the rounding as at h), piloted again
             h_up = min(s.cap(c, True), s.snap(h * 0.9 * (
                 (s.accuracy - floor) / max(err - floor, 1e-300)) ** (1.0 / order)))
             if rounds < 1 and h_up >= VERIFY_SHRINK * h:
@@ -316,9 +317,8 @@ def weigh(s, best, adaptive, make_runner, period):
         # errors in the rate turns the attitude as t^1.5, beyond the linear law (seed 7
         # scene 158: rk4 at 5.3e-5 s read 1.2e-10 rad by it, 1.1e-9 at the end)
         e_fixed *= math.sqrt(max(1.0, T / a[-1][0]))
-    # and at most its a-priori figure: where a errs less than d, their distance is d's
-    # error (seed 20261125 scene 191: rk4 read 1.2e-6 rad so, 2.8e-8 a priori, erred 1.9e-9;
-    # seed 20261127 scene 18: dop853 taken so erred 6.5e-8 of a 1e-8 budget)
+    # and at most its a-priori figure: where a errs less than d, their distance is d's error
+    # (seed 20261125 scene 191: rk4 read 1.2e-6 rad so, 2.8e-8 a priori, erred 1.9e-9)
     e_fixed = min(e_fixed, err0)
     room = (f'{MARGIN:g}× under the budget' if e_dop * MARGIN <= s.accuracy * (1 + 1e-9)
             else 'its floor')
