@@ -156,6 +156,27 @@ def test_all_of_auto_s_choosing_counts_as_selection_cpu(monkeypatch, name, brack
     assert engine_for(scene, duration=1.0, integrator='rk4', step=0.01).selection_cpu == 0
 
 
+@pytest.mark.parametrize('name, duration', [('explorer1', 690.0), ('slew', 15.0)])
+def test_a_choice_made_at_once_reads_the_engine_s_state_and_leaves_it(name, duration):
+    """A blocking selection (and one under torque) is handed the engine's own momentum and
+    attitude, not copies (a numpy call each, cold, on a short run's choosing): its pilots
+    run on copies (``Integrator.run``: new arrays), so the state is the configured one,
+    to the bit, after Explorer 1's pilot (192 steps) and slew's choice at a command."""
+    scene = load(name)
+    engine = engine_for(scene, duration=duration)
+    if name == 'slew':  # a first command: the choice under torque
+        m0, q0 = engine._m.copy(), engine._q.copy()
+        engine.apply_command(np.array([0.01, -0.02, 0.005]))
+        assert engine.selected is not None
+    else:
+        assert engine.selected.pilot_steps > 0
+        body, c = engine.body, engine.config
+        m0 = body.principal_moments * body.to_principal(c.angular_velocity)
+        q0 = body.attitude_to_principal(c.attitude)
+    assert engine._aligned and engine._m.tolist() == m0.tolist()
+    assert engine._q.tolist() == q0.tolist()
+
+
 def test_live_engine_runs_the_a_priori_choice_while_the_pilot_is_pending():
     """The node's engine (non-blocking) steps with the a-priori choice meanwhile (a bound, so
     it meets the budget), then switches when ``work`` has fed the pilot to its end."""

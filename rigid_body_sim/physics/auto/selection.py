@@ -158,7 +158,8 @@ def selecting(body: RigidBody, dissipation: Dissipation, attitude, angular_veloc
 
     Args:
         body, dissipation: the model.
-        attitude, angular_velocity: initial state (body→inertial quaternion; ω body frame).
+        attitude, angular_velocity: initial state (body→inertial quaternion; ω body frame;
+            ω may be None where ``momentum`` is given and ``orbit_state`` is not).
         torque: whether commanded torques will act.
         accuracy: attitude-error budget in rad over ``duration``.
         duration: horizon in s (0 = open-ended: budget per DEFAULT_HORIZON s).
