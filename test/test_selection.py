@@ -213,13 +213,13 @@ def test_the_whole_selection_is_planned_within_a_tenth_of_the_run(duration):
     and up to 100 s exact's bound on a symmetric body meets the budget a priori at the
     sample period, which nothing can beat; at 690 s pilots run; over 1 s even asking a
     second candidate a priori would pass 10 %). The CPU measured is the bench's to report."""
-    from rigid_body_sim.physics.auto import selection
+    from rigid_body_sim.physics.auto import answers
     sel = simulate(load('explorer1'), duration=duration).selection
     assert sel.planned_cost <= 0.1 * sel.predicted_cost, sel.reason
     assert (sel.pilot_steps > 0) == (duration > 100.0), sel.reason
     if duration == 1.0:  # 0.32 ms, all but 6 µs of it fixed: one question, no preference
-        assert 'not asked' in sel.reason and sel.prior_cost == selection.PRIOR_BASE + \
-            selection.PRIOR_EACH, sel.reason
+        assert 'not asked' in sel.reason and sel.prior_cost == answers.PRIOR_BASE + \
+            answers.PRIOR_EACH, sel.reason
 
 
 def test_candidate_cost_bench_measures_every_compiled_candidate():
@@ -318,3 +318,47 @@ def test_the_law_s_rate_scale_in_floats_is_numpy_s_to_the_bit():
         numpy_s = float(max(np.max(np.sqrt(cfg.kp_principal / i)), np.max(cfg.kd_principal / i),
                             np.max(cfg.rate_gain_principal / i)))
         assert cs.bandwidth() == numpy_s
+
+
+def test_a_choice_without_a_pilot_is_made_without_a_generator_and_equals_its_form():
+    """``choosing`` returns the Selection itself where no pilot runs (Explorer 1 over 1 s:
+    exact's split bound a priori), so the engine makes no generator for it; where pilots
+    run (690 s) the generator, which ``selecting`` feeds to the same Selection."""
+    from rigid_body_sim.physics.auto.selection import Selection, choosing, selecting
+    engine = engine_for(load('explorer1'), duration=1.0)
+    c = engine.config
+    args = (c.body, c.dissipation, c.attitude, c.angular_velocity)
+    for duration, piloted in ((1.0, False), (690.0, True)):
+        kw = dict(torque=False, accuracy=c.accuracy, duration=duration, max_step=1.0)
+        work = choosing(*args, **kw)
+        assert isinstance(work, Selection) != piloted
+        if piloted:
+            assert select(*args, **kw).pilot_steps > 0
+        else:
+            gen = selecting(*args, **kw)
+            with pytest.raises(StopIteration) as done:
+                next(gen)
+            assert done.value.value == work and work.name == 'exact'
+
+
+@pytest.mark.parametrize('blocking', [True, False])
+def test_a_failed_selection_runs_splitting2_and_says_why(monkeypatch, blocking):
+    """A selection that raises (here made to) leaves the engine on splitting2 at the scene's
+    step, its reason naming the failure: made at once (``choosing``) as fed (``selecting``)."""
+    from rigid_body_sim.engine import method_choice
+
+    def raising(*args, **kw):
+        raise ValueError('no budget here')
+
+    def failing(*args, **kw):  # a generator, as selecting is: raises when fed
+        raise ValueError('no budget here')
+        yield
+
+    monkeypatch.setattr(method_choice, 'choosing', raising)
+    monkeypatch.setattr(method_choice, 'selecting', failing)
+    config = engine_for(load('explorer1'), duration=690.0).config
+    engine = Engine(config, blocking_selection=blocking)
+    while engine.work():
+        pass
+    assert engine.method == 'splitting2' and not engine.selection_pending
+    assert 'selection failed (no budget here)' in engine.reason

@@ -9,8 +9,8 @@ import time
 from typing import Optional
 
 from ..physics import INTEGRATORS, IntegrationError, create
-from ..physics.auto import select, selecting
-from ..physics.auto.selection import free_choice
+from ..physics.auto import Selection, select, selecting
+from ..physics.auto.selection import choosing, free_choice
 from . import law_pilot
 from .config import NS
 from .specs import AUTO
@@ -117,11 +117,21 @@ class MethodChoice:
         runner = self._law_runner() if torque else None
         if runner is not None:  # the law runs here: a pilot can measure it
             kw.update(law_runner=runner, control_period=c.control.period_ns / NS)
-        work = selecting(*state, **kw)
         if at_once:  # with torque the choice is a priori: at once
+            try:
+                work = choosing(*state, **kw)
+            except (ValueError, IntegrationError) as exc:
+                self.selection_cpu += time.process_time() - cpu0
+                self._failed(exc)
+                return
+            if isinstance(work, Selection):  # no pilot: no generator to feed
+                self.selection_cpu += time.process_time() - cpu0
+                self._take(work)
+                return
             self._selection = work
             self.work(cpu0=cpu0)  # one bracket: each clock reading is a ~0.7 µs system call
         else:
+            work = selecting(*state, **kw)
             sel = select(*state, prior_only=True, **kw)
             self.selection_cpu += time.process_time() - cpu0
             self._use(sel.name, sel.step, f'auto: provisional a-priori choice while the '
@@ -182,17 +192,23 @@ class MethodChoice:
                 next(work)
         except StopIteration as done:
             self.selection_cpu += time.process_time() - cpu0  # setting up the run is the run's
-            sel = done.value
-            self._selection = None
-            self.selected = sel
-            self._use(sel.name, min(sel.step, self._spacing()) if sel.step > 0
-                      else self._spacing(), f'auto: {sel.reason}',
-                      **dict(sel.options))
+            self._take(done.value)
         except (ValueError, IntegrationError) as exc:
             self.selection_cpu += time.process_time() - cpu0
-            self._selection = None
-            self._use('splitting2', min(self.config.step, self._spacing()),
-                      f'auto: selection failed ({exc}); splitting2 at the scene\'s step')
+            self._failed(exc)
         else:
             self.selection_cpu += time.process_time() - cpu0
         return self._selection is not None
+
+    def _take(self, sel):
+        """Run with auto's Selection ``sel`` from now."""
+        self._selection = None
+        self.selected = sel
+        self._use(sel.name, min(sel.step, self._spacing()) if sel.step > 0
+                  else self._spacing(), f'auto: {sel.reason}', **dict(sel.options))
+
+    def _failed(self, exc):
+        """Run with splitting2 at the scene's step where auto's selection failed (``exc``)."""
+        self._selection = None
+        self._use('splitting2', min(self.config.step, self._spacing()),
+                  f'auto: selection failed ({exc}); splitting2 at the scene\'s step')

@@ -60,6 +60,14 @@ def usable(torque: bool, damping, environment: bool, stiff: tuple) -> tuple:
     return tuple(usable)
 
 
+@functools.lru_cache(maxsize=None)
+def finite_names(torque: bool, damping, environment: bool, stiff: tuple) -> tuple:
+    """The names of the :func:`usable` candidates with an a-priori bound (a finite k): the
+    ones a run of this kind could ask a priori (named where none is asked)."""
+    return tuple(c.name for c in usable(torque, damping, environment, stiff)
+                 if math.isfinite(c.k))
+
+
 # (kind, the costs' id, the event's cost) → (the costs, kept so that their id stays theirs;
 # the least µs per step and s per event of the kind's usable candidates)
 _LEAST = {}

@@ -350,7 +350,7 @@ def _timed(work, cpu):
 
 
 def _rtol_options(s, rtol):
-    """dop853's options at ``rtol``, as :func:`.selection._options` gives them."""
+    """dop853's options at ``rtol``, as :func:`.answers.options` gives them."""
     return (('rtol', rtol), ('atol', rtol * 1e-3 * min(1.0, s.G)))
 
 
