@@ -14,7 +14,6 @@ from typing import NamedTuple
 import numpy as np
 
 from . import pilot
-from .kinds import free_flow_exact
 from .model import is_symmetric
 
 # what choosing costs, in the units of the run's cost model (RUN_COST, CANDIDATES), set
@@ -72,9 +71,10 @@ def free_choice(moments, m, accuracy: float, max_step: float) -> Selection:
                      f'({shape}); no stepping error at any horizon', 0.0)
 
 
-def symmetric_split(s, usable, why):
-    """(best, asked): a method whose free flow is exact, at the event spacing, on a
-    symmetric body under dissipation alone, if SPLIT_K·Δβ meets the budget (else None).
+def symmetric_split(s, exact, why):
+    """(best, asked): a method whose free flow is exact (``exact``: the usable ones,
+    :func:`.kinds.split_exact`), at the event spacing, on a symmetric body under
+    dissipation alone, if SPLIT_K·Δβ meets the budget (else None).
 
     There the damping commutes with the free flow in the body (both keep the symmetry
     axis), and the spin rate it sets evolves exactly across the split steps: what errs is
@@ -85,10 +85,8 @@ def symmetric_split(s, usable, why):
     multiples of its 0.5 s period) erred 0.93–1.0·Δβ over 30–690 s, at h = 0.37 s 2000×
     less. The earlier facts (no a-priori bound, 18 µs a step, hΩ ≤ 2) made it 30× dearer
     than it is and kept auto on dop853 at 2.8× its CPU there."""
-    best, asked, err, exact = None, 0, None, free_flow_exact()
-    for c in usable:
-        if c.name not in exact:
-            continue
+    best, asked, err = None, 0, None
+    for c in exact:
         asked += 1
         err = SPLIT_K * pilot.turning(s.dyn, s.m_floats, s.horizon, s.G,
                                       s.moment_floats) if err is None else err
@@ -97,15 +95,6 @@ def symmetric_split(s, usable, why):
         if err <= s.accuracy:
             best = (c, s.max_step, s.run_cost(c, s.max_step), err)
     return best, asked
-
-
-def effects(commanded, dissipation, environment) -> str:
-    """What the model holds besides the free body, for the reason."""
-    parts = ['commanded torque'] if commanded else []
-    if dissipation.active:
-        parts.append(dissipation.model + ' dissipation')
-    parts.extend(environment)
-    return ' + '.join(parts)
 
 
 def unknowable(s, c, accuracy, horizon, why):

@@ -52,12 +52,13 @@ from .. import rotation
 from ..body import RigidBody
 from ..dynamics import Dissipation, Dynamics
 from . import law_pilot, libration
-from .answers import (PRIOR_EACH, Selection, checked, effects, free_choice, options,
+from .answers import (PRIOR_EACH, Selection, checked, free_choice, options,
                       prior_cost as _prior_cost, symmetric_split, unknowable)
 from .pilot_search import (NO_ROUND, PAYBACK, PREFER, SELECTION_SHARE, better as _better,
                            no_round_fits, piloted)
 from ..integrators import Candidate
-from .kinds import applicable, finite_names, least as least_costs, usable as usable_of_kind
+from .kinds import (applicable, deciding, effects, finite_names, least as least_costs,
+                    split_exact, usable as usable_of_kind)
 from .model import (CANDIDATES, H_OMEGA_PRIOR, MEASURED_K, RTOL_RANGE, RUN_COST, RunModel,
                     is_symmetric)
 
@@ -175,11 +176,11 @@ def choosing(body: RigidBody, dissipation: Dissipation, attitude, angular_veloci
     if s.omega == 0.0:
         return Selection('splitting2', max_step, 'body at rest, no torque: any step is exact',
                          0.0, s.run_cost(CANDIDATES[0], max_step))
-    fixed, adaptive = applicable(torque, s.damping, bool(environment))
+    adaptive = applicable(torque, s.damping, bool(environment))[1]
     kind = torque, s.damping, bool(environment), \
-        tuple([s.stiff_enough(c) for c, decides in fixed if decides])
+        tuple(map(s.stiff_enough, deciding(torque, s.damping, bool(environment))))
     usable = usable_of_kind(*kind)
-    what = effects(commanded, dissipation, environment)
+    what = effects(commanded, s.damping, environment)
     if forced and not commanded and adaptive and s.torque_rate >= s.spin:
         return unknowable(s, adaptive[0], accuracy, horizon, (
             f'{what} on a non-circular orbit → libration under a periodic forcing (torque '
@@ -193,7 +194,7 @@ def choosing(body: RigidBody, dissipation: Dissipation, attitude, angular_veloci
                 f'{what}: the body starts {near.describe()} → it leaves it exponentially'))
     best, why, unasked, asked = None, [], [], 0
     if not torque and is_symmetric(s.moment_floats):  # exact's split error is known a priori
-        best, asked = symmetric_split(s, usable, why)
+        best, asked = symmetric_split(s, split_exact(*kind), why)
     # cheapest first by the least each could cost (at its largest step); one that could not
     # save more than asking it costs is not asked: on a short run the fixed part of the run
     # dominates every candidate's cost, and the a-priori pass would be its largest share
