@@ -114,6 +114,17 @@ def _recorded(path=DATA):
         return json.load(f)
 
 
+def _assert_unchanged(recorded, cases, chosen):
+    """Each case's choice now (``chosen(scene, duration)``) is the one recorded."""
+    differ = []
+    for key, make, duration in cases:
+        now = chosen(make(), duration)
+        if now != recorded[key]:
+            differ.append(f'{key}: now {now}\n  was {recorded[key]}')
+    assert not differ, f'{len(differ)} of {len(cases)} choices changed:\n' + \
+        '\n'.join(differ[:5])
+
+
 @pytest.mark.slow
 def test_choices_and_reasons_are_those_recorded_before_the_cut():
     recorded = _recorded()
@@ -123,13 +134,7 @@ def test_choices_and_reasons_are_those_recorded_before_the_cut():
     methods = {v['method'] for v in recorded.values() if 'method' in v}
     assert {'exact', 'dop853', 'rk4', 'splitting4', 'splitting6'} <= methods
     assert sum(1 for v in recorded.values() if (v.get('selection') or [0] * 6)[5] > 0) > 100
-    differ = []
-    for key, make, duration in cases:
-        now = choices(make(), duration)
-        if now != recorded[key]:
-            differ.append(f'{key}: now {now}\n  was {recorded[key]}')
-    assert not differ, f'{len(differ)} of {len(cases)} choices changed:\n' + \
-        '\n'.join(differ[:5])
+    _assert_unchanged(recorded, cases, choices)
 
 
 @pytest.mark.slow
@@ -142,13 +147,7 @@ def test_choices_under_the_law_are_those_recorded_before_the_cut():
     assert sum('pilot under the law: none' not in r for r in reasons) > 10
     assert sum('dop853 errs less: taken' in r for r in reasons) > 3
     assert all('pilot under the law' in recorded[f'{n}@None']['reason'] for n in CONTROLLED)
-    differ = []
-    for key, make, duration in cases:
-        now = law_choices(make(), duration)
-        if now != recorded[key]:
-            differ.append(f'{key}: now {now}\n  was {recorded[key]}')
-    assert not differ, f'{len(differ)} of {len(cases)} choices changed:\n' + \
-        '\n'.join(differ[:5])
+    _assert_unchanged(recorded, cases, law_choices)
 
 
 if __name__ == '__main__' and sys.argv[1:] == ['--write-law']:
