@@ -95,8 +95,9 @@ class MethodChoice:
                   # operations of the selection's time
                   momentum=self._m)
         # ω only where the selection reads it, the gravity gradient's equilibrium test (the
-        # momentum stands for it elsewhere); the rest left at selecting's defaults where no
-        # torque acts: each a share of a short dissipative run's choosing (Explorer 1, 1 s)
+        # momentum stands for it elsewhere); the torque's rate and the environment's terms
+        # left at selecting's defaults where there are none: each a share of a short
+        # dissipative run's choosing (Explorer 1, 1 s)
         omega = None
         if torque:
             kw.update(torque_rate=c.torque_rate(self._torque_seen))
