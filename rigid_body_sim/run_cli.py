@@ -36,7 +36,7 @@ OUTPUTS = ('omega.png', 'invariants.png', 'poinsot.png', 'flips.png', 'precessio
            'nutation.png', 'control.png', 'actuators.png', 'pointing.png')
 
 
-REHEARSALS = 3  # rehearse: why more than one
+REHEARSALS = 10  # rehearse: why more than one
 
 
 def rehearse(scene, engine, keep) -> None:
@@ -48,10 +48,14 @@ def rehearse(scene, engine, keep) -> None:
     the same run in-process; the kernels alone (``warm_for``) left 1.1-1.2x.
 
     REHEARSALS times: the per-run Python (building the blocks, the end rows, the run's
-    set-up) runs once a run, and CPython 3.11 specialises its bytecode only after a few
-    executions. Explorer 1, 50 s, the run's CPU after 1, 2, 3 and 4 rehearsals (fresh
-    processes, 4 each, quiet): 347-421, 265-275, 256-320, 247-318 µs; in a warm process
-    230-250."""
+    set-up) runs once a run, and CPython 3.11 quickens a function's bytecode only at its
+    8th call (then specialises it). Explorer 1, 50 s, the run's CPU after 1, 2, 3 and 4
+    rehearsals (fresh processes, 4 each, quiet): 347-421, 265-275, 256-320, 247-318 µs;
+    in a warm process 230-250. Generated scenes 18 and 11 (5 fresh processes each,
+    load 2.5): after 3, 6, 8 and 10 rehearsals 214-325 / 230-244, 188-296 / 207-702,
+    180-326 / 200-309, 176-280 / 197-201 µs; the same run in a warm process 165-190 /
+    ~215. Ten cost nothing that shows in kernel_load_cpu_seconds (~0.1 s, the kernels'
+    loading)."""
     from . import offline
     from .engine import Engine
     from .engine.warm import warm_span
