@@ -13,8 +13,6 @@ import time
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Optional
 
-import numpy as np
-
 # the engine core and the integrators are imported where a run is built (engine_for), not
 # here, where a refused argument or scene file does not need them (the scene's checks still
 # import numba through the parameter specs: 0.61 → 0.55 CPU-s for a bad file)

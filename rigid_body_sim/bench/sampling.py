@@ -110,12 +110,13 @@ def _cli_cpu(name, duration, repeats):
 
 def _cli_and_inprocess(scene, target, duration, rate, repeats, cli_repeats):
     """(least in-process CPU, the CLI's least (cpu_seconds, output_cpu_seconds, kernels
-    loaded and page faults in the clock)) of ``scene`` (a name or a SceneFile; ``target``: what the CLI
-    runs) at ``rate``: the two alternated, two in-process runs (the second warm, as the
-    CLI's run is after its rehearsals) before each CLI run, so that both minima come from
-    the same stretch of the machine's load. Measured one after the other (the in-process
-    runs within ~20 ms, then the CLI's over ~3 s), a change of load between them read as
-    CLI overhead: generated scene 6 read 1.43 in one full run, 0.97-1.07 alone (load 8)."""
+    loaded and page faults in the clock)) of ``scene`` (a name or a SceneFile;
+    ``target``: what the CLI runs) at ``rate``: the two alternated, two in-process runs
+    (the second warm, as the CLI's run is after its rehearsals) before each CLI run, so
+    that both minima come from the same stretch of the machine's load. Measured one
+    after the other (the in-process runs within ~20 ms, then the CLI's over ~3 s), a
+    change of load between them read as CLI overhead: generated scene 6 read 1.43 in one
+    full run, 0.97-1.07 alone (load 8)."""
     inproc, cli = float('inf'), []
     for i in range(max(repeats, cli_repeats)):
         inproc = min(inproc, _simulate_cpu(scene, duration, rate, {}, 2))
