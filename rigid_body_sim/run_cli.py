@@ -92,7 +92,9 @@ def warm_heap(engine) -> int:
         return 0
     # the rows the run holds at once: its sinks take them SINK_BATCH at a time
     rows = min(block_size(engine.config, None), SINK_BATCH)
-    size = min(rows * ROW_BYTES, MMAP_THRESHOLD_MAX)
+    # below the threshold (a block of it or more is still mapped apart, and unmapped when
+    # freed), and above what SINK_BATCH rows take (~12 MB)
+    size = min(rows * ROW_BYTES, MMAP_THRESHOLD_MAX // 2)
     if not (mallopt(M_MMAP_THRESHOLD, MMAP_THRESHOLD_MAX) and
             mallopt(M_TRIM_THRESHOLD, 2 * MMAP_THRESHOLD_MAX)):
         return 0  # pragma: no cover - refused
