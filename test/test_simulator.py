@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from ros_helpers import NodeProcess, spin_until, unique_namespace, venv_exe
+from ros_helpers import NodeProcess, pace, spin_until, unique_namespace, venv_exe
 
 from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
@@ -208,15 +208,25 @@ def test_topics_types_frames_rates(ros_process, namespace, rclpy_node):
         assert types[f'{namespace}/{topic}'] == [f'{module}/msg/{msg_type.__name__}']
     assert types[f'{namespace}/torque_command'] == ['geometry_msgs/msg/Vector3Stamped']
     assert types[f'{namespace}/wrench_command'] == ['geometry_msgs/msg/WrenchStamped']
-    # rate over a 2 s window
+    # 50 Hz over 2 s of samples: each sample published (stamps 20 ms apart, none missing),
+    # at the wall clock's pace, read from the least delayed arrivals (ros_helpers.pace): a
+    # count of arrivals in a 2 s window of this probe's read stalls of either process that
+    # the simulator catches up on (at load 10+ on 2 cores they reach a few 100 ms)
     for msgs in probe.msgs.values():
         msgs.clear()
-    t0 = time.monotonic()
-    probe.spin(2.0)
-    elapsed = time.monotonic() - t0
-    for topic in STATE_TOPICS:
-        rate = len(probe.msgs[topic]) / elapsed
+    stamped = [t for t in STATE_TOPICS if t != 'kinetic_energy']  # Float64: no header
+    probe.wait_for(lambda: all(len(probe.msgs[t]) > 100 for t in STATE_TOPICS), 60.0,
+                   '2 s of samples')
+    for topic in stamped:
+        arrivals = [(w, stamp_s(m)) for w, m in probe.msgs[topic]]
+        steps = np.diff([s for _, s in arrivals])
+        assert np.allclose(steps, 0.02, rtol=0, atol=1e-6), (topic, steps[steps != 0.02])
+        rate = pace(arrivals) / 0.02
         assert 40.0 < rate < 60.0, f'{topic}: {rate:.1f} Hz, expected 50'
+    # the same samples on the unstamped topic (a sample's messages go out back to back)
+    n_attitude = len(probe.msgs['attitude'])
+    assert abs(len(probe.msgs['kinetic_energy']) - n_attitude) <= 0.05 * n_attitude, \
+        (len(probe.msgs['kinetic_energy']), n_attitude)
     # frames (REP-103/105) and unit quaternions
     for topic in ('attitude', 'pose', 'transform', 'odometry', 'angular_momentum'):
         assert all(m.header.frame_id == 'map' for _, m in probe.msgs[topic]), topic
@@ -298,13 +308,18 @@ def test_constant_torque_changes_inertial_momentum(ros_process, namespace, rclpy
     probe.wait_subscribed()
     probe.wait_for(lambda: len(probe.msgs['angular_momentum']) >= 5, 10.0, 'momentum samples')
     probe.send_torque(tau)
-    probe.spin(1.5)
-    samples = [(stamp_s(m), vec(m.vector)) for _, m in probe.msgs['angular_momentum']]
     L0 = expected_momentum(inertia, q0, w0)
-    changed = [i for i, (_, L) in enumerate(samples) if np.linalg.norm(L - L0) > 1e-12]
-    assert changed, 'torque never applied'
-    on = samples[changed[0]:]  # every interval between these samples had the torque on throughout
-    assert on[-1][0] - on[0][0] > 1.0
+
+    def torque_on():
+        """The samples from the first one the torque changed (each interval between them had
+        it on throughout)."""
+        samples = [(stamp_s(m), vec(m.vector)) for _, m in probe.msgs['angular_momentum']]
+        changed = [i for i, (_, L) in enumerate(samples) if np.linalg.norm(L - L0) > 1e-12]
+        return samples[changed[0]:] if changed else []
+    # over 1 s of sim time with the torque on (0.5 s of wall time quiet), waited for
+    probe.wait_for(lambda: len(torque_on()) > 1 and torque_on()[-1][0] - torque_on()[0][0] > 1.0,
+                   30.0, 'the torque applied over 1 s of sim time')
+    on = torque_on()
     tau_inertial = Rotation.from_quat(q0).apply(tau)
     for (t1, L1), (t2, L2) in zip(on, on[1:]):
         expected = tau_inertial * (t2 - t1)
@@ -341,10 +356,14 @@ def test_stale_and_rejected_commands(ros_process, namespace, rclpy_node):
     # a valid command, saturated to max_torque per axis, is held for command_timeout then dropped
     probe.send_torque([2.0, 0.0, 0.0])
     probe.wait_diag(lambda d, s: d['commands_timed_out'] == '1', 5.0, 'command timeout')
-    probe.spin(0.3)
+
+    def last_five_alike():
+        last = [vec(m.vector) for _, m in probe.msgs['angular_momentum'][-5:]]
+        return all(np.array_equal(v, last[-1]) for v in last)
+    # five samples alike (0.1 s): waited for, as samples from before the timeout may still
+    # arrive after its count on a loaded machine; how long the torque was held is below
+    probe.wait_for(last_five_alike, 10.0, 'torque no longer applied after the timeout')
     final = [vec(m.vector) for _, m in probe.msgs['angular_momentum'][-5:]]
-    assert all(np.array_equal(f, final[-1]) for f in final), \
-        'torque still applied after the timeout'
     # |ΔL| = 0.5 N·m (saturated) × 0.2 s, to one step
     assert abs(np.linalg.norm(final[-1]) - 0.1) <= 0.5 * 0.001 + 1e-12
     d = probe.diag()
@@ -494,11 +513,7 @@ def test_clock_follows_real_time_factor(ros_process, namespace, rclpy_node, rtf)
     if rtf:
         # pacing from the least delayed arrivals at each end of the window: receive times
         # lag the due times by scheduling delays (one-sided), never lead them
-        lag = [w - st / rtf for w, st in samples]
-        k = max(1, len(lag) // 5)
-        drift = min(lag[-k:]) - min(lag[:k])
-        span = (samples[-k][1] - samples[k - 1][1]) / rtf
-        assert span / (span + drift) * rtf == pytest.approx(rtf, rel=0.05), (sim / wall, drift)
+        assert pace(samples, rtf) == pytest.approx(rtf, rel=0.05), sim / wall
     else:
         assert sim / wall > 5.0, f'as fast as possible reached only {sim / wall:.1f}x'
 
@@ -555,17 +570,25 @@ def test_missed_deadlines_mean_what_they_say(ros_process, namespace, rclpy_node)
                           deadline_tolerance=0.1)
     probe = Probe(rclpy_node, namespace, topics=('attitude',))
     probe.wait_for(lambda: len(probe.msgs['attitude']) >= 20, 30.0, 'attitude')
+    # a period without a late sample first (every sample counted as late would never give
+    # one); the count then is the baseline: on a loaded machine start-up's samples may be late
+    probe.wait_diag(lambda d, s: d['missed_deadlines_in_period'] == '0', 60.0,
+                    'a period without missed deadlines')
+    before = int(probe.diag()['missed_deadlines'])
+    n_diag = len(probe.msgs['diagnostics'])
     sim.signal(signal.SIGSTOP)
     time.sleep(0.6)
     sim.signal(signal.SIGCONT)
-    probe.wait_diag(lambda d, s: int(d['missed_deadlines']) >= 20, 30.0,
+    probe.wait_diag(lambda d, s: int(d['missed_deadlines']) >= before + 20, 30.0,
                     'the late samples counted')
-    periods = [{kv.key: kv.value for kv in s.values} for _, a in probe.msgs['diagnostics']
+    periods = [{kv.key: kv.value for kv in s.values}
+               for _, a in probe.msgs['diagnostics'][n_diag:]
                for s in a.status if s.hardware_id == f'{namespace}/{NODE}']
     worst = max(float(d['worst_lateness_in_period']) for d in periods)
     assert 0.45 <= worst <= 3.0, worst
     # the samples due during the stop (30), not every sample since the start
-    assert int(periods[-1]['missed_deadlines']) <= 50 * (0.6 + 0.4)
+    assert int(periods[-1]['missed_deadlines']) - before <= 50 * (0.6 + 0.4), \
+        (before, periods[-1]['missed_deadlines'])
     assert all(float(d['deadline_tolerance']) == 0.1 for d in periods)
     stamps = [m.header.stamp.sec * 1_000_000_000 + m.header.stamp.nanosec
               for _, m in probe.msgs['attitude']]
