@@ -121,12 +121,12 @@ def pace(samples, expected=1.0):
     A receive time lags its stamp's due time by delays that are one-sided (the publisher
     computing late, delivery, the receiver's scheduling: on a loaded machine 0.1-0.5 s at
     times), so the slope between two arrivals reads those delays too. This takes the least
-    delayed arrival of the first fifth and of the last fifth (lag measured against
+    delayed arrival of the first third and of the last third (lag measured against
     ``expected``) and returns the slope between them: a publisher that falls behind for
-    good reads slow, a stall it catches up on does not."""
+    good reads slow, a stall it catches up on does not, unless it covers a whole third."""
     assert len(samples) >= 10, f'{len(samples)} samples: too few to measure a pace'
     lag = [w - st / expected for w, st in samples]
-    k = len(samples) // 5
+    k = len(samples) // 3
     first = min(range(k), key=lag.__getitem__)
     last = min(range(len(samples) - k, len(samples)), key=lag.__getitem__)
     (w0, s0), (w1, s1) = samples[first], samples[last]

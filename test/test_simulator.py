@@ -208,15 +208,15 @@ def test_topics_types_frames_rates(ros_process, namespace, rclpy_node):
         assert types[f'{namespace}/{topic}'] == [f'{module}/msg/{msg_type.__name__}']
     assert types[f'{namespace}/torque_command'] == ['geometry_msgs/msg/Vector3Stamped']
     assert types[f'{namespace}/wrench_command'] == ['geometry_msgs/msg/WrenchStamped']
-    # 50 Hz over 2 s of samples: each sample published (stamps 20 ms apart, none missing),
+    # 50 Hz over 3 s of samples: each sample published (stamps 20 ms apart, none missing),
     # at the wall clock's pace, read from the least delayed arrivals (ros_helpers.pace): a
     # count of arrivals in a 2 s window of this probe's read stalls of either process that
     # the simulator catches up on (at load 10+ on 2 cores they reach a few 100 ms)
     for msgs in probe.msgs.values():
         msgs.clear()
     stamped = [t for t in STATE_TOPICS if t != 'kinetic_energy']  # Float64: no header
-    probe.wait_for(lambda: all(len(probe.msgs[t]) > 100 for t in STATE_TOPICS), 60.0,
-                   '2 s of samples')
+    probe.wait_for(lambda: all(len(probe.msgs[t]) > 150 for t in STATE_TOPICS), 60.0,
+                   '3 s of samples')
     for topic in stamped:
         arrivals = [(w, stamp_s(m)) for w, m in probe.msgs[topic]]
         steps = np.diff([s for _, s in arrivals])
