@@ -388,5 +388,5 @@ def test_port_in_use_is_a_clear_error_and_the_simulator_runs_on(live):
     assert code == 1, out
     assert str(live['port']) in out and 'parameter port' in out and 'Traceback' not in out
     n = len(probe.attitude)
-    assert probe.spin(5.0, lambda: len(probe.attitude) > n + RATE)
+    assert probe.spin(30.0, lambda: len(probe.attitude) > n + RATE)
     assert live['sim'].poll() is None and live['viewer'].poll() is None
