@@ -114,10 +114,18 @@ def test_controlled_scenes_choose_a_priori_at_the_control_period(name):
     with the compiled loop's cost rk4, the cheapest fixed choice the selection bench
     finds on these three, costs least.)"""
     scene = load(name)
-    engine = engine_for(scene, duration=scene.simulator['duration'])
-    engine.advance(engine.end_ns)  # the law's first torque triggers the choice
-    while not engine.finished:
-        engine.advance(engine.end_ns)
+
+    def run():
+        engine = engine_for(scene, duration=scene.simulator['duration'])
+        engine.advance(engine.end_ns)  # the law's first torque triggers the choice
+        while not engine.finished:
+            engine.advance(engine.end_ns)
+        return engine
+    # the same choice three times: the least CPU is its cost (a full garbage collection,
+    # 40 ms of a worker's heap at times, may land in one choice's bracket)
+    runs = [run() for _ in range(3)]
+    assert len({(e.selected.name, e.selected.step) for e in runs}) == 1
+    engine = min(runs, key=lambda e: e.selection_cpu)
     sel = engine.selected
     period = 1.0 / scene.controller['control_rate']
     assert sel is not None and sel.pilot_steps == 0
