@@ -36,7 +36,7 @@ OUTPUTS = ('omega.png', 'invariants.png', 'poinsot.png', 'flips.png', 'precessio
            'nutation.png', 'control.png', 'actuators.png', 'pointing.png')
 
 
-REHEARSALS = 3  # rehearse: why more than one
+REHEARSALS = 10  # rehearse: why more than one
 
 
 def rehearse(scene, engine, keep) -> None:
@@ -48,10 +48,14 @@ def rehearse(scene, engine, keep) -> None:
     the same run in-process; the kernels alone (``warm_for``) left 1.1-1.2x.
 
     REHEARSALS times: the per-run Python (building the blocks, the end rows, the run's
-    set-up) runs once a run, and CPython 3.11 specialises its bytecode only after a few
-    executions. Explorer 1, 50 s, the run's CPU after 1, 2, 3 and 4 rehearsals (fresh
-    processes, 4 each, quiet): 347-421, 265-275, 256-320, 247-318 µs; in a warm process
-    230-250."""
+    set-up) runs once a run, and CPython 3.11 quickens a function's bytecode only at its
+    8th call (then specialises it). Explorer 1, 50 s, the run's CPU after 1, 2, 3 and 4
+    rehearsals (fresh processes, 4 each, quiet): 347-421, 265-275, 256-320, 247-318 µs;
+    in a warm process 230-250. Generated scenes 18 and 11 (5 fresh processes each,
+    load 2.5): after 3, 6, 8 and 10 rehearsals 214-325 / 230-244, 188-296 / 207-702,
+    180-326 / 200-309, 176-280 / 197-201 µs; the same run in a warm process 165-190 /
+    ~215. Ten cost nothing that shows in kernel_load_cpu_seconds (~0.1 s, the kernels'
+    loading)."""
     from . import offline
     from .engine import Engine
     from .engine.warm import warm_span
@@ -60,6 +64,44 @@ def rehearse(scene, engine, keep) -> None:
                       interpolate_samples=engine.interpolate_samples)
         offline.simulate(scene, engine=copy, keep=keep,
                          until_ns=min(copy.end_ns, copy.t_ns + warm_span(engine.config)))
+
+
+# glibc's mallopt parameters (malloc.h), and its largest mmap threshold on 64 bits
+M_TRIM_THRESHOLD, M_MMAP_THRESHOLD, MMAP_THRESHOLD_MAX = -1, -3, 32 << 20
+# bytes a sample the run allocates: its block's row (t, q, m, torque: 88), the exact
+# grid's times (8), the plot series' copy of it (88) and slack
+ROW_BYTES = 256
+
+
+def warm_heap(engine) -> int:
+    """Give the run's sample arrays pages already touched, as a warm process has them: in
+    a fresh one each of their 4 KiB pages faulted on first touch inside the clock (~1-2 µs
+    each; generated scene 11 at 100 samples/s, 30,001 samples: 505 faults, 2.0 ms against
+    0.9-1.1 in-process, where glibc hands a run back the pages the previous run freed).
+    glibc is told to serve blocks up to MMAP_THRESHOLD_MAX from its heap and to keep
+    what is freed there, for the rest of this short process (as its dynamic thresholds do
+    once a process has freed such a block); a buffer as large as the run's arrays is then
+    written and freed, before the rehearsal (writing it evicts the caches). Its CPU is
+    the warm-up's (kernel_load_cpu_seconds), the run's work stays in cpu_seconds. Bytes
+    warmed: 0 where the C library is not glibc (the run then pays the faults)."""
+    from .offline import SINK_BATCH, block_size
+    try:
+        import ctypes
+        mallopt = ctypes.CDLL(None).mallopt
+    except (OSError, AttributeError):  # pragma: no cover - not glibc
+        return 0
+    # the rows the run holds at once: its sinks take them SINK_BATCH at a time
+    rows = min(block_size(engine.config, None), SINK_BATCH)
+    # below the threshold (a block of it or more is still mapped apart, and unmapped when
+    # freed), and above what SINK_BATCH rows take (~12 MB)
+    size = min(rows * ROW_BYTES, MMAP_THRESHOLD_MAX // 2)
+    if not (mallopt(M_MMAP_THRESHOLD, MMAP_THRESHOLD_MAX) and
+            mallopt(M_TRIM_THRESHOLD, 2 * MMAP_THRESHOLD_MAX)):
+        return 0  # pragma: no cover - refused
+    buffer = np.empty(size // 8)
+    buffer.fill(0.0)  # every page written (np.zeros would leave them to the kernel)
+    del buffer
+    return size
 
 
 def _replace_previous(out: str) -> None:
@@ -167,6 +209,7 @@ def run(args) -> int:
             # caches the run's code and kernels were warm in (a 0.25 ms run then cost
             # 0.1-0.2 ms more in the clock); loads nothing the first warm_for did not
             cache0 = time.process_time()
+            warm_heap(engine)
             rehearse(scene, engine, keep)
             kernel_load += time.process_time() - cache0
             result = simulate(scene, progress=not args.json, sinks=[bag] if bag else [],

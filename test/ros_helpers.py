@@ -111,3 +111,23 @@ def call_service(node, client, request, timeout=30.0):
 def stamp_ns(msg) -> int:
     """A stamped message's header stamp in ns."""
     return msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
+
+
+def pace(samples, expected=1.0):
+    """Stamp seconds per wall second of a publisher, from ``samples`` = [(receive time s,
+    header stamp s), ...] in arrival order: ``expected`` (1 for stamps on the wall clock,
+    the real-time factor for stamps in sim time) when it keeps its pace.
+
+    A receive time lags its stamp's due time by delays that are one-sided (the publisher
+    computing late, delivery, the receiver's scheduling: on a loaded machine 0.1-0.5 s at
+    times), so the slope between two arrivals reads those delays too. This takes the least
+    delayed arrival of the first third and of the last third (lag measured against
+    ``expected``) and returns the slope between them: a publisher that falls behind for
+    good reads slow, a stall it catches up on does not, unless it covers a whole third."""
+    assert len(samples) >= 10, f'{len(samples)} samples: too few to measure a pace'
+    lag = [w - st / expected for w, st in samples]
+    k = len(samples) // 3
+    first = min(range(k), key=lag.__getitem__)
+    last = min(range(len(samples) - k, len(samples)), key=lag.__getitem__)
+    (w0, s0), (w1, s1) = samples[first], samples[last]
+    return (s1 - s0) / (w1 - w0)

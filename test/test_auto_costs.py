@@ -235,3 +235,28 @@ def test_the_setup_and_the_benchmarks_calibrate_with_the_cost_of_an_event(monkey
     for module in (generated, generated_peers, sampling):
         source = inspect.getsource(module)
         assert 'compiled.setup()' in source and 'compiled.warm()' not in source, module
+
+
+@pytest.mark.parametrize('damping', [Dissipation(), Dissipation('double_bracket', 0.05),
+                                     Dissipation('viscous', 0.02)],
+                         ids=['free', 'double_bracket', 'viscous'])
+@pytest.mark.parametrize('viscous_factor', [0.6, 1.3])
+def test_the_least_step_cost_is_never_above_a_step_s_cost(damping, viscous_factor):
+    """law_pilot._plans skips a candidate whose run at one step per event at this cost per
+    step cannot beat the best: a bound above some step's cost would change a choice. Each
+    branch of step_cost (the damping inside or outside a composition, substeps, a viscous
+    factor below 1 from a calibration) at steps from the event spacing down, to the bit."""
+    body_m = np.array([0.04, 0.2, 0.21])
+    costs = calibration.Costs(viscous_factor=viscous_factor)
+    for stiff in (1.0, 1e4):  # the substeps' count and the order inside depend on it
+        dyn = Dynamics(body_m, damping if not damping.active else
+                       Dissipation(damping.model, damping.coefficient * stiff))
+        s = RunModel(dyn, None, body_m * np.array([50.0, 1.0, 0.5]), 1e-6, 10.0, 0.1, 0.0,
+                     costs=costs)
+        for c in CANDIDATES:
+            least = s.least_step_cost(c)
+            steps = [s.snap(0.1 / 1.7 ** k) for k in range(30)]
+            assert all(least <= s.step_cost(c, h) for h in steps), (c.name, least)
+            # tight: some step costs exactly that where the damping takes one branch
+            if not damping.active:
+                assert least == s.step_cost(c, 0.1)

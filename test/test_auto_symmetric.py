@@ -1,5 +1,5 @@
 """``auto`` and ``exact`` on a symmetric body under dissipation alone: the split error is at
-most the damping's turning Δβ at any step (physics.auto.selection._symmetric_split), so
+most the damping's turning Δβ at any step (physics.auto.answers.symmetric_split), so
 auto takes exact at the sample period where 2·Δβ meets the budget (Explorer 1 over 30 s,
 where it took dop853 at 2.8× exact's CPU)."""
 import math
@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from rigid_body_sim.physics import Dissipation, Dynamics, RigidBody, create, rotation
-from rigid_body_sim.physics.auto import pilot, select, selection
+from rigid_body_sim.physics.auto import answers, pilot, select
 
 EXPLORER_I = np.array([0.04, 0.2, 0.2])
 EXPLORER_W = np.array([62.83185307179586, 0.21934681498568484, 0.0])  # 10 rev/s, 1° nutation
@@ -49,7 +49,7 @@ def test_exact_errs_at_most_the_damping_s_turning_at_any_step(prolate, model):
     for label, steps in (('aliased', n), ('off period', round(n / 0.37))):
         q, _ = create('exact', dyn).run(Q_ID, m, horizon / steps, steps)
         errors[label] = float(rotation.angle_between(q, q_ref))
-    assert errors['aliased'] <= selection.SPLIT_K * turned, (errors, turned)
+    assert errors['aliased'] <= answers.SPLIT_K * turned, (errors, turned)
     assert errors['off period'] < 0.1 * turned, (errors, turned)
     if model == 'double_bracket':  # the bound is met, not loose: Δβ itself
         assert errors['aliased'] > 0.5 * turned, (errors, turned)
@@ -102,4 +102,4 @@ def test_over_one_second_nothing_else_is_asked_once_exact_takes_one_step_per_sam
     assert {'rk4', 'splitting4', 'splitting6', 'dop853'} <= set(
         unasked.split(';')[0].split(', ')), sel.reason
     assert 'rtol=' not in sel.reason and sel.prior_cost == pytest.approx(
-        selection.PRIOR_BASE + selection.PRIOR_EACH)
+        answers.PRIOR_BASE + answers.PRIOR_EACH)

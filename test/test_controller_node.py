@@ -145,7 +145,7 @@ def set_params(node, namespace, **values):
     client = AsyncParameterClient(node, f'{namespace}/attitude_controller')
     assert client.wait_for_services(10.0)
     future = client.set_parameters([Parameter(k, value=v) for k, v in values.items()])
-    assert spin_until(node, future.done, 5.0)
+    assert spin_until(node, future.done, 30.0)
     return future.result().results
 
 
@@ -173,7 +173,7 @@ def test_detumble_near_intermediate_axis(ros_process, namespace, rclpy_node):
     sim, ctl = start_loop(rec, ros_process, namespace, 'detumble',
                           sim_params=dict(initial_angular_velocity=w0))
     assert rec.spin_until(lambda: rec.rate and np.linalg.norm(rec.rate[-1][1]) < 1e-3,
-                          15.0), ctl.output()
+                          60.0), ctl.output()  # ~3.5 s of sim time; a loaded run lags
     t0, w_start = rec.torque_onset()
     t, w = rec.arrays('rate')
     norm = np.linalg.norm(w, axis=1)
@@ -315,17 +315,23 @@ def test_stale_state_nan_target_modes_and_parameters(ros_process, namespace, rcl
             publish_state(**kw)
             rec.spin(0.02)
 
+    def feed_until(predicate, timeout=15.0, **kw):
+        """Feed state until the last torque received satisfies ``predicate``: on a loaded
+        machine the controller's answer may take longer than any fixed slice (loaded CI)."""
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline and not predicate(rec.torque[-1][1]):
+            feed(0.1, **kw)
+        return rec.torque[-1][1]
+
     kd_x = 2 * WN * INERTIA[0]  # detumble K_ω = k_d
     expected = pytest.approx((-kd_x * 0.1, 0.0, 0.0), abs=1e-9)
-    deadline = time.monotonic() + 15.0  # fresh state in, the law's torque out (loaded CI)
-    while time.monotonic() < deadline and rec.torque[-1][1] != expected:
-        feed(0.1)
-    assert rec.torque[-1][1] == expected
-    # Stale: stop publishing -> zeros after state_timeout.
-    rec.spin(0.6)
-    assert rec.torque[-1][1] == (0.0, 0.0, 0.0)
+    # fresh state in, the law's torque out
+    assert feed_until(lambda tau: tau == expected) == expected
+    # Stale: stop publishing -> zeros after state_timeout (waited for: the controller's
+    # timer and this probe may each stall past a fixed 0.6 s on a loaded machine)
+    assert rec.spin_until(lambda: rec.torque[-1][1] == (0.0, 0.0, 0.0), 15.0), rec.torque[-1]
     assert rec.spin_until(
-        lambda: rec.diagnostics and float(rec.last_diagnostic()['state_age']) > 0.3, 3.0)
+        lambda: rec.diagnostics and float(rec.last_diagnostic()['state_age']) > 0.3, 30.0)
     assert rec.diagnostics[-1].level == DiagnosticStatus.WARN
     # Old stamps are stale too.
     feed(0.5, age=1.0)
@@ -350,8 +356,7 @@ def test_stale_state_nan_target_modes_and_parameters(ros_process, namespace, rcl
     target = rotation.axis_rotation(2, 0.4)
     results = set_params(mode='slew', target_attitude=[float(x) for x in target])
     assert all(r.successful for r in results)
-    feed(0.3)
-    tau_slew = np.array(rec.torque[-1][1])
+    tau_slew = np.array(feed_until(lambda tau: tau[2] > 0.1))
     assert tau_slew[2] > 0.1  # towards +z
 
     # NaN / non-unit / zero / wrong-frame targets are rejected, the previous target kept.
@@ -360,7 +365,7 @@ def test_stale_state_nan_target_modes_and_parameters(ros_process, namespace, rcl
         rec.send_target(q, frame)
         feed(0.15)
     np.testing.assert_allclose(rec.torque[-1][1], tau_slew, atol=1e-9)
-    assert rec.spin_until(lambda: rec.last_diagnostic().get('targets_rejected') == '4', 3.0)
+    assert rec.spin_until(lambda: rec.last_diagnostic().get('targets_rejected') == '4', 30.0)
     out = ctl.output()
     for reason in ('not finite', 'not a unit quaternion', 'zero norm',
                    "differs from the attitude's"):
@@ -368,8 +373,7 @@ def test_stale_state_nan_target_modes_and_parameters(ros_process, namespace, rcl
 
     results = set_params(mode='off')
     assert results[0].successful
-    feed(0.3)
-    assert rec.torque[-1][1] == (0.0, 0.0, 0.0)
+    assert feed_until(lambda tau: tau == (0.0, 0.0, 0.0)) == (0.0, 0.0, 0.0)
     assert_clean_exit(ctl, signal.SIGINT)
 
 

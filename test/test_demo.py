@@ -125,10 +125,15 @@ def test_interrupting_the_demo_stops_everything_and_keeps_the_bag(tmp_path, sign
     proc = subprocess.Popen([cli, 'demo', '--duration', '120', '--out', str(tmp_path),
                              '--viewer-port', str(_free_port()), '--no-plots'],
                             stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    # the graph is running: the recorder has stored the simulator's run configuration (a
+    # fixed 3 s after the simulator's log appeared may still be start-up on a loaded machine)
+    log = tmp_path / 'recorder.log'
     deadline = time.monotonic() + 90
-    while time.monotonic() < deadline and not (tmp_path / 'simulator.log').exists():
+    while time.monotonic() < deadline and proc.poll() is None and not (
+            log.exists() and 'stored the run configuration' in log.read_text()):
         time.sleep(0.2)
-    time.sleep(3.0)  # the graph is running
+    assert log.exists() and 'stored the run configuration' in log.read_text(), \
+        (proc.poll(), log.exists() and log.read_text()[-2000:])
     t0 = time.monotonic()
     for sig in signals:
         proc.send_signal(sig)

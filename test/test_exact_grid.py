@@ -125,8 +125,7 @@ def test_the_grid_runs_several_samples_to_an_instruction():
     lanes = njit(error_model='numpy')(grid_kernel._lanes.py_func)
     h = (tab.shape[0] - 3) // 2
     out = np.empty((7, 2 * h + 1))
-    lanes(c, grid_kernel._anchor(c, 1.0), np.ascontiguousarray(tab.T), 0, 2 * h + 1, 1.0,
-          1.0 / c[exact_kernel.G], out)
+    lanes(c, grid_kernel._anchor(c, 1.0), np.ascontiguousarray(tab.T), 0, 2 * h + 1, 1.0, out)
     asm = lanes.inspect_asm(lanes.signatures[0])
     packed = re.compile(r'\bv?(sqrt|div)pd\b|\bf(sqrt|div)\s+v\d+\.2d')
     assert {m.group(1) or m.group(2) for m in packed.finditer(asm)} == {'sqrt', 'div'}, \

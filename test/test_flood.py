@@ -1,10 +1,11 @@
 """A simulator flooded with commands, valid and garbage, on real processes."""
 import json
 import sys
+import time
 
 import numpy as np
 
-from ros_helpers import spin_until, venv_exe
+from ros_helpers import pace, spin_until, stamp_ns, venv_exe
 
 
 def _rss_kb(pid):
@@ -32,7 +33,9 @@ def test_flood_of_commands_and_garbage(ros_process, namespace, rclpy_node):
         DiagnosticArray, '/diagnostics',
         lambda m: diags.extend({kv.key: kv.value for kv in s.values} for s in m.status
                                if s.hardware_id == f'{namespace}/attitude_simulator'), 100)
-    rclpy_node.create_subscription(QuaternionStamped, f'{namespace}/attitude', att.append, 100)
+    rclpy_node.create_subscription(  # (receive time, stamp s): the simulator's pace
+        QuaternionStamped, f'{namespace}/attitude',
+        lambda m: att.append((time.monotonic(), stamp_ns(m) * 1e-9)), 1000)  # 20 s of them
     assert spin_until(rclpy_node, lambda: len(att) > 20 and diags, 60.0), sim.output()[-2000:]
     flood = ros_process(sys.executable, '-m', 'rigid_body_sim.tools.flood', namespace,
                         '--rate', '4000', '--duration', '8')
@@ -43,6 +46,7 @@ def test_flood_of_commands_and_garbage(ros_process, namespace, rclpy_node):
                                               for d in diags[n_diag:]), 30.0)
     rss0 = _rss_kb(sim.pid)
     assert spin_until(rclpy_node, lambda: flood.poll() is not None, 120.0)
+    flooded = att[n_att:]
     sent = json.loads(flood.output().strip().splitlines()[-1])['sent']
     assert sent['valid'] > 10_000, sent
     assert spin_until(rclpy_node, lambda: len(diags) > n_diag + 2, 30.0)
@@ -51,11 +55,15 @@ def test_flood_of_commands_and_garbage(ros_process, namespace, rclpy_node):
     for reason in ('non_finite', 'wrong_frame', 'future_stamp', 'stale_stamp'):
         assert int(last[f'commands_rejected.{reason}']) > 0, (reason, last)
     assert int(last['commands_accepted']) > 0
-    # real time over the flood: each 1 s report's rate, whose median and mean must stay
-    # within 10 % (a single report may show a stall the next one catches up: a shared
-    # machine finishing another job's hour-long bag beside it made one 0.71 then 1.30)
-    rtf = [float(d['real_time_factor_achieved']) for d in during[1:]]
-    assert 0.9 <= float(np.median(rtf)) <= 1.1 and 0.9 <= float(np.mean(rtf)) <= 1.1, rtf
-    assert len(att) - n_att >= 0.8 * 50 * 8, len(att) - n_att  # kept publishing at 50 Hz
+    # real time over the flood, within 10 %: the pace of the attitude stamps from their least
+    # delayed arrivals (ros_helpers.pace); a stall the simulator catches up on does not
+    # count (the 1 s reports' rates did: a shared machine finishing another job's hour-long
+    # bag beside it made one 0.71 then 1.30), falling behind for good does
+    assert 0.9 <= pace(flooded) <= 1.1, (pace(flooded), len(flooded))
+    # kept publishing at 50 Hz: every sample, none missing (no step over 20 ms; a shorter
+    # one would be an extra sample at an event), in order
+    steps = np.diff([s for _, s in flooded])
+    assert len(flooded) >= 0.8 * 50 * 8 and 0 < steps.min() and steps.max() < 0.02 + 1e-6, \
+        (len(flooded), steps.min(), steps.max())
     assert _rss_kb(sim.pid) - rss0 <= 8 * 1024, (rss0, _rss_kb(sim.pid))
     assert sim.poll() is None

@@ -23,10 +23,10 @@ def test_cli_runs_alternate_with_in_process_runs(monkeypatch, repeats, cli_repea
 
     def cli_cpu(target, duration, n):
         calls.append(('cli', n))
-        return (next(cli) * 1e-3, 0.01, 0)
+        return (next(cli) * 1e-3, 0.01, 0, 0)
     monkeypatch.setattr(sampling, '_simulate_cpu', simulate_cpu)
     monkeypatch.setattr(sampling, '_cli_cpu', cli_cpu)
-    best_in, (best_cli, output, loaded) = sampling._cli_and_inprocess(
+    best_in, (best_cli, output, loaded, faults) = sampling._cli_and_inprocess(
         'slew', 'slew', 1.0, 50.0, repeats, cli_repeats)
     rounds = max(repeats, cli_repeats)
     expected = [c for i in range(rounds)

@@ -114,10 +114,18 @@ def test_controlled_scenes_choose_a_priori_at_the_control_period(name):
     with the compiled loop's cost rk4, the cheapest fixed choice the selection bench
     finds on these three, costs least.)"""
     scene = load(name)
-    engine = engine_for(scene, duration=scene.simulator['duration'])
-    engine.advance(engine.end_ns)  # the law's first torque triggers the choice
-    while not engine.finished:
-        engine.advance(engine.end_ns)
+
+    def run():
+        engine = engine_for(scene, duration=scene.simulator['duration'])
+        engine.advance(engine.end_ns)  # the law's first torque triggers the choice
+        while not engine.finished:
+            engine.advance(engine.end_ns)
+        return engine
+    # the same choice three times: the least CPU is its cost (a full garbage collection,
+    # 40 ms of a worker's heap at times, may land in one choice's bracket)
+    runs = [run() for _ in range(3)]
+    assert len({(e.selected.name, e.selected.step) for e in runs}) == 1
+    engine = min(runs, key=lambda e: e.selection_cpu)
     sel = engine.selected
     period = 1.0 / scene.controller['control_rate']
     assert sel is not None and sel.pilot_steps == 0
@@ -156,6 +164,27 @@ def test_all_of_auto_s_choosing_counts_as_selection_cpu(monkeypatch, name, brack
     assert engine_for(scene, duration=1.0, integrator='rk4', step=0.01).selection_cpu == 0
 
 
+@pytest.mark.parametrize('name, duration', [('explorer1', 690.0), ('slew', 15.0)])
+def test_a_choice_made_at_once_reads_the_engine_s_state_and_leaves_it(name, duration):
+    """A blocking selection (and one under torque) is handed the engine's own momentum and
+    attitude, not copies (a numpy call each, cold, on a short run's choosing): its pilots
+    run on copies (``Integrator.run``: new arrays), so the state is the configured one,
+    to the bit, after Explorer 1's pilot (192 steps) and slew's choice at a command."""
+    scene = load(name)
+    engine = engine_for(scene, duration=duration)
+    if name == 'slew':  # a first command: the choice under torque
+        m0, q0 = engine._m.copy(), engine._q.copy()
+        engine.apply_command(np.array([0.01, -0.02, 0.005]))
+        assert engine.selected is not None
+    else:
+        assert engine.selected.pilot_steps > 0
+        body, c = engine.body, engine.config
+        m0 = body.principal_moments * body.to_principal(c.angular_velocity)
+        q0 = body.attitude_to_principal(c.attitude)
+    assert engine._aligned and engine._m.tolist() == m0.tolist()
+    assert engine._q.tolist() == q0.tolist()
+
+
 def test_live_engine_runs_the_a_priori_choice_while_the_pilot_is_pending():
     """The node's engine (non-blocking) steps with the a-priori choice meanwhile (a bound, so
     it meets the budget), then switches when ``work`` has fed the pilot to its end."""
@@ -192,13 +221,13 @@ def test_the_whole_selection_is_planned_within_a_tenth_of_the_run(duration):
     and up to 100 s exact's bound on a symmetric body meets the budget a priori at the
     sample period, which nothing can beat; at 690 s pilots run; over 1 s even asking a
     second candidate a priori would pass 10 %). The CPU measured is the bench's to report."""
-    from rigid_body_sim.physics.auto import selection
+    from rigid_body_sim.physics.auto import answers
     sel = simulate(load('explorer1'), duration=duration).selection
     assert sel.planned_cost <= 0.1 * sel.predicted_cost, sel.reason
     assert (sel.pilot_steps > 0) == (duration > 100.0), sel.reason
     if duration == 1.0:  # 0.32 ms, all but 6 µs of it fixed: one question, no preference
-        assert 'not asked' in sel.reason and sel.prior_cost == selection.PRIOR_BASE + \
-            selection.PRIOR_EACH, sel.reason
+        assert 'not asked' in sel.reason and sel.prior_cost == answers.PRIOR_BASE + \
+            answers.PRIOR_EACH, sel.reason
 
 
 def test_candidate_cost_bench_measures_every_compiled_candidate():
@@ -297,3 +326,47 @@ def test_the_law_s_rate_scale_in_floats_is_numpy_s_to_the_bit():
         numpy_s = float(max(np.max(np.sqrt(cfg.kp_principal / i)), np.max(cfg.kd_principal / i),
                             np.max(cfg.rate_gain_principal / i)))
         assert cs.bandwidth() == numpy_s
+
+
+def test_a_choice_without_a_pilot_is_made_without_a_generator_and_equals_its_form():
+    """``choosing`` returns the Selection itself where no pilot runs (Explorer 1 over 1 s:
+    exact's split bound a priori), so the engine makes no generator for it; where pilots
+    run (690 s) the generator, which ``selecting`` feeds to the same Selection."""
+    from rigid_body_sim.physics.auto.selection import Selection, choosing, selecting
+    engine = engine_for(load('explorer1'), duration=1.0)
+    c = engine.config
+    args = (c.body, c.dissipation, c.attitude, c.angular_velocity)
+    for duration, piloted in ((1.0, False), (690.0, True)):
+        kw = dict(torque=False, accuracy=c.accuracy, duration=duration, max_step=1.0)
+        work = choosing(*args, **kw)
+        assert isinstance(work, Selection) != piloted
+        if piloted:
+            assert select(*args, **kw).pilot_steps > 0
+        else:
+            gen = selecting(*args, **kw)
+            with pytest.raises(StopIteration) as done:
+                next(gen)
+            assert done.value.value == work and work.name == 'exact'
+
+
+@pytest.mark.parametrize('blocking', [True, False])
+def test_a_failed_selection_runs_splitting2_and_says_why(monkeypatch, blocking):
+    """A selection that raises (here made to) leaves the engine on splitting2 at the scene's
+    step, its reason naming the failure: made at once (``choosing``) as fed (``selecting``)."""
+    from rigid_body_sim.engine import method_choice
+
+    def raising(*args, **kw):
+        raise ValueError('no budget here')
+
+    def failing(*args, **kw):  # a generator, as selecting is: raises when fed
+        raise ValueError('no budget here')
+        yield
+
+    monkeypatch.setattr(method_choice, 'choosing', raising)
+    monkeypatch.setattr(method_choice, 'selecting', failing)
+    config = engine_for(load('explorer1'), duration=690.0).config
+    engine = Engine(config, blocking_selection=blocking)
+    while engine.work():
+        pass
+    assert engine.method == 'splitting2' and not engine.selection_pending
+    assert 'selection failed (no budget here)' in engine.reason

@@ -64,8 +64,7 @@ def test_play_pause_step_state_reset_quit(ros_process, namespace, rclpy_node):
     assert _call(rclpy_node, clients['step_simulation'], step).result.result == \
         Result.RESULT_OPERATION_FAILED
     # pause: no new samples
-    assert set_state(SimulationState.STATE_PAUSED).result == Result.RESULT_OK
-    spin_until(rclpy_node, lambda: False, 0.5)
+    _pause(rclpy_node, base, att)
     paused_at = len(att)
     spin_until(rclpy_node, lambda: False, 1.0)
     assert len(att) == paused_at
@@ -124,11 +123,19 @@ def test_play_pause_step_state_reset_quit(ros_process, namespace, rclpy_node):
     assert sim.poll() == 0, sim.output()[-2000:]
 
 
-def _pause(node, base):
+def _pause(node, base, *received):
+    """Pause the simulator at ``base``; then wait until each list of ``received`` messages
+    (a topic's, stamped per sample) holds the last sample published before the pause, the
+    stamp of the entity state: on a loaded machine it may still be in flight after any
+    fixed spin, and arrive after the count the test takes."""
     req = srv.SetSimulationState.Request()
     req.state.state = SimulationState.STATE_PAUSED
     client = node.create_client(srv.SetSimulationState, f'{base}/set_simulation_state')
     assert _call(node, client, req).result.result == Result.RESULT_OK
+    client = node.create_client(srv.GetEntityState, f'{base}/get_entity_state')
+    last = _stamp(_call(node, client, srv.GetEntityState.Request(entity='base_link')).state)
+    assert spin_until(node, lambda: all(r and _stamp(r[-1]) >= last for r in received), 30.0), \
+        [(_stamp(r[-1]) - last) / NS for r in received if r]
 
 
 def _send_goal(node, client, steps, feedback):
@@ -180,8 +187,7 @@ def test_simulate_steps_action_feedback_and_cancellation(ros_process, namespace,
     assert done.status == GoalStatus.STATUS_ABORTED
     assert done.result.result.result == Result.RESULT_INCORRECT_STATE
     assert 'not paused' in done.result.result.error_message and not feedback
-    _pause(rclpy_node, base)
-    spin_until(rclpy_node, lambda: False, 0.5)
+    _pause(rclpy_node, base, att)
     before = len(att)
     last = _stamp(att[-1])
     # 7 steps: 7 samples one period apart, feedback 1..7
@@ -264,8 +270,7 @@ def test_entities_are_the_spacecraft_its_wheels_and_cmgs(ros_process, namespace,
     got = {name: store for name, (_, store) in topics.items()}
     assert spin_until(rclpy_node, lambda: all(len(s) >= 3 for s in got.values()), 60.0), \
         sim.output()[-2000:]
-    _pause(rclpy_node, base)  # the state stays that of the last sample published
-    spin_until(rclpy_node, lambda: False, 1.0)
+    _pause(rclpy_node, base, *got.values())  # the state stays that of the last sample
     att, rate = got['attitude'][-1], got['angular_velocity'][-1]
     wheels, gimbals = got['wheel_states'][-1], got['gimbal_states'][-1]
     assert _stamp(att) == _stamp(wheels) == _stamp(gimbals)

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from ros_helpers import NodeProcess, spin_until, unique_namespace, venv_exe
+from ros_helpers import NodeProcess, pace, spin_until, unique_namespace, venv_exe
 
 from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
@@ -138,7 +138,7 @@ class Probe:
             msg.header.stamp = stamp
         (self.wrench_pub if wrench else self.torque_pub).publish(msg)
 
-    def wait_subscribed(self, timeout=10.0):
+    def wait_subscribed(self, timeout=30.0):
         self.wait_for(lambda: self.torque_pub.get_subscription_count() > 0
                       and self.wrench_pub.get_subscription_count() > 0,
                       timeout, 'command subscriptions')
@@ -200,7 +200,7 @@ def test_topics_types_frames_rates(ros_process, namespace, rclpy_node):
                           frame_id='map', child_frame_id='craft')
     probe = Probe(rclpy_node, namespace, topics=STATE_TOPICS)
     probe.wait_for(lambda: all(len(probe.msgs[t]) >= 5 for t in STATE_TOPICS) and probe.status(),
-                   15.0, 'messages on every topic')
+                   30.0, 'messages on every topic')
     # types as advertised in the graph
     types = dict(rclpy_node.get_topic_names_and_types())
     for topic, msg_type in STATE_TOPICS.items():
@@ -208,15 +208,25 @@ def test_topics_types_frames_rates(ros_process, namespace, rclpy_node):
         assert types[f'{namespace}/{topic}'] == [f'{module}/msg/{msg_type.__name__}']
     assert types[f'{namespace}/torque_command'] == ['geometry_msgs/msg/Vector3Stamped']
     assert types[f'{namespace}/wrench_command'] == ['geometry_msgs/msg/WrenchStamped']
-    # rate over a 2 s window
+    # 50 Hz over 3 s of samples: each sample published (stamps 20 ms apart, none missing),
+    # at the wall clock's pace, read from the least delayed arrivals (ros_helpers.pace): a
+    # count of arrivals in a 2 s window of this probe's read stalls of either process that
+    # the simulator catches up on (at load 10+ on 2 cores they reach a few 100 ms)
     for msgs in probe.msgs.values():
         msgs.clear()
-    t0 = time.monotonic()
-    probe.spin(2.0)
-    elapsed = time.monotonic() - t0
-    for topic in STATE_TOPICS:
-        rate = len(probe.msgs[topic]) / elapsed
+    stamped = [t for t in STATE_TOPICS if t != 'kinetic_energy']  # Float64: no header
+    probe.wait_for(lambda: all(len(probe.msgs[t]) > 150 for t in STATE_TOPICS), 60.0,
+                   '3 s of samples')
+    for topic in stamped:
+        arrivals = [(w, stamp_s(m)) for w, m in probe.msgs[topic]]
+        steps = np.diff([s for _, s in arrivals])
+        assert np.allclose(steps, 0.02, rtol=0, atol=1e-6), (topic, steps[steps != 0.02])
+        rate = pace(arrivals) / 0.02
         assert 40.0 < rate < 60.0, f'{topic}: {rate:.1f} Hz, expected 50'
+    # the same samples on the unstamped topic (a sample's messages go out back to back)
+    n_attitude = len(probe.msgs['attitude'])
+    assert abs(len(probe.msgs['kinetic_energy']) - n_attitude) <= 0.05 * n_attitude, \
+        (len(probe.msgs['kinetic_energy']), n_attitude)
     # frames (REP-103/105) and unit quaternions
     for topic in ('attitude', 'pose', 'transform', 'odometry', 'angular_momentum'):
         assert all(m.header.frame_id == 'map' for _, m in probe.msgs[topic]), topic
@@ -296,15 +306,20 @@ def test_constant_torque_changes_inertial_momentum(ros_process, namespace, rclpy
                     real_time_factor=2.0, publish_clock=True, command_timeout=100.0)
     probe = Probe(rclpy_node, namespace, topics=('angular_momentum',))
     probe.wait_subscribed()
-    probe.wait_for(lambda: len(probe.msgs['angular_momentum']) >= 5, 10.0, 'momentum samples')
+    probe.wait_for(lambda: len(probe.msgs['angular_momentum']) >= 5, 30.0, 'momentum samples')
     probe.send_torque(tau)
-    probe.spin(1.5)
-    samples = [(stamp_s(m), vec(m.vector)) for _, m in probe.msgs['angular_momentum']]
     L0 = expected_momentum(inertia, q0, w0)
-    changed = [i for i, (_, L) in enumerate(samples) if np.linalg.norm(L - L0) > 1e-12]
-    assert changed, 'torque never applied'
-    on = samples[changed[0]:]  # every interval between these samples had the torque on throughout
-    assert on[-1][0] - on[0][0] > 1.0
+
+    def torque_on():
+        """The samples from the first one the torque changed (each interval between them had
+        it on throughout)."""
+        samples = [(stamp_s(m), vec(m.vector)) for _, m in probe.msgs['angular_momentum']]
+        changed = [i for i, (_, L) in enumerate(samples) if np.linalg.norm(L - L0) > 1e-12]
+        return samples[changed[0]:] if changed else []
+    # over 1 s of sim time with the torque on (0.5 s of wall time quiet), waited for
+    probe.wait_for(lambda: len(torque_on()) > 1 and torque_on()[-1][0] - torque_on()[0][0] > 1.0,
+                   30.0, 'the torque applied over 1 s of sim time')
+    on = torque_on()
     tau_inertial = Rotation.from_quat(q0).apply(tau)
     for (t1, L1), (t2, L2) in zip(on, on[1:]):
         expected = tau_inertial * (t2 - t1)
@@ -314,7 +329,7 @@ def test_constant_torque_changes_inertial_momentum(ros_process, namespace, rclpy
     assert abs(n - round(n)) < 1e-6 * n
     # a wrench's torque part is a command too
     probe.send_torque([0.0, 0.0, -0.2], wrench=True)
-    probe.wait_diag(lambda d, s: d['commands_accepted'] == '2', 5.0, 'wrench accepted')
+    probe.wait_diag(lambda d, s: d['commands_accepted'] == '2', 30.0, 'wrench accepted')
     # the torque's path was loaded before t = 0 too: no kernel stalled the loop
     assert probe.diag()['kernels_loaded_after_t0'] == '0', probe.diag()
 
@@ -332,7 +347,7 @@ def test_stale_and_rejected_commands(ros_process, namespace, rclpy_node):
     probe.send_torque([0.1, 0.0, 0.0], stamp=future)
     probe.wait_diag(lambda d, s: d['commands_rejected.non_finite'] == '2'
                     and d['commands_rejected.wrong_frame'] == '1'
-                    and d['commands_rejected.future_stamp'] == '1', 5.0, 'rejections counted')
+                    and d['commands_rejected.future_stamp'] == '1', 30.0, 'rejections counted')
     probe.spin(0.3)
     assert all(np.linalg.norm(vec(m.vector)) == 0.0 for _, m in probe.msgs['angular_momentum']), \
         'a rejected command was applied'
@@ -340,11 +355,15 @@ def test_stale_and_rejected_commands(ros_process, namespace, rclpy_node):
     assert 'rejected (non_finite)' in sim.output() and 'rejected (wrong_frame)' in sim.output()
     # a valid command, saturated to max_torque per axis, is held for command_timeout then dropped
     probe.send_torque([2.0, 0.0, 0.0])
-    probe.wait_diag(lambda d, s: d['commands_timed_out'] == '1', 5.0, 'command timeout')
-    probe.spin(0.3)
+    probe.wait_diag(lambda d, s: d['commands_timed_out'] == '1', 30.0, 'command timeout')
+
+    def last_five_alike():
+        last = [vec(m.vector) for _, m in probe.msgs['angular_momentum'][-5:]]
+        return all(np.array_equal(v, last[-1]) for v in last)
+    # five samples alike (0.1 s): waited for, as samples from before the timeout may still
+    # arrive after its count on a loaded machine; how long the torque was held is below
+    probe.wait_for(last_five_alike, 30.0, 'torque no longer applied after the timeout')
     final = [vec(m.vector) for _, m in probe.msgs['angular_momentum'][-5:]]
-    assert all(np.array_equal(f, final[-1]) for f in final), \
-        'torque still applied after the timeout'
     # |ΔL| = 0.5 N·m (saturated) × 0.2 s, to one step
     assert abs(np.linalg.norm(final[-1]) - 0.1) <= 0.5 * 0.001 + 1e-12
     d = probe.diag()
@@ -371,19 +390,19 @@ def test_invalid_parameters_rejected_and_runtime_switch(ros_process, namespace, 
         assert not result.successful, params
         assert words in result.reason, (params, result.reason)
     assert sim.poll() is None
-    probe.wait_for(lambda: len(probe.msgs['angular_momentum']) >= 3, 10.0, 'momentum')
+    probe.wait_for(lambda: len(probe.msgs['angular_momentum']) >= 3, 30.0, 'momentum')
     L_before = vec(probe.msgs['angular_momentum'][-1][1].vector)
     # integer values for float parameters are accepted; the integrator changes while running
     [r1, r2] = probe.set_parameters(integrator='rk4', step=1)
     assert r1.successful and r2.successful
-    probe.wait_diag(lambda d, s: d['integrator'] == 'rk4', 5.0, 'integrator switched')
+    probe.wait_diag(lambda d, s: d['integrator'] == 'rk4', 30.0, 'integrator switched')
     n = len(probe.msgs['angular_momentum'])
-    probe.wait_for(lambda: len(probe.msgs['angular_momentum']) >= n + 3, 5.0,
+    probe.wait_for(lambda: len(probe.msgs['angular_momentum']) >= n + 3, 30.0,
                    'momentum after switch')
     L_after = vec(probe.msgs['angular_momentum'][-1][1].vector)
     assert np.linalg.norm(L_after - L_before) < 1e-6 * np.linalg.norm(L_before)  # state continuous
     # step capped at the publish period; applied at the next publish instant
-    probe.wait_diag(lambda d, s: abs(float(d['step']) - 0.05) < 1e-9, 5.0,
+    probe.wait_diag(lambda d, s: abs(float(d['step']) - 0.05) < 1e-9, 30.0,
                     'new step in diagnostics')
     # sim time stays on its publish grid across the step change (stamps = sim time here)
     stamps = np.array([stamp_s(m) for _, m in probe.msgs['attitude']])
@@ -402,17 +421,17 @@ def test_reset_restores_initial_state_and_clears_fault(ros_process, namespace, r
     L0 = expected_momentum(inertia, q0, w0)
     probe.wait_for(lambda: probe.msgs['angular_momentum'] and
                    np.linalg.norm(vec(probe.msgs['angular_momentum'][-1][1].vector) - L0) > 0.05,
-                   5.0, 'the torque to change L')
+                   30.0, 'the torque to change L')
     assert probe.reset().success
     T0 = 0.5 * np.dot(inertia, np.square(w0))
     # Each topic is delivered on its own: wait until both show the reset state (samples from
     # before the reset may still be in flight under load), then check it holds.
     probe.wait_for(lambda: np.linalg.norm(vec(probe.msgs['angular_momentum'][-1][1].vector) - L0)
-                   < 1e-6 * np.linalg.norm(L0), 5.0, 'L back to its initial value')
+                   < 1e-6 * np.linalg.norm(L0), 30.0, 'L back to its initial value')
     probe.wait_for(lambda: probe.msgs['kinetic_energy'][-1][1].data == pytest.approx(T0, rel=1e-6),
-                   5.0, 'T back to its initial value')
+                   30.0, 'T back to its initial value')
     n = len(probe.msgs['angular_momentum'])
-    probe.wait_for(lambda: len(probe.msgs['angular_momentum']) >= n + 3, 5.0,
+    probe.wait_for(lambda: len(probe.msgs['angular_momentum']) >= n + 3, 30.0,
                    'samples after reset')
     L = vec(probe.msgs['angular_momentum'][-1][1].vector)
     # and stays (the held torque was cleared)
@@ -422,10 +441,16 @@ def test_reset_restores_initial_state_and_clears_fault(ros_process, namespace, r
     [result] = probe.set_parameters(dissipation__model='double_bracket')
     [result] = probe.set_parameters(dissipation__coefficient=1e7)
     assert result.successful
-    probe.wait_diag(lambda d, s: s.level == DiagnosticStatus.ERROR, 10.0, 'ERROR status')
+    probe.wait_diag(lambda d, s: s.level == DiagnosticStatus.ERROR, 30.0, 'ERROR status')
     assert probe.diag()['fault']
     assert sim.poll() is None
-    probe.spin(0.3)
+    # the last sample before the fault (the entity state's stamp) arrives, waited for (a
+    # fixed 0.3 s may end before what was in flight on a loaded machine); then none more
+    import simulation_interfaces.srv as srv
+    last = stamp_s(probe.call(srv.GetEntityState, f'{namespace}/{NODE}/get_entity_state',
+                              srv.GetEntityState.Request(entity='base_link')).state)
+    probe.wait_for(lambda: stamp_s(probe.msgs['angular_momentum'][-1][1]) >= last, 30.0,
+                   'the last sample before the fault')
     n = len(probe.msgs['angular_momentum'])
     probe.spin(0.5)
     assert len(probe.msgs['angular_momentum']) == n, 'still publishing after a fault'
@@ -437,9 +462,9 @@ def test_reset_restores_initial_state_and_clears_fault(ros_process, namespace, r
     # fix the scene and reset: running again, OK
     [result] = probe.set_parameters(dissipation__coefficient=0.0)
     assert probe.reset().success
-    probe.wait_diag(lambda d, s: s.level == DiagnosticStatus.OK and not d['fault'], 5.0,
+    probe.wait_diag(lambda d, s: s.level == DiagnosticStatus.OK and not d['fault'], 30.0,
                     'OK after reset')
-    probe.wait_for(lambda: len(probe.msgs['angular_momentum']) >= n + 3, 5.0,
+    probe.wait_for(lambda: len(probe.msgs['angular_momentum']) >= n + 3, 30.0,
                    'publishing after reset')
     assert_clean_exit(sim)
 
@@ -451,7 +476,7 @@ def test_clock_follows_real_time_factor(ros_process, namespace, rclpy_node, rtf)
     probe = Probe(rclpy_node, namespace, topics=('attitude',), clock=True)
     # /clock is shared by every test's simulator in this domain: keep the samples that match our
     # stamps
-    probe.wait_for(lambda: len(probe.msgs['attitude']) >= 10, 10.0, 'attitude')
+    probe.wait_for(lambda: len(probe.msgs['attitude']) >= 10, 30.0, 'attitude')
     # real time: a 5 s window (the pacing check needs it); as fast as possible both
     # processes run flat out, so the probe spins in 0.5 s slices only until it holds what
     # the assertions below need (a fixed 1 s window held 7 shared instants once at load)
@@ -494,11 +519,7 @@ def test_clock_follows_real_time_factor(ros_process, namespace, rclpy_node, rtf)
     if rtf:
         # pacing from the least delayed arrivals at each end of the window: receive times
         # lag the due times by scheduling delays (one-sided), never lead them
-        lag = [w - st / rtf for w, st in samples]
-        k = max(1, len(lag) // 5)
-        drift = min(lag[-k:]) - min(lag[:k])
-        span = (samples[-k][1] - samples[k - 1][1]) / rtf
-        assert span / (span + drift) * rtf == pytest.approx(rtf, rel=0.05), (sim / wall, drift)
+        assert pace(samples, rtf) == pytest.approx(rtf, rel=0.05), sim / wall
     else:
         assert sim / wall > 5.0, f'as fast as possible reached only {sim / wall:.1f}x'
 
@@ -555,17 +576,25 @@ def test_missed_deadlines_mean_what_they_say(ros_process, namespace, rclpy_node)
                           deadline_tolerance=0.1)
     probe = Probe(rclpy_node, namespace, topics=('attitude',))
     probe.wait_for(lambda: len(probe.msgs['attitude']) >= 20, 30.0, 'attitude')
+    # a period without a late sample first (every sample counted as late would never give
+    # one); the count then is the baseline: on a loaded machine start-up's samples may be late
+    probe.wait_diag(lambda d, s: d['missed_deadlines_in_period'] == '0', 60.0,
+                    'a period without missed deadlines')
+    before = int(probe.diag()['missed_deadlines'])
+    n_diag = len(probe.msgs['diagnostics'])
     sim.signal(signal.SIGSTOP)
     time.sleep(0.6)
     sim.signal(signal.SIGCONT)
-    probe.wait_diag(lambda d, s: int(d['missed_deadlines']) >= 20, 30.0,
+    probe.wait_diag(lambda d, s: int(d['missed_deadlines']) >= before + 20, 30.0,
                     'the late samples counted')
-    periods = [{kv.key: kv.value for kv in s.values} for _, a in probe.msgs['diagnostics']
+    periods = [{kv.key: kv.value for kv in s.values}
+               for _, a in probe.msgs['diagnostics'][n_diag:]
                for s in a.status if s.hardware_id == f'{namespace}/{NODE}']
     worst = max(float(d['worst_lateness_in_period']) for d in periods)
     assert 0.45 <= worst <= 3.0, worst
     # the samples due during the stop (30), not every sample since the start
-    assert int(periods[-1]['missed_deadlines']) <= 50 * (0.6 + 0.4)
+    assert int(periods[-1]['missed_deadlines']) - before <= 50 * (0.6 + 0.4), \
+        (before, periods[-1]['missed_deadlines'])
     assert all(float(d['deadline_tolerance']) == 0.1 for d in periods)
     stamps = [m.header.stamp.sec * 1_000_000_000 + m.header.stamp.nanosec
               for _, m in probe.msgs['attitude']]

@@ -14,7 +14,8 @@ import time
 import numpy as np
 import pytest
 
-from ros_helpers import NodeProcess, spin_until, unique_namespace, venv_exe, wait_output
+from ros_helpers import (NodeProcess, pace, spin_until, unique_namespace, venv_exe,
+                         wait_output)
 
 
 CLIENT_DIR = os.path.join(os.path.dirname(__file__), 'foxglove_client')
@@ -93,6 +94,7 @@ class Probe:
         self.executor = SingleThreadedExecutor(context=self.context)
         self.executor.add_node(self.node)
         self.attitude = {}   # stamp ns -> (x, y, z, w)
+        self.arrivals = []   # (wall time, stamp s) of each attitude message
         self.diag = {}       # status name -> [(wall time, {key: value})]
         self.node.create_subscription(QuaternionStamped, 'attitude', self._on_attitude,
                                       qos_profile('reliable', 1000))
@@ -103,6 +105,7 @@ class Probe:
         q = msg.quaternion
         s = msg.header.stamp
         self.attitude[s.sec * 1_000_000_000 + s.nanosec] = (q.x, q.y, q.z, q.w)
+        self.arrivals.append((time.monotonic(), s.sec + 1e-9 * s.nanosec))
 
     def _on_diag(self, msg):
         for s in msg.status:
@@ -345,10 +348,11 @@ def test_ten_clients_keep_the_simulator_real_time(live, client_js):
     # the viewer's throughput is tools.viewer's to measure, not this test's)
     for s in sessions:
         assert s['counts'].get('/tf', 0) >= 1.0 * RATE, (s['label'], s['counts'])
-    rtf = [float(v['real_time_factor_achieved'])
-           for name, entries in probe.diag.items() if name.startswith('attitude_simulator')
-           for t, v in entries if t > start + 1.5]
-    assert rtf and min(rtf) >= 0.9, rtf   # generous: the machine is shared
+    # the simulator's pace over the clients' run, from its stamps' least delayed arrivals
+    # (ros_helpers.pace): the lowest 1 s diagnostics report read one stall of the shared
+    # machine, caught up on in the next, as a slow simulator
+    arrivals = [(w, s) for w, s in probe.arrivals if w > start + 1.5]
+    assert pace(arrivals) >= 0.9, (len(arrivals), pace(arrivals))
 
 
 def test_garbage_and_unknown_channel_are_ignored_and_counted(live, client_js):
@@ -384,5 +388,5 @@ def test_port_in_use_is_a_clear_error_and_the_simulator_runs_on(live):
     assert code == 1, out
     assert str(live['port']) in out and 'parameter port' in out and 'Traceback' not in out
     n = len(probe.attitude)
-    assert probe.spin(5.0, lambda: len(probe.attitude) > n + RATE)
+    assert probe.spin(30.0, lambda: len(probe.attitude) > n + RATE)
     assert live['sim'].poll() is None and live['viewer'].poll() is None

@@ -9,7 +9,7 @@ from test_viewer import MOMENTS, W0, client_js, finish_client, live, run_client 
 
 W1 = np.array([0.3, 0.2, 0.9])  # rad/s, base_link: the state after the reset
 SECONDS = 9.0
-RESET_AFTER_S = 4.0
+RESET_AFTER_S = 3.0  # s into the client's stream
 TOL = 1e-9  # relative: T and |L| of a torque-free run, from float64 samples
 
 
@@ -43,9 +43,18 @@ def _scene_stamp(scene):
 
 def test_reset_restarts_drift_and_traces(live, client_js):  # noqa: F811
     probe = live['probe']
+
+    def subscriptions():
+        return int((probe.latest('attitude_viewer') or {}).get('subscriptions', 0))
+    before_client = subscriptions()
     proc = run_client(client_js, live['port'], SECONDS, '--subscribe', '/state,/scene',
                       '--dump', '/state,/scene', wait=False)
     try:
+        # the reset RESET_AFTER_S into the client's stream (its two subscriptions in the
+        # viewer's 1 Hz diagnostics), not into this probe's time: a client starting late on
+        # a loaded machine left too little of its 9 s after the reset (54 samples, load 12)
+        assert probe.spin(30.0, lambda: subscriptions() >= before_client + 2), \
+            probe.latest('attitude_viewer')
         probe.spin(RESET_AFTER_S)
         _reset_into(probe, W1)
         probe.spin_while(proc)

@@ -90,7 +90,8 @@ def _at_rate(scene, rate):
 
 
 def _cli_cpu(name, duration, repeats):
-    """Least ``cpu_seconds`` (and that run's output_cpu_seconds) of the CLI's runs."""
+    """Least ``cpu_seconds`` (and that run's output_cpu_seconds, kernels loaded and page
+    faults in its clock) of the CLI's runs."""
     runs = []
     for _ in range(repeats):
         with tempfile.TemporaryDirectory() as out:
@@ -102,18 +103,20 @@ def _cli_cpu(name, duration, repeats):
         if proc.returncode != 0:
             raise RuntimeError(f'rigid-body-sim run {name} failed: {proc.stderr[-500:]}')
         s = json.loads(proc.stdout.strip().splitlines()[-1])
-        runs.append((s['cpu_seconds'], s['output_cpu_seconds'], s['kernels_loaded_during_run']))
+        runs.append((s['cpu_seconds'], s['output_cpu_seconds'], s['kernels_loaded_during_run'],
+                     s['page_faults_during_run']))
     return min(runs)
 
 
 def _cli_and_inprocess(scene, target, duration, rate, repeats, cli_repeats):
     """(least in-process CPU, the CLI's least (cpu_seconds, output_cpu_seconds, kernels
-    loaded in the clock)) of ``scene`` (a name or a SceneFile; ``target``: what the CLI
-    runs) at ``rate``: the two alternated, two in-process runs (the second warm, as the
-    CLI's run is after its rehearsals) before each CLI run, so that both minima come from
-    the same stretch of the machine's load. Measured one after the other (the in-process
-    runs within ~20 ms, then the CLI's over ~3 s), a change of load between them read as
-    CLI overhead: generated scene 6 read 1.43 in one full run, 0.97-1.07 alone (load 8)."""
+    loaded and page faults in the clock)) of ``scene`` (a name or a SceneFile;
+    ``target``: what the CLI runs) at ``rate``: the two alternated, two in-process runs
+    (the second warm, as the CLI's run is after its rehearsals) before each CLI run, so
+    that both minima come from the same stretch of the machine's load. Measured one
+    after the other (the in-process runs within ~20 ms, then the CLI's over ~3 s), a
+    change of load between them read as CLI overhead: generated scene 6 read 1.43 in one
+    full run, 0.97-1.07 alone (load 8)."""
     inproc, cli = float('inf'), []
     for i in range(max(repeats, cli_repeats)):
         inproc = min(inproc, _simulate_cpu(scene, duration, rate, {}, 2))
@@ -145,14 +148,14 @@ def run(quick, log=print, generated_count=None):
                                   SAMPLING_MAX, ratio <= SAMPLING_MAX,
                                   f'{duration:g} s, samples kept in-process', scene=name))
     for name, duration in CLI_SCENES:
-        inproc, (cli_cpu, output, loaded) = _cli_and_inprocess(
+        inproc, (cli_cpu, output, loaded, faults) = _cli_and_inprocess(
             name, name, duration, _scene_rate(name), repeats, CLI_REPEATS[quick])
         ratio = cli_cpu / inproc
         rows.append({'what': 'CLI overhead', 'scene': name, 'duration': duration,
                      'rate_a': _scene_rate(name), 'cpu_a_s': inproc,
                      'rate_b': _scene_rate(name), 'cpu_b_s': cli_cpu, 'ratio': ratio,
                      'note': f'bag written: output_cpu_seconds {output:.3g}; kernels loaded in '
-                             f'the clock {loaded}'})
+                             f'the clock {loaded}, page faults {faults}'})
         log(f'  CLI {name:14s} {duration:6g} s: in-process {inproc * 1e3:8.3f} ms, CLI '
             f'cpu_seconds {cli_cpu * 1e3:8.3f} ms: x{ratio:.3g} (bag {output * 1e3:.3g} ms '
             f'on its own; {loaded} kernels loaded in the clock)')
@@ -208,13 +211,14 @@ def generated_rows(quick, log=print, count=None):
             continue
         with tempfile.TemporaryDirectory() as tmp:
             path = scene.write_params_file(os.path.join(tmp, f'{scene.name}.yaml'))
-            inproc, (cli_cpu, output, loaded) = _cli_and_inprocess(
+            inproc, (cli_cpu, output, loaded, faults) = _cli_and_inprocess(
                 f, path, duration, scene.publish_rate, repeats, CLI_GENERATED[quick][1])
         cli.append(cli_cpu / inproc)
         rows.append({'what': 'CLI overhead', 'scene': scene.name, 'duration': duration,
                      'rate_a': scene.publish_rate, 'cpu_a_s': inproc,
                      'rate_b': scene.publish_rate, 'cpu_b_s': cli_cpu, 'ratio': cli[-1],
-                     'note': f'{scene.kind}; kernels loaded in the clock {loaded}'})
+                     'note': f'{scene.kind}; kernels loaded in the clock {loaded}, page '
+                             f'faults {faults}'})
         log(f'  {scene.name:16s} CLI x{cli[-1]:.3g} (in-process {inproc * 1e3:.3g} ms → '
             f'cpu_seconds {cli_cpu * 1e3:.3g} ms; bag {output * 1e3:.3g} ms on its own)')
     if not rows:

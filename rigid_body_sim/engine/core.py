@@ -272,10 +272,10 @@ class Engine(MethodChoice, Stepping):
         self._update_torque()
 
     def _update_torque(self):
-        active = [s.torque for s in self.sources if s.torque is not None]
-        before = self._tau_body
-        self._tau_body = None if not active else active[0] if len(active) == 1 else \
-            np.sum(active, axis=0)
+        sources, before = self.sources, self._tau_body  # the command alone: no list made
+        active = sources if len(sources) == 1 else [s for s in sources if s.torque is not None]
+        self._tau_body = None if not active else active[0].torque if len(active) == 1 else \
+            np.sum([s.torque for s in active], axis=0)
         self._tau_p = None if self._tau_body is None else \
             self._tau_body if self._aligned else self.body.to_principal(self._tau_body)
         if self.actuators is not None and self.actuators.allocate:

@@ -140,6 +140,7 @@ class DirectPeriod:
         self._able = False  # whether its periods can be direct at all (_pack)
         self._free = False  # exact without damping or environment: free without torque
         self._end = 0
+        self._written = None
 
     def _pack(self, e):
         """What a period needs of the engine that changes only with its integrator,
@@ -148,6 +149,7 @@ class DirectPeriod:
         constants."""
         integ = e._integ
         self._key, self._able = (integ, e.config, e.dynamics, e.body), False
+        self._written = None  # (step, coefficient) in f (step: written when they change)
         code = None if integ is None else integ.loop_code
         spec = None if code is None else integ.loop_spec()
         if spec is None or code == DOP853 or e._law is not None or e._sensors is not None \
@@ -188,14 +190,20 @@ class DirectPeriod:
         tau = e._tau_body
         zero = self._zero
         f, ticks = self.f, self.ticks
-        f[H_MAX], f[COEFFICIENT] = e.step_max, e.dynamics.dissipation.coefficient
+        # each numpy call of a period counts: one that follows a wake-up costs several
+        # times its cost in a loop (tools.lockstep_parts), so what rarely changes is
+        # written only when it does, and the counts are read in one call
+        written = (e.step_max, e.dynamics.dissipation.coefficient)
+        if written != self._written:
+            f[H_MAX], f[COEFFICIENT] = self._written = written
         ticks[T_NS], ticks[UNTIL_NS] = e.t_ns, until_ns
         q, m = np.empty(4), np.empty(3)
         period_kernel(f, ticks, e.dynamics.environment, e._q, e._m,
                       zero if tau is None else tau, zero if tau_p is None else tau_p, q, m)
-        steps, evaluations, failed = ticks[STEPS:].tolist()
-        if failed != -1:
+        counts = ticks.tolist()
+        if counts[FAILED] != -1:
             return None
+        steps, evaluations = counts[STEPS], counts[EVALS]
         e._q, e._m, e.t_ns = q, m, until_ns
         e._next_sample = until_ns + e.config.sample_period_ns
         e.steps += steps

@@ -9,8 +9,8 @@ import time
 from typing import Optional
 
 from ..physics import INTEGRATORS, IntegrationError, create
-from ..physics.auto import select, selecting
-from ..physics.auto.selection import free_choice
+from ..physics.auto import Selection, select, selecting
+from ..physics.auto.selection import choosing, free_choice
 from . import law_pilot
 from .config import NS
 from .specs import AUTO
@@ -82,33 +82,57 @@ class MethodChoice:
         # the budget covers the rest of the run (what went before was exact or is done)
         left = (self.end_ns - self.t_ns) / NS if c.duration_ns > 0 else 0.0
         kw = dict(torque=self._torque_seen, accuracy=c.accuracy, duration=left,
-                  max_step=self._spacing(),
-                  torque_rate=c.torque_rate(self._torque_seen) if torque else 0.0,
-                  dynamics=self.dynamics,
-                  environment=terms, forced=bool(terms) and c.environment.periodic_forcing,
+                  max_step=self._spacing(), dynamics=self.dynamics,
                   # an adaptive method restarts where the environment is re-made per event
                   restarting=self.orbit_anchored or bool(terms) and c.environment.magnetorquers,
-                  # where the gravity gradient acts: auto tests the equilibrium it starts near
-                  orbit_state=c.environment.orbit.state(self.t_ns / NS)
-                  if terms and c.environment.gravity_gradient else None,
                   # commands priced as the compiled closed loop's instants (Engine.advance),
                   # whoever makes them: the choice is the scene's, not the path's, so the
                   # event-by-event loop, the live node and lockstep (the law in another
                   # process) choose as the offline run does and their samples stay equal
                   # (selecting leaves out restarting runs, an orbit's among them)
                   law_in_loop=True,
-                  # the state's own momentum (a copy: the pilot may outlive this instant),
-                  # not I·ω from the ω it gives: two array operations of the selection's time
-                  momentum=self._m.copy())
-        state = (self.body, c.dissipation, self.attitude, self.angular_velocity)
+                  # the state's own momentum, not I·ω from the ω it gives: two array
+                  # operations of the selection's time
+                  momentum=self._m)
+        # ω only where the selection reads it, the gravity gradient's equilibrium test (the
+        # momentum stands for it elsewhere); the torque's rate and the environment's terms
+        # left at selecting's defaults where there are none: each a share of a short
+        # dissipative run's choosing (Explorer 1, 1 s)
+        omega = None
+        if torque:
+            kw.update(torque_rate=c.torque_rate(self._torque_seen))
+        if terms:
+            env = c.environment
+            kw.update(environment=terms, forced=env.periodic_forcing)
+            if env.gravity_gradient:  # auto tests the equilibrium it starts near
+                kw.update(orbit_state=env.orbit.state(self.t_ns / NS))
+                omega = self.angular_velocity
+        # the state's own arrays where the choice is made at once (blocking, or with torque
+        # a priori), before the state moves; copies where the pilot outlives this instant
+        # (a numpy call each, cold, was a share of a short run's choosing: Explorer 1, 1 s)
+        at_once = self.blocking_selection or torque
+        if not at_once:
+            kw.update(momentum=self._m.copy())
+        state = (self.body, c.dissipation,
+                 self._q if at_once and self._aligned else self.attitude, omega)
         runner = self._law_runner() if torque else None
         if runner is not None:  # the law runs here: a pilot can measure it
             kw.update(law_runner=runner, control_period=c.control.period_ns / NS)
-        work = selecting(*state, **kw)
-        if self.blocking_selection or torque:  # with torque the choice is a priori: at once
+        if at_once:  # with torque the choice is a priori: at once
+            try:
+                work = choosing(*state, **kw)
+            except (ValueError, IntegrationError) as exc:
+                self.selection_cpu += time.process_time() - cpu0
+                self._failed(exc)
+                return
+            if isinstance(work, Selection):  # no pilot: no generator to feed
+                self.selection_cpu += time.process_time() - cpu0
+                self._take(work)
+                return
             self._selection = work
             self.work(cpu0=cpu0)  # one bracket: each clock reading is a ~0.7 µs system call
         else:
+            work = selecting(*state, **kw)
             sel = select(*state, prior_only=True, **kw)
             self.selection_cpu += time.process_time() - cpu0
             self._use(sel.name, sel.step, f'auto: provisional a-priori choice while the '
@@ -169,17 +193,23 @@ class MethodChoice:
                 next(work)
         except StopIteration as done:
             self.selection_cpu += time.process_time() - cpu0  # setting up the run is the run's
-            sel = done.value
-            self._selection = None
-            self.selected = sel
-            self._use(sel.name, min(sel.step, self._spacing()) if sel.step > 0
-                      else self._spacing(), f'auto: {sel.reason}',
-                      **dict(sel.options))
+            self._take(done.value)
         except (ValueError, IntegrationError) as exc:
             self.selection_cpu += time.process_time() - cpu0
-            self._selection = None
-            self._use('splitting2', min(self.config.step, self._spacing()),
-                      f'auto: selection failed ({exc}); splitting2 at the scene\'s step')
+            self._failed(exc)
         else:
             self.selection_cpu += time.process_time() - cpu0
         return self._selection is not None
+
+    def _take(self, sel):
+        """Run with auto's Selection ``sel`` from now."""
+        self._selection = None
+        self.selected = sel
+        self._use(sel.name, min(sel.step, self._spacing()) if sel.step > 0
+                  else self._spacing(), f'auto: {sel.reason}', **dict(sel.options))
+
+    def _failed(self, exc):
+        """Run with splitting2 at the scene's step where auto's selection failed (``exc``)."""
+        self._selection = None
+        self._use('splitting2', min(self.config.step, self._spacing()),
+                  f'auto: selection failed ({exc}); splitting2 at the scene\'s step')

@@ -105,11 +105,14 @@ class SampleBlock:
             return self.take(slice(i, i + 1)).row(0)
         return {k: getattr(self, k)[i].tolist() for k in FIELDS}
 
-    def take(self, index) -> 'SampleBlock':
-        """The samples at ``index`` (an index array or a slice)."""
-        return SampleBlock(self.t_ns[index], self.q[index], self.m[index], self.torque[index],
-                           self.body, None if self.actuators is None else self.actuators[index],
-                           dipole=None if self.dipole is None else self.dipole[index])
+    def take(self, index, copy=False) -> 'SampleBlock':
+        """The samples at ``index`` (an index array or a slice: views of this block's
+        arrays, or copies with ``copy``, which keep no reference to them)."""
+        def pick(a):
+            return None if a is None else a[index].copy() if copy and isinstance(
+                index, slice) else a[index]
+        return SampleBlock(pick(self.t_ns), pick(self.q), pick(self.m), pick(self.torque),
+                           self.body, pick(self.actuators), dipole=pick(self.dipole))
 
     @staticmethod
     def concatenate(blocks) -> 'SampleBlock':

@@ -53,9 +53,13 @@ class CommandHold(TorqueSource):
         """Hold ``torque`` (body frame, finite) from ``t_ns``; a zero torque ends the hold.
         Clipped in Python floats, as np.clip would (a live lockstep exchange applies one
         command: five small numpy calls cost more than the rest of it)."""
-        x, y, z = (float(v) for v in torque)
+        x, y, z = torque  # (no generator: one apply per lockstep exchange)
+        x, y, z = float(x), float(y), float(z)
         m = self.max_torque  # one limit, or one per axis (the magnetorquers' rods)
-        mx, my, mz = (m, m, m) if isinstance(m, float) else (float(v) for v in m)
+        if isinstance(m, float):
+            mx = my = mz = m
+        else:
+            mx, my, mz = float(m[0]), float(m[1]), float(m[2])
         if abs(x) > mx or abs(y) > my or abs(z) > mz:
             x, y, z = min(max(x, -mx), mx), min(max(y, -my), my), min(max(z, -mz), mz)
             self.saturated += 1

@@ -46,6 +46,13 @@ def applicable(torque: bool, damping, environment: bool):
 
 
 @functools.lru_cache(maxsize=None)
+def deciding(torque: bool, damping, environment: bool) -> tuple:
+    """The step-based candidates of :func:`applicable` whose use the dissipation's stiffness
+    decides (``RunModel.stiff_enough``), in its order: what a kind's ``stiff`` answers."""
+    return tuple(c for c, decides in applicable(torque, damping, environment)[0] if decides)
+
+
+@functools.lru_cache(maxsize=None)
 def usable(torque: bool, damping, environment: bool, stiff: tuple) -> tuple:
     """The step-based candidates a run of this kind asks (:func:`applicable`), ``stiff``
     saying for each one whose dissipation's stiffness decides whether it is stiff enough
@@ -58,6 +65,14 @@ def usable(torque: bool, damping, environment: bool, stiff: tuple) -> tuple:
         superseded = {c.supersedes for c in usable}
         usable = [c for c in usable if c.name not in superseded]
     return tuple(usable)
+
+
+@functools.lru_cache(maxsize=None)
+def finite_names(torque: bool, damping, environment: bool, stiff: tuple) -> tuple:
+    """The names of the :func:`usable` candidates with an a-priori bound (a finite k): the
+    ones a run of this kind could ask a priori (named where none is asked)."""
+    return tuple(c.name for c in usable(torque, damping, environment, stiff)
+                 if math.isfinite(c.k))
 
 
 # (kind, the costs' id, the event's cost) → (the costs, kept so that their id stays theirs;
@@ -85,6 +100,25 @@ def least(s, kind: tuple):
     if not s.term_cost:
         _LEAST[key] = (s.costs, (per_step, event))
     return per_step, event
+
+
+@functools.lru_cache(maxsize=None)
+def split_exact(torque: bool, damping, environment: bool, stiff: tuple) -> tuple:
+    """The :func:`usable` candidates of a kind whose free flow is exact
+    (:func:`free_flow_exact`), in its order."""
+    exact = free_flow_exact()
+    return tuple(c for c in usable(torque, damping, environment, stiff) if c.name in exact)
+
+
+@functools.lru_cache(maxsize=None)
+def effects(commanded: bool, damping, environment: tuple) -> str:
+    """What the model holds besides the free body, for the reason: commanded torque,
+    ``damping`` (the dissipation model, None without) and the environment's torques."""
+    parts = ['commanded torque'] if commanded else []
+    if damping is not None:
+        parts.append(damping + ' dissipation')
+    parts.extend(environment)
+    return ' + '.join(parts)
 
 
 @functools.lru_cache(maxsize=None)

@@ -177,6 +177,14 @@ class RunModel:
         substep = self.costs.damp_substep or DAMP_SUBSTEP
         return (cost[0] + 2 * substep * substeps) * 1e-6
 
+    def least_step_cost(self, c):
+        """A lower bound of c's CPU s per step at any step (:meth:`step_cost`): the least
+        of its branches, each written as there so that the bound is never above it."""
+        cost = self.costs.cost(c)
+        least = cost[0] * 1e-6 if self.damping is None else \
+            min(cost[0], cost[1], cost[0] * self.costs.viscous_factor) * 1e-6
+        return least + self.term_cost * c.environment_evals * 1e-6
+
     def run_cost(self, c, h):
         steps = self.events * round(self.max_step / h)
         call = self.per_event(c)

@@ -90,7 +90,12 @@ def _beta(moments, m):
     """β of the plane state with the energy of m (same |m|)."""
     # plain floats: asked once per selection, where numpy's per-call cost would dominate
     # (tolist, not map(float, …): that makes a numpy scalar of each element first)
-    (i0, i1, i2), (m0, m1, m2) = _floats(moments), _floats(m)
+    return _beta_of(_floats(moments), _floats(m))
+
+
+def _beta_of(moments: list, m: list):
+    """:func:`_beta` of plain floats."""
+    (i0, i1, i2), (m0, m1, m2) = moments, m
     i_a, i_c = min(i0, i1, i2), max(i0, i1, i2)
     G2 = m0 * m0 + m1 * m1 + m2 * m2
     if i_c - i_a <= 1e-12 * i_c or G2 == 0.0:
@@ -109,7 +114,7 @@ def turning(dynamics, m0, horizon: float, momentum_norm: float = None,
     Δβ (the Gudermannian of κt). ``momentum_norm``: |m0|, and ``moments``: the dynamics'
     moments as floats, if the caller has them."""
     a, b, c = m0 = _floats(m0)
-    beta0 = _beta(dynamics.moments if moments is None else moments, m0)
+    beta0 = _beta_of(_floats(dynamics.moments if moments is None else moments), m0)
     if momentum_norm is None:
         momentum_norm = math.sqrt(a * a + b * b + c * c)
     u = math.log(math.tan(beta0)) + path_rate(dynamics, momentum_norm) * horizon

@@ -11,7 +11,7 @@ from . import pilot
 
 SELECTION_SHARE = 0.10    # the whole selection, a-priori pass included, at most this share
 PAYBACK = 10.0            # ... unless a candidate could save this many times what it spent
-# the pilot's costs, in the units of the run's cost model, set as selection.PRIOR_BASE is
+# the pilot's costs, in the units of the run's cost model, set as answers.PRIOR_BASE is
 LEVELS_COST = 3e-5        # s: setting up the pilot's states
 ROUND_COST = 3e-5         # s per pilot round besides its runs (queue, models, notes)
 PILOT_CALL = 5e-6         # s per pilot run call (Python around the compiled loop)

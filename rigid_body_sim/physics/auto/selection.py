@@ -14,7 +14,7 @@
   method within 10 %).
 * **Symmetric body, dissipation alone → ``exact`` a priori** where 2·Δβ (the damping's
   turning of the momentum over the run) meets the budget, at the event spacing: its split
-  error is at most Δβ at any step (:func:`_symmetric_split`).
+  error is at most Δβ at any step (:func:`.answers.symmetric_split`).
 * **Pilot, only where needed:** k is a worst case; a body spinning near a principal axis
   (Explorer 1) errs 10⁴× less with a splitting. For torque-free dissipative runs the
   pilot (:mod:`.pilot_search`, with :mod:`.pilot`'s step doubling at the initial state
@@ -48,58 +48,25 @@ cost per step, error constant, …), which :mod:`.model` (the a-priori model: ti
 costs, errors) collects from the registry.
 """
 import math
-from typing import NamedTuple
-
-import numpy as np
-
 from .. import rotation
 from ..body import RigidBody
 from ..dynamics import Dissipation, Dynamics
-from . import law_pilot, libration, pilot
+from . import law_pilot, libration
+from .answers import (PRIOR_EACH, Selection, checked, free_choice, options,
+                      prior_cost as _prior_cost, symmetric_split, unknowable)
 from .pilot_search import (NO_ROUND, PAYBACK, PREFER, SELECTION_SHARE, better as _better,
                            no_round_fits, piloted)
 from ..integrators import Candidate
-from .kinds import applicable, free_flow_exact, least as least_costs, usable as usable_of_kind
+from .kinds import (applicable, deciding, effects, finite_names, least as least_costs,
+                    split_exact, usable as usable_of_kind)
 from .model import (CANDIDATES, H_OMEGA_PRIOR, MEASURED_K, RTOL_RANGE, RUN_COST, RunModel,
                     is_symmetric)
 
 __all__ = ['CANDIDATES', 'Candidate', 'Selection', 'free_choice', 'select', 'selecting']
 
 
-# what choosing costs, in the units of the run's cost model (RUN_COST, CANDIDATES), set
-# from Explorer 1's median selection CPU against its median run CPU at 10–690 s (its
-# Python runs between runs, with cold caches: 1.3–1.7× its cost in a tight loop)
-PRIOR_BASE = 2e-5         # s: the a-priori pass before it asks a candidate (time scales)
-PRIOR_EACH = 1e-5         # s: asking one candidate a priori (its step and cost)
-SPLIT_K = 2.0             # × Δβ: exact's split error bound on a symmetric body (measured ≤ 1.0)
-SPLIT_NOTE = f'symmetric body: E ≤ {SPLIT_K:g}·Δβ'
 DEFAULT_HORIZON = 600.0   # s: the budget horizon for open-ended (duration 0) runs
-
-
-class Selection(NamedTuple):
-    """The chosen method and step (s), why, the predicted attitude error (rad) and run CPU
-    (s), and what choosing cost: pilot steps and their predicted CPU (s), and the a-priori
-    pass's predicted CPU (s). Immutable; a named tuple, not a frozen dataclass, whose ten
-    fields set one by one cost a sixth of Explorer 1's whole selection."""
-    name: str
-    step: float
-    reason: str
-    predicted_error: float = 0.0
-    predicted_cost: float = 0.0
-    pilot_steps: int = 0
-    pilot_cost: float = 0.0
-    prior_cost: float = 0.0
-    options: tuple = ()  # (name, value) pairs for the method: dop853's rtol and atol
-
-    @property
-    def planned_cost(self) -> float:
-        """What choosing costs in the run's cost model (s): the a-priori pass and pilots."""
-        return self.prior_cost + self.pilot_cost
-
-
-def _prior_cost(asked: int) -> float:
-    """What the a-priori pass costs having asked ``asked`` candidates (s, the run's model)."""
-    return PRIOR_BASE + PRIOR_EACH * asked
+# the reason's figures: formatted with % (see .answers)
 
 
 def _worth_asking(c, floor, best, accuracy, asked):
@@ -126,39 +93,32 @@ def select(body: RigidBody, dissipation: Dissipation, attitude, angular_velocity
             return done.value
 
 
-def _checked(accuracy, max_step):
-    """ValueError naming a budget or an event spacing that no choice can be made for."""
-    if not (accuracy > 0 and math.isfinite(accuracy)):
-        raise ValueError(f'accuracy must be a positive attitude error in rad, got {accuracy}')
-    if not (max_step > 0 and math.isfinite(max_step)):
-        raise ValueError(f'max_step must be positive, got {max_step}')
-
-
-def free_choice(moments, m, accuracy: float, max_step: float) -> Selection:
-    """The choice for a torque-free body without dissipation (``exact``), from the principal
-    moments and m = I·ω alone: cheaper than building :func:`selecting`'s arguments."""
-    _checked(accuracy, max_step)
-    shape = 'symmetric body: closed-form free precession' if is_symmetric(moments) else \
-        'Jacobi elliptic functions + Carlson integrals'
-    if not any(m.tolist() if isinstance(m, np.ndarray) else m):  # numpy's any: 1.5 µs
-        return Selection('exact', max_step, 'body at rest: exact', 0.0)
-    return Selection('exact', max_step, 'torque-free, no dissipation → exact solution '
-                     f'({shape}); no stepping error at any horizon', 0.0)
-
-
-def selecting(body: RigidBody, dissipation: Dissipation, attitude, angular_velocity, *,
-              torque: bool, accuracy: float, duration: float, max_step: float,
-              torque_rate: float = 0.0, prior_only: bool = False,
-              dynamics: Dynamics = None, environment: tuple = (), forced: bool = False,
-              restarting: bool = False, orbit_state: tuple = None,
-              law_in_loop: bool = False, law_runner=None, control_period: float = 0.0,
-              momentum=None):
+def selecting(body: RigidBody, dissipation: Dissipation, attitude, angular_velocity, **kw):
     """Generator form of :func:`select`: yields often (every few ms of pilot work) so that a
-    caller can interleave the selection with its own work; its return value is the Selection.
+    caller can interleave the selection with its own work; its return value is the Selection
+    (the arguments: :func:`choosing`)."""
+    work = choosing(body, dissipation, attitude, angular_velocity, **kw)
+    if isinstance(work, Selection):
+        return work
+    return (yield from work)
+
+
+def choosing(body: RigidBody, dissipation: Dissipation, attitude, angular_velocity, *,
+             torque: bool, accuracy: float, duration: float, max_step: float,
+             torque_rate: float = 0.0, prior_only: bool = False,
+             dynamics: Dynamics = None, environment: tuple = (), forced: bool = False,
+             restarting: bool = False, orbit_state: tuple = None,
+             law_in_loop: bool = False, law_runner=None, control_period: float = 0.0,
+             momentum=None):
+    """The selection's a-priori pass, at once: the Selection where no pilot runs, else the
+    generator that pilots and returns it (:func:`selecting`'s form; a caller that needs no
+    generator where none pilots is spared making one and its StopIteration: a share of a
+    short run's choosing, Explorer 1's over 1 s).
 
     Args:
         body, dissipation: the model.
-        attitude, angular_velocity: initial state (body→inertial quaternion; ω body frame).
+        attitude, angular_velocity: initial state (body→inertial quaternion; ω body frame;
+            ω may be None where ``momentum`` is given and ``orbit_state`` is not).
         torque: whether commanded torques will act.
         accuracy: attitude-error budget in rad over ``duration``.
         duration: horizon in s (0 = open-ended: budget per DEFAULT_HORIZON s).
@@ -202,7 +162,7 @@ def selecting(body: RigidBody, dissipation: Dissipation, attitude, angular_veloc
             ``angular_velocity``.
     """
     commanded, torque = torque, torque or bool(environment)
-    _checked(accuracy, max_step)
+    checked(accuracy, max_step)
     moments = body.principal_moments
     m = moments * body.to_principal(angular_velocity) if momentum is None else momentum
     if not torque and not dissipation.active:
@@ -216,13 +176,13 @@ def selecting(body: RigidBody, dissipation: Dissipation, attitude, angular_veloc
     if s.omega == 0.0:
         return Selection('splitting2', max_step, 'body at rest, no torque: any step is exact',
                          0.0, s.run_cost(CANDIDATES[0], max_step))
-    fixed, adaptive = applicable(torque, s.damping, bool(environment))
+    adaptive = applicable(torque, s.damping, bool(environment))[1]
     kind = torque, s.damping, bool(environment), \
-        tuple([s.stiff_enough(c) for c, decides in fixed if decides])
+        tuple(map(s.stiff_enough, deciding(torque, s.damping, bool(environment))))
     usable = usable_of_kind(*kind)
-    what = effects(commanded, dissipation, environment)
+    what = effects(commanded, s.damping, environment)
     if forced and not commanded and adaptive and s.torque_rate >= s.spin:
-        return _unknowable(s, adaptive[0], accuracy, horizon, (
+        return unknowable(s, adaptive[0], accuracy, horizon, (
             f'{what} on a non-circular orbit → libration under a periodic forcing (torque '
             f'rate {s.torque_rate:.3g} rad/s ≥ the body\'s {s.spin:.3g}), possibly chaotic'))
     if orbit_state is not None and not commanded and adaptive \
@@ -230,18 +190,18 @@ def selecting(body: RigidBody, dissipation: Dissipation, attitude, angular_veloc
         near = libration.nearest(moments, body.attitude_to_principal(
             rotation.validated(attitude)), body.to_principal(angular_velocity), *orbit_state)
         if near is not None and not near.stable:
-            return _unknowable(s, adaptive[0], accuracy, horizon, (
+            return unknowable(s, adaptive[0], accuracy, horizon, (
                 f'{what}: the body starts {near.describe()} → it leaves it exponentially'))
     best, why, unasked, asked = None, [], [], 0
     if not torque and is_symmetric(s.moment_floats):  # exact's split error is known a priori
-        best, asked = _symmetric_split(s, usable, why)
+        best, asked = symmetric_split(s, split_exact(*kind), why)
     # cheapest first by the least each could cost (at its largest step); one that could not
     # save more than asking it costs is not asked: on a short run the fixed part of the run
     # dominates every candidate's cost, and the a-priori pass would be its largest share
     least = [] if _none_could_pay(s, kind, best, accuracy) else \
         sorted((s.least_cost(c), i, c) for i, c in enumerate(usable) if math.isfinite(c.k))
     if not least and best is not None:
-        unasked += [c.name for c in usable if math.isfinite(c.k)]
+        unasked += finite_names(*kind)
     for floor, _, c in least:
         if not _worth_asking(c, floor, best, accuracy, asked):
             unasked.append(c.name)
@@ -251,17 +211,22 @@ def selecting(body: RigidBody, dissipation: Dissipation, attitude, angular_veloc
         if h is None:
             continue
         cost = s.run_cost(c, h)
-        why.append(f'{c.name} h={h:.3g}')
+        why.append('%s h=%.3g' % (c.name, h))
         if best is None or _better(c, cost, best, accuracy):
             best = (c, h, cost, s.prior_error(c, h))
     # an adaptive candidate is not asked where its run's fixed part alone (building and
     # events, no step), then its run at its loosest rtol, could not save what asking costs
     # (Explorer 1 over 1–100 s: exact at the sample period, one step per event, where its
     # tolerance was a tenth of the selection)
-    asking = [c for c in adaptive if best is None or best[3] > accuracy or (
-        _better(c, RUN_COST + s.events * s.per_event(c) + PRIOR_EACH, best, accuracy) and
-        _better(c, s.at_tolerance(c, RTOL_RANGE[1])[0] + PRIOR_EACH, best, accuracy))]
-    unasked += [c.name for c in adaptive if c not in asking]
+    asking = []  # a loop, not two comprehensions: each a function call of its own
+    for c in adaptive:
+        if best is None or best[3] > accuracy or (
+                _better(c, RUN_COST + s.events * s.per_event(c) + PRIOR_EACH, best, accuracy)
+                and _better(c, s.at_tolerance(c, RTOL_RANGE[1])[0] + PRIOR_EACH, best,
+                            accuracy)):
+            asking.append(c)
+        else:
+            unasked.append(c.name)
     if unasked:
         why.append('not asked (could not save what asking costs): ' + ', '.join(unasked))
     prior_cost = _prior_cost(asked)
@@ -274,7 +239,7 @@ def selecting(body: RigidBody, dissipation: Dissipation, attitude, angular_veloc
     tolerances = {}
     for c in asking:  # a tolerance a priori (RunModel.tolerance): bounded, never piloted
         rtol, cost, err = s.tolerance(c)
-        why.append(f'{c.name} rtol={rtol:.2g} (E≤{err:.2g})')
+        why.append('%s rtol=%.2g (E≤%.2g)' % (c.name, rtol, err))
         if err > accuracy:
             # no promise: tighter, as far as its measured error law asks (RTOL_FLOOR)
             why.append(f'{c.name} cannot promise {accuracy:g} rad even at rtol '
@@ -293,39 +258,53 @@ def selecting(body: RigidBody, dissipation: Dissipation, attitude, angular_veloc
         if (_better(c, cost, best, accuracy) if err <= accuracy
                 else best[3] > accuracy and err < best[3]):
             best = (c, max_step, cost, err)
-    head = (f'{what} → cheapest method meeting {accuracy:g} rad over '
-            f'{horizon:g} s; Ω = {s.omega:.3g} rad/s; {s.costs.source}')
+    head = '%s → cheapest method meeting %g rad over %g s; Ω = %.3g rad/s; %s' % (
+        what, accuracy, horizon, s.omega, s.costs.source)
     prior = 'a priori (k·(hΩ)^p·ΩT): ' + ', '.join(why)
+    said = (f'{head}; {prior}', prior_cost, tolerances)
     if torque and law_runner is not None and s.law_alone and not prior_only:
-        (c, h, cost, err), spent, steps, notes = yield from law_pilot.refine(
-            s, best, usable, law_runner, control_period)
-        if err > accuracy and adaptive and not c.adaptive:  # nothing promises: weighed
-            (c, h, cost, err), rtol, more, done, said = yield from law_pilot.weigh(
-                s, (c, h, cost, err), adaptive[0], law_runner, control_period)
-            spent, steps, notes = spent + more, steps + done, notes + said
-            if rtol is not None:
-                tolerances[c.name] = rtol
-        if err > accuracy:
-            notes.append(f'no method can be shown to meet {accuracy:g} rad here; the most '
-                         f'accurate predicted ({err:.2g} rad)')
-        return Selection(c.name, h, f'{head}; {prior}; pilot under the law: '
-                         + '; '.join(notes), err, cost, steps, spent, prior_cost,
-                         _options(c, tolerances, s.G))
+        return _under_law(s, best, usable, adaptive, law_runner, control_period, said)
     if torque or prior_only:
         c, h, cost, err = best
-        return Selection(c.name, h, f'{head}; {prior}', err, cost, prior_cost=prior_cost,
-                         options=_options(c, tolerances, s.G))
+        return Selection(c.name, h, said[0], err, cost, prior_cost=prior_cost,
+                         options=options(c, tolerances, s.G))
     if no_round_fits(s, best, prior_cost):  # the pilot's first question, asked here
-        (c, h, cost, err), steps, spent, notes = best, 0, 0.0, [NO_ROUND]
-    else:
-        c, h, cost, err, steps, spent, notes = yield from piloted(
-            s, usable, best, lambda: body.attitude_to_principal(rotation.validated(attitude)),
-            prior_cost)
-    if err > accuracy:
-        notes.append(f'no method can be shown to meet {accuracy:g} rad here; the most '
+        return _concluded(s, (*best, 0, 0.0, [NO_ROUND]), said, 'pilot')
+    return _piloting(s, usable, best, lambda: body.attitude_to_principal(
+        rotation.validated(attitude)), said)
+
+
+def _under_law(s, best, usable, adaptive, law_runner, control_period, said):
+    """Generator: the a-priori choice ``best`` refined by the law's pilot (:mod:`.law_pilot`),
+    and dop853 weighed where nothing promises; returns the Selection. ``said``: the reason
+    so far, the a-priori pass's cost and the adaptive candidates' rtols (updated here)."""
+    (c, h, cost, err), spent, steps, notes = yield from law_pilot.refine(
+        s, best, usable, law_runner, control_period)
+    if err > s.accuracy and adaptive and not c.adaptive:  # nothing promises: weighed
+        (c, h, cost, err), rtol, more, done, more_notes = yield from law_pilot.weigh(
+            s, (c, h, cost, err), adaptive[0], law_runner, control_period)
+        spent, steps, notes = spent + more, steps + done, notes + more_notes
+        if rtol is not None:
+            said[2][c.name] = rtol
+    return _concluded(s, (c, h, cost, err, steps, spent, notes), said, 'pilot under the law')
+
+
+def _piloting(s, usable, best, principal_attitude, said):
+    """Generator: the a-priori choice ``best`` refined by the free body's pilots
+    (:mod:`.pilot_search`); returns the Selection."""
+    found = yield from piloted(s, usable, best, principal_attitude, said[1])
+    return _concluded(s, found, said, 'pilot')
+
+
+def _concluded(s, found, said, pilot):
+    """The Selection of ``found`` (candidate, h, cost, error, pilot steps, pilot cost, notes),
+    with what the ``pilot`` noted, and where it misses the budget, that it does."""
+    (c, h, cost, err, steps, spent, notes), (text, prior_cost, tolerances) = found, said
+    if err > s.accuracy:
+        notes.append(f'no method can be shown to meet {s.accuracy:g} rad here; the most '
                      f'accurate predicted ({err:.2g} rad)')
-    return Selection(c.name, h, f'{head}; {prior}; pilot: ' + '; '.join(notes), err, cost,
-                     steps, spent, prior_cost, _options(c, tolerances, s.G))
+    return Selection(c.name, h, f'{text}; {pilot}: ' + '; '.join(notes), err, cost, steps,
+                     spent, prior_cost, options(c, tolerances, s.G))
 
 
 def _none_could_pay(s, kind, best, accuracy) -> bool:
@@ -342,59 +321,3 @@ def _none_could_pay(s, kind, best, accuracy) -> bool:
     return floor + PRIOR_EACH >= best[2] * (1.0 if best[0].geometric else 1.0 + PREFER)
 
 
-def _symmetric_split(s, usable, why):
-    """(best, asked): a method whose free flow is exact, at the event spacing, on a
-    symmetric body under dissipation alone, if SPLIT_K·Δβ meets the budget (else None).
-
-    There the damping commutes with the free flow in the body (both keep the symmetry
-    axis), and the spin rate it sets evolves exactly across the split steps: what errs is
-    the momentum the damping turns in inertial space, sampled at the steps. At a step that
-    is a multiple of the precession period 2π·I_t/|L| every kick lands at the same phase
-    and they add up; elsewhere they cancel. So the error is at most the whole turning,
-    Δβ (:func:`.pilot.turning`), at any step: Explorer 1 at h = 1 s and 0.5 s (both
-    multiples of its 0.5 s period) erred 0.93–1.0·Δβ over 30–690 s, at h = 0.37 s 2000×
-    less. The earlier facts (no a-priori bound, 18 µs a step, hΩ ≤ 2) made it 30× dearer
-    than it is and kept auto on dop853 at 2.8× its CPU there."""
-    best, asked, err, exact = None, 0, None, free_flow_exact()
-    for c in usable:
-        if c.name not in exact:
-            continue
-        asked += 1
-        err = SPLIT_K * pilot.turning(s.dyn, s.m_floats, s.horizon, s.G,
-                                      s.moment_floats) if err is None else err
-        why.append(f'{c.name} h={s.max_step:.3g} ({SPLIT_NOTE} = {err:.2g}, the damping\'s '
-                   'turning, at any step)')
-        if err <= s.accuracy:
-            best = (c, s.max_step, s.run_cost(c, s.max_step), err)
-    return best, asked
-
-
-def effects(commanded, dissipation, environment) -> str:
-    """What the model holds besides the free body, for the reason."""
-    parts = ['commanded torque'] if commanded else []
-    if dissipation.active:
-        parts.append(dissipation.model + ' dissipation')
-    parts.extend(environment)
-    return ' + '.join(parts)
-
-
-def _unknowable(s, c, accuracy, horizon, why):
-    """The adaptive candidate c at its tightest rtol, where the motion makes the error grow
-    exponentially (``why``: a periodic forcing at least as fast as the body's own rate,
-    ``forced``; an unstable equilibrium, ``orbit_state``), beyond any a-priori bound or
-    pilot: no promise (``predicted_error`` inf), the most accurate choice."""
-    rtol, cost, err = s.tightest(c)
-    reason = (f'{why}: its error can grow exponentially, so no a-priori bound or pilot can '
-              f'promise {accuracy:g} rad over {horizon:g} s; the most accurate: {c.name} at '
-              f'rtol {rtol:.0e} (E≤{err:.2g} were the growth not exponential: not a promise)')
-    return Selection(c.name, s.max_step, reason, math.inf, cost, prior_cost=_prior_cost(1),
-                     options=_options(c, {c.name: rtol}, s.G))
-
-
-def _options(c, tolerances, momentum):
-    """The chosen method's options: an adaptive one's rtol, and an atol that many times
-    smaller on the state (q of norm 1, m of norm |L|)."""
-    if not c.adaptive:
-        return ()
-    rtol = tolerances[c.name]
-    return (('rtol', rtol), ('atol', rtol * 1e-3 * min(1.0, momentum)))
