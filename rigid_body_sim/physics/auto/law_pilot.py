@@ -18,9 +18,8 @@ detumble scenes (seed 20261125, e(t) at t = T/256 … T) rk4's error grew as t^0
 past T/32 on 13 and as t^1.7 at most on two (130, 189): the linear law reads high, the
 quarters' growth law catches the two. From the extrapolation, the step meeting the budget
 follows by h^p; where it moved far (VERIFY_SHRINK) it is piloted again, and a longer step
-only so (seed 20261125 scene 13: E 4.1e-9 of 1e-8 at 2.17 ms, erred 1.1e-10; at 3.34 ms
-E 7.1e-9, erred 7.3e-10). Candidates go best first by what they could cost; one is
-piloted only if it could beat the best choice so far.
+only so (seed 20261125 scene 13: 2.17 → 3.34 ms, erred 7.3e-10 of 1e-8). Candidates go best
+first by what they could cost; one is piloted only if it could beat the best choice so far.
 
 dop853 is not piloted for a promise: its error under a law jumps late in a run (the same
 15 scenes, r against r/100: 10–100× within the last half of the run on scenes 4 and 107,
@@ -108,10 +107,8 @@ def _rounding(s, c, piloted, spread, horizon, reached):
     """h ↦ c's rounding error over the run at step h: the a-priori one (``s.roundoff``),
     or for a random rounding (rk4) where less, SAFETY × ``spread`` (:func:`_spread`, else
     the step-doubling reading) at ``piloted`` grown as t^1.5 from ``reached`` s (a random
-    walk of the rate's rounding errors) and as √N to h's steps.
-    Under a law that damps the rate the a-priori one, fitted torque-free, read 30–75×
-    high (seed 20261125 scene 13: 1.97e-8 rad a priori at h = 1.2 ms, 2.6e-10 in all
-    measured)."""
+    walk of the rate's rounding errors) and as √N to h's steps. Under a damping law the
+    a-priori one (torque-free) read 30–75× high (seed 20261125 scene 13 at 1.2 ms)."""
     if c.rounding != 'random' or not spread or not all(map(math.isfinite, spread)):
         return lambda h: s.roundoff(c, h)
     at = SAFETY * max(spread) * max(1.0, horizon / reached) ** 1.5
@@ -119,12 +116,9 @@ def _rounding(s, c, piloted, spread, horizon, reached):
 
 
 def _spread(a, b, r, ratio, f):
-    """The rounding of run a, measured (rad, at each mark): runs a at h, b at h/2 and r at
-    the next shorter step h_r (one step more an event spacing) differ in truncation by
-    known shares of a's, T_a (1 − 2^−p and f = 1 − (h_r/h)^p), and in rounding at random.
-    In their rotation vectors ε_a − ε_r − f·ratio·(ε_a − ε_b) the truncation cancels and
-    ρ_a − ρ_r − f·ratio·(ρ_a − ρ_b) is left: about √2 × a's rounding, as a's and r's are
-    independent random walks. (The step-doubling reading as rounding read 3–10× high.)"""
+    """Run a's rounding (rad, at each mark) from runs a at h, b at h/2 and r at the next
+    shorter step h_r: in ε_a − ε_r − f·ratio·(ε_a − ε_b), f = 1 − (h_r/h)^p, the truncation
+    cancels, ρ_a − ρ_r − f·ratio·(ρ_a − ρ_b) is left: ~√2 × a's (independent walks)."""
     def apart(x, y):  # rotation vector from y to x (small: twice the vector part)
         d = rotation.multiply(rotation.conjugate(y[1]), x[1])
         return (2.0 if d[3] >= 0.0 else -2.0) * d[:3]
@@ -140,8 +134,7 @@ def _pilot_cost(s, c, h, share, rounding=True):
     return share * per + 12 * CALL
 
 
-def _next_step(s, h):
-    """The next step shorter than h that divides the event spacing."""
+def _next_step(s, h):  # the next step shorter than h that divides the event spacing
     return s.max_step / (round(s.max_step / h) + 1)
 
 
@@ -325,9 +318,7 @@ def weigh(s, best, adaptive, make_runner, period):
         # errors in the rate turns the attitude as t^1.5, beyond the linear law (seed 7
         # scene 158: rk4 at 5.3e-5 s read 1.2e-10 rad by it, 1.1e-9 at the end)
         e_fixed *= math.sqrt(max(1.0, T / a[-1][0]))
-    # and at most its a-priori figure: where a errs less than d, their distance is d's error
-    # (seed 20261125 scene 191: rk4 read 1.2e-6 rad so, 2.8e-8 a priori, erred 1.9e-9)
-    e_fixed = min(e_fixed, err0)
+    e_fixed = min(e_fixed, err0)  # 191: 1.2e-6 read so, 2.8e-8 a priori, erred 1.9e-9
     room = (f'{MARGIN:g}× under the budget' if e_dop * MARGIN <= s.accuracy * (1 + 1e-9)
             else 'its floor')
     note = (f'measured over {H:.3g} s of {T:.3g} s: {c.name} h={h:.3g} E={e_fixed:.2g}, '
