@@ -87,6 +87,18 @@ def _long(kind, rotation):
     return scene, ref, times
 
 
+def test_the_process_clock_keeps_its_resolution_under_a_cpu_limit():
+    """Inside a cap, CPU is still read to the µs: consecutive reads of cpu() ~0.5 µs
+    apart differ. Under a process CPU timer (ITIMER_PROF, the cap's first form) Linux read
+    the clock from a tick-updated sum: most reads repeated and a 1 ms run of the suite's
+    bench read 0 s (ZeroDivisionError in generated_peers)."""
+    from rigid_body_sim.bench.common import cpu, cpu_limit
+    with cpu_limit(10.0):
+        reads = [cpu() for _ in range(20_000)]
+    repeats = sum(a == b for a, b in zip(reads, reads[1:]))
+    assert repeats < 200, repeats  # 1 %; a tick-granular clock repeats in ~99 %
+
+
 def test_the_cpu_limit_stops_a_python_loop_and_restores_the_signal():
     import signal
     from rigid_body_sim.bench.common import CpuCapReached, cpu_limit

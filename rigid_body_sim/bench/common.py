@@ -44,10 +44,19 @@ class CpuCapReached(Exception):
 @contextlib.contextmanager
 def cpu_limit(seconds: float):
     """Raise :class:`CpuCapReached` in this (the main) thread once the process has spent
-    ``seconds`` more CPU, user + system as :func:`cpu` counts it (ITIMER_PROF). A cap that
-    is only checked between runs does not hold: one run of a Python-loop peer (scipy's
-    solve_ivp) may take minutes. The interrupt lands between two bytecodes: inside
-    solve_ivp's loop, in MuJoCo's Python callback or after its C call returns."""
+    ``seconds`` more CPU, user + system as :func:`cpu` counts it. A cap that is only
+    checked between runs does not hold: one run of a Python-loop peer (scipy's solve_ivp)
+    may take minutes. The interrupt lands between two bytecodes: inside solve_ivp's loop,
+    in MuJoCo's Python callback or after its C call returns.
+
+    A thread watches the clock, not a process CPU timer (ITIMER_PROF, as before): while
+    one is armed, and for a tick after, Linux reads the process clock from the group's
+    tick-updated sum, so :func:`cpu` moved in ticks of ~1-4 ms. A 1 ms run timed then read
+    0 s (the suite's bench once divided by it) and every run timed near a cap was off by
+    up to a tick. The watcher sleeps for the CPU still allowed (one thread cannot spend it
+    faster), at most 0.1 s, so it wakes a few times per capped run."""
+    import _thread
+    import threading
     if not seconds > 0.0:
         raise CpuCapReached(f'no CPU left ({seconds:.3g} s)')
     armed = [True]
@@ -57,15 +66,26 @@ def cpu_limit(seconds: float):
             armed[0] = False
             raise CpuCapReached(f'past its cap of {seconds:.3g} CPU s')
 
+    limit = cpu() + seconds
+    done = threading.Event()
+
+    def watch():
+        while not done.wait(min(max(limit - cpu(), 1e-3), 0.1)):
+            if cpu() >= limit:
+                _thread.interrupt_main(signal.SIGPROF)  # runs expire() in the main thread
+                return
+
     previous = signal.signal(signal.SIGPROF, expire)
-    signal.setitimer(signal.ITIMER_PROF, seconds)
+    watcher = threading.Thread(target=watch, name='cpu_limit', daemon=True)
+    watcher.start()
     try:
         yield
     finally:
         try:
-            armed[0] = False  # a later signal is ignored: the body has ended
-        finally:  # restored even if the signal lands on the line above
-            signal.setitimer(signal.ITIMER_PROF, 0.0)
+            armed[0] = False  # a later interrupt is ignored: the body has ended
+        finally:  # restored even if the interrupt lands on the line above
+            done.set()
+            watcher.join()
             signal.signal(signal.SIGPROF, previous)
 
 
