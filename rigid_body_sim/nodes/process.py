@@ -191,8 +191,9 @@ def pin_process(core: int, name: str = 'cpu_affinity') -> None:
     nothing for -1. ValueError naming ``name`` for a core this process cannot run on
     (one the machine does not have, or one outside the set it was started with). Why:
     in lockstep the simulator's thread and Fast DDS's receiver take turns with the
-    controller's; on the controller's core none of them migrates, and a wake-up is a
-    switch on that core rather than another core's (docs/live-nodes.md: the figures)."""
+    controller; with the controller on the same core the simulator's CPU per exchange
+    was lower, apart on two cores it was not (docs/live-nodes.md: the figures, and the
+    real-time rate it cost beside other processes on that core)."""
     if core < 0:
         return
     allowed = os.sched_getaffinity(0)
