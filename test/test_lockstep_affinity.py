@@ -132,3 +132,16 @@ def test_the_lockstep_benchmark_runs_both_processes_on_one_core(monkeypatch):
     assert lockstep.targets_from(rows, [1.0, 2.0], core)[0]['note'].endswith(
         f'load 1.0-2.0; both on CPU {core}')
     assert 'both on CPU' not in lockstep.targets_from(rows, [1.0, 2.0])[0]['note']
+
+
+def test_the_floor_tool_runs_both_processes_on_one_core():
+    """``tools.lockstep_floor --cpu N``: the bare rclpy node's process runs on core N (it
+    says so itself), the controller it starts with it, and the exchange still runs;
+    without it the process keeps this one's cores."""
+    from rigid_body_sim.tools.lockstep_floor import floor
+    allowed = sorted(os.sched_getaffinity(0))
+    got = floor('SYNCHRONOUS', True, 20, 1, 'default', 'waitset', cpu=allowed[-1])
+    assert got['exchanges'] == 20 and got['cpu_per_exchange_us'] > 0, got
+    assert got['cpus_runs'] == [[allowed[-1]]], got
+    free = floor('SYNCHRONOUS', True, 20, 1, 'default', 'waitset')
+    assert free['cpus_runs'] == [allowed], free
