@@ -331,10 +331,11 @@ def test_the_lockstep_benchmark_reports_the_simulators_figures():
     # among them (named dds.*), and each thread's wake-ups: the exchange thread sleeps for a
     # command it has not got yet, but under load (or a fast controller) it finds most
     # already there (a fresh clone's CI read 0.05 a period), so only the whole process is
-    # held to waking: Fast DDS's receiver blocks between the 20 commands it delivers
+    # held to waking: Fast DDS's receiver blocks between the 20 commands it delivers (at
+    # load 17 the exchange thread found all 19 there and 'main' was not listed at all)
     parts, wakes = got['sim_threads_us'], got['sim_wakes_per_period']
     assert parts['main'] > 0 and any(k.startswith('dds.') for k in parts), got
-    assert 'main' in wakes and any(k.startswith('dds.') for k in wakes), got
+    assert any(k.startswith('dds.') for k in wakes), got
     assert all(v >= 0 for v in wakes.values()) and sum(wakes.values()) > 0, got
 
 

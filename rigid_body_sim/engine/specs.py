@@ -93,6 +93,11 @@ SIMULATOR = (
               'command after which the simulator reports that it is paused (it keeps '
               'waiting, never guesses)', kind='float', unit='s', low=0.0, high=1e6,
               low_open=True),
+    ParamSpec('cpu_affinity', -1, 'pin every thread of the simulator\'s process (its own and '
+              'the middleware\'s) to this CPU core (Linux); -1 = off, the OS places them '
+              '(live node only; nodes/process.py: pin_process)', kind='int', low=-1, high=65535,
+              read_only=True, note='in lockstep, the controller on the same core lowers the '
+              'simulator\'s CPU per exchange; a core kept for them (docs/live-nodes.md)'),
     # [''], not []: rclpy types an empty list as a byte array, and then refuses a list of names
     ParamSpec('spacecraft', [''], 'names of the spacecraft this simulator runs, each with its '
               'topics under <name>/ and its own values under <name>.<key> (engine/fleet.py); '

@@ -185,6 +185,30 @@ def lockstep_requested(node_name: str, argv=None) -> bool:
     return value is not None and value.value is True
 
 
+def pin_process(core: int, name: str = 'cpu_affinity') -> None:
+    """Every thread of this process (the node's and the middleware's, which exist once
+    the node does) on CPU ``core``, and the threads they start after, which inherit it;
+    nothing for -1. ValueError naming ``name`` for a core this process cannot run on
+    (one the machine does not have, or one outside the set it was started with). Why:
+    in lockstep the simulator's thread and Fast DDS's receiver take turns with the
+    controller; with the controller on the same core the simulator's CPU per exchange
+    was lower, apart on two cores it was not (docs/live-nodes.md: the figures, and the
+    real-time rate it cost beside other processes on that core)."""
+    if core < 0:
+        return
+    allowed = os.sched_getaffinity(0)
+    if core not in allowed:
+        count = os.cpu_count() or 0
+        why = f'this machine has {count} (0-{count - 1})' if core >= count else \
+            'this process may run on ' + ', '.join(map(str, sorted(allowed))) + ' only'
+        raise ValueError(f'{name} = {core}: no such CPU core for this process: {why}')
+    for tid in os.listdir('/proc/self/task'):
+        try:
+            os.sched_setaffinity(int(tid), {core})
+        except ProcessLookupError:  # the thread ended meanwhile
+            pass
+
+
 _KEPT_EXECUTORS = []  # events executors rclpy could not tear down (see events_executor)
 
 

@@ -42,7 +42,7 @@ from ..scene import SceneError, params_files_record
 from .commands import CommandFilter
 from .common import (check_overrides, declare_parameters,
                      overridden_warnings, qos_profile, validate_update)
-from .process import events_executor, run_node
+from .process import events_executor, pin_process, run_node
 from .usage import ros_arguments
 from .sim_services import AVAILABLE as SIM_SERVICES, SimulationServices
 from .sim_control import Control
@@ -90,6 +90,7 @@ class Simulator(Control, Fleet, Holds, Exchange, Publishing, Warming, Node):
             self.scene_record = {s.name: self._p.pop(s.name) for s in specs.SCENE_RECORD}
             self._specs = SPECS + tuple(fleet.craft_specs(names))
             check_parameters(self._p)
+            pin_process(self._p['cpu_affinity'])  # its threads, the middleware's among them
         except ValueError as exc:
             raise SceneError(str(exc)) from None
         self._log = self.get_logger()

@@ -1,7 +1,7 @@
 """Lockstep round trip: simulator and controller processes exchanging state and command.
 
 ``python -m rigid_body_sim.tools.lockstep [--periods 2000] [--seconds 5] [--rates 100 1000]
-[--runs 3]``
+[--runs 3] [--cpu CORE]``
 
 For each control rate (publishing at the same rate, the slew scene, ``splitting4``):
 * as fast as possible (``real_time_factor: 0``), ``--periods`` control periods: the
@@ -16,7 +16,9 @@ For each control rate (publishing at the same rate, the slew scene, ``splitting4
   rate, exchanges per wall second between t = 0 and the end (the simulator's log stamps).
 Real processes and real DDS, in a ROS domain of their own; nothing else is started.
 With ``--runs N`` each run is repeated N times: every figure is the median of the runs,
-and ``runs`` keeps each run's, for their min and max.
+and ``runs`` keeps each run's, for their min and max. With ``--cpu CORE`` both processes,
+every thread, run on that one core (the simulator's ``cpu_affinity``; the controller
+started on it).
 """
 import os
 import random
@@ -53,30 +55,40 @@ def _stamp(line):
     return float(m.group(1)) if m else None
 
 
-def overrides(rtf: float, duration: float, rate: float) -> str:
+def overrides(rtf: float, duration: float, rate: float, cpu: int = -1) -> str:
     """A params file (its path; the caller removes it) putting the simulator and the
-    controller in lockstep at ``rate`` (Hz) for ``duration`` (s) at ``rtf``."""
+    controller in lockstep at ``rate`` (Hz) for ``duration`` (s) at ``rtf``, the
+    simulator on CPU ``cpu`` (-1: anywhere)."""
     with tempfile.NamedTemporaryFile('w', suffix='.yaml', delete=False) as f:
         f.write('/**/attitude_simulator:\n  ros__parameters:\n'
                 f'    real_time_factor: {rtf}\n    publish_clock: true\n'
                 f'    integrator: splitting4\n    duration: {duration}\n'
                 f'    publish_rate: {rate}\n    control_rate: {rate}\n    lockstep: true\n'
                 '    wait_for_subscribers: 0\n    wait_for_subscribers_timeout: 60.0\n'
-                '    lockstep_timeout: 30.0\n'
+                f'    lockstep_timeout: 30.0\n    cpu_affinity: {cpu}\n'
                 '/**/attitude_controller:\n  ros__parameters:\n    lockstep: true\n'
                 f'    control_rate: {rate}\n')
     return f.name
 
 
-def exchange(rate: float, rtf: float, duration: float, timeout: float = 600.0) -> dict:
-    """One lockstep run of simulator + controller; the simulator's figures."""
+def _on_cpu(cpu: int):
+    """A ``preexec_fn`` putting the child on CPU ``cpu`` (its threads inherit it), or None
+    for -1."""
+    return None if cpu < 0 else lambda: os.sched_setaffinity(0, {cpu})
+
+
+def exchange(rate: float, rtf: float, duration: float, timeout: float = 600.0,
+             cpu: int = -1) -> dict:
+    """One lockstep run of simulator + controller; the simulator's figures. ``cpu``: both
+    processes on that core (-1: where the OS puts them)."""
     env = dict(os.environ, PYTHONUNBUFFERED='1',
                ROS_DOMAIN_ID=os.environ.get('ROS_DOMAIN_ID', str(random.randint(101, 200))))
     ns = f'/lockstep_bench_{os.getpid()}_{int(rate)}_{int(rtf)}'
-    over = overrides(rtf, duration, rate)
+    over = overrides(rtf, duration, rate, cpu)
     args = ['--ros-args', '-r', f'__ns:={ns}', '--params-file', SCENE, '--params-file', over]
     ctl = subprocess.Popen(_exe('controller') + args, env=env, stdout=subprocess.DEVNULL,
-                           stderr=subprocess.DEVNULL, start_new_session=True)
+                           stderr=subprocess.DEVNULL, start_new_session=True,
+                           preexec_fn=_on_cpu(cpu))
     try:
         sim = subprocess.run(_exe('simulator') + args, env=env, capture_output=True,
                              text=True, timeout=timeout)
@@ -104,9 +116,10 @@ def exchange(rate: float, rtf: float, duration: float, timeout: float = 600.0) -
             'achieved_rate_hz': n / (t1 - t0) if t1 > t0 else None}
 
 
-def repeated(runs: int, *args) -> dict:
-    """``exchange(*args)`` ``runs`` times: each figure the runs' median, ``runs`` each run's."""
-    got = [exchange(*args) for _ in range(runs)]
+def repeated(runs: int, *args, **kwargs) -> dict:
+    """``exchange(*args, **kwargs)`` ``runs`` times: each figure the runs' median, ``runs``
+    each run's."""
+    got = [exchange(*args, **kwargs) for _ in range(runs)]
     if runs == 1:
         return got[0]
     out = {}
@@ -144,11 +157,12 @@ TARGET_CPU = 'lockstep simulator CPU per exchange as fast as possible (µs)'
 TARGET_RATE = 'lockstep exchanges/s at real time, {rate:g} Hz control'
 
 
-def targets_from(rows, load) -> list:
+def targets_from(rows, load, core: int = -1) -> list:
     """The section's rows of targets.csv: the simulator's process CPU per exchange as fast
     as possible, the worse rate's median (target ≤ 100 µs), and at real time the achieved
     control rate at each rate (target: the rate; 1 % short passes, for the run's start
-    and end); ``load``: the load average before and after."""
+    and end); ``load``: the load average before and after; ``core``: the CPU both
+    processes ran on (-1: none), said in the CPU row's note."""
     from ..bench import targets
     fast = max((r['as_fast_as_possible'] for r in rows),
                key=lambda f: f['sim_cpu_per_period_us'])
@@ -157,7 +171,7 @@ def targets_from(rows, load) -> list:
         f'{r["control_rate_hz"]:g} Hz: {spread(r["as_fast_as_possible"], "sim_cpu_per_period_us")}'
         f' ({spread(r["as_fast_as_possible"], "sim_thread_cpu_per_period_us")} in its thread'
         f'{others(r["as_fast_as_possible"])})' for r in rows) +
-        f'; load {load[0]:.1f}-{load[1]:.1f}')]
+        f'; load {load[0]:.1f}-{load[1]:.1f}' + (f'; both on CPU {core}' if core >= 0 else ''))]
     for r in rows:
         real, rate = r['real_time'], r['control_rate_hz']
         got = real['achieved_rate_hz'] or 0.0
@@ -178,6 +192,8 @@ def main(argv=None):
                         help='control rates [Hz]')
     parser.add_argument('--runs', type=int, default=1,
                         help='runs per rate and mode (figures: their median)')
+    parser.add_argument('--cpu', type=int, default=-1,
+                        help='both processes (every thread) on this CPU core; -1: anywhere')
     parser.add_argument('--out', help='directory for lockstep.json (e.g. docs/bench), which '
                         'the benchmarks page renders')
     args = parser.parse_args(argv)
@@ -186,8 +202,8 @@ def main(argv=None):
     # waits, caches are shared): the 1-minute load average before and after goes with them
     load = [os.getloadavg()[0]]
     for rate in args.rates:
-        fast = repeated(args.runs, rate, 0.0, args.periods / rate)
-        real = repeated(args.runs, rate, 1.0, args.seconds)
+        fast = repeated(args.runs, rate, 0.0, args.periods / rate, cpu=args.cpu)
+        real = repeated(args.runs, rate, 1.0, args.seconds, cpu=args.cpu)
         rows.append({'control_rate_hz': rate, 'as_fast_as_possible': fast, 'real_time': real})
         print(f'control {rate:g} Hz: as fast as possible {fast["exchanges"]} exchanges, round '
               f'trip {spread(fast, "round_trip_wall_us")} µs wall (max '
@@ -203,9 +219,10 @@ def main(argv=None):
           f'({os.cpu_count()} CPUs)', flush=True)
     if args.out:
         report({'command': command_line(__spec__, argv), 'rows': rows,
-                'load_average': load, 'cpus': os.cpu_count()}, args.out, 'lockstep.json')
+                'load_average': load, 'cpus': os.cpu_count(), 'cpu_affinity': args.cpu},
+               args.out, 'lockstep.json')
         from ..bench import report as summary
-        t_rows = targets_from(rows, load)
+        t_rows = targets_from(rows, load, args.cpu)
         summary.replace_targets(args.out, tuple(r['target'] for r in t_rows), t_rows,
                                 command=command_line(__spec__, argv), after='live')
         summary.write(args.out)

@@ -1,7 +1,7 @@
 """Lockstep floor: the least an rclpy process spends per exchange with our controller.
 
 ``python -m rigid_body_sim.tools.lockstep_floor [--periods 2000] [--runs 3] [--out docs/bench]
-[--config MODE:TAKEN:TRANSPORT:LOOP ...]``
+[--config MODE:TAKEN:TRANSPORT:LOOP ...] [--cpu CORE]``
 
 The simulator's side of a lockstep exchange (``tools.lockstep``) with everything of ours
 taken out: a bare rclpy node publishes the state the controller answers in lockstep (one
@@ -17,7 +17,8 @@ processes), and taken by turning the events executor or from an rcl wait set of 
 subscription (the simulator's loop does the latter: ``nodes/sim_lockstep.py``). Each
 configuration runs in its own process, ``--runs`` times; figures are the runs' medians,
 and each run gives its threads' parts (``threads_us``: 'main' is this one, ``dds.shm``
-Fast DDS's shared-memory receiver, ``dds.ev`` its timed events, ...).
+Fast DDS's shared-memory receiver, ``dds.ev`` its timed events, ...). ``--cpu CORE``
+runs both processes on that one core, as ``tools.lockstep --cpu`` does.
 """
 import argparse
 import json
@@ -32,7 +33,7 @@ import time
 from ..bench.common import report
 from ..engine.lockstep import clock_seconds as _clocks, thread_clocks as _threads
 from . import argument_parser, command_line, stop
-from .lockstep import SCENE, _exe
+from .lockstep import SCENE, _exe, _on_cpu
 
 RATE = 100.0  # control rate [Hz]: the instants the states are stamped with
 # (publication mode, command taken as, transports, loop): floor()'s and _measure's
@@ -176,14 +177,15 @@ def _measure(periods: int, raw: bool, loop: str = 'executor') -> dict:
     return {'cpu_per_exchange_us': 1e6 * (c1 - c0) / periods,
             'thread_cpu_per_exchange_us': 1e6 * (t1 - t0) / periods,
             'wall_per_exchange_us': 1e6 * (w1 - w0) / periods,
-            'threads_us': threads}
+            'threads_us': threads, 'cpus': sorted(os.sched_getaffinity(0))}
 
 
 def floor(mode: str, raw: bool, periods: int, runs: int, transport: str = 'default',
-          loop: str = 'executor') -> dict:
+          loop: str = 'executor', cpu: int = -1) -> dict:
     """``runs`` runs of one configuration, each in a process of its own: the medians.
     ``transport``: Fast DDS's built-in transports (FASTDDS_BUILTIN_TRANSPORTS: 'default'
-    is UDPv4 and shared memory, 'shm' shared memory only), for both processes."""
+    is UDPv4 and shared memory, 'shm' shared memory only), for both processes; ``cpu``:
+    both on that core (the run's process, and the controller it starts, inherit it)."""
     env = dict(os.environ, RMW_FASTRTPS_PUBLICATION_MODE=mode,
                ROS_DOMAIN_ID=os.environ.get('ROS_DOMAIN_ID', str(random.randint(101, 200))))
     if transport == 'shm':
@@ -195,7 +197,8 @@ def floor(mode: str, raw: bool, periods: int, runs: int, transport: str = 'defau
     for _ in range(runs):
         out = subprocess.run([sys.executable, '-m', __spec__.name, '--one', str(periods),
                               '--loop', loop] + (['--raw'] if raw else []), env=env,
-                             capture_output=True, text=True, timeout=600)
+                             capture_output=True, text=True, timeout=600,
+                             preexec_fn=_on_cpu(cpu))
         if out.returncode != 0:
             raise RuntimeError(f'floor run ({mode}, raw {raw}, {transport}, {loop}) exited '
                                f'{out.returncode}:\n' + out.stderr[-2000:])
@@ -203,7 +206,7 @@ def floor(mode: str, raw: bool, periods: int, runs: int, transport: str = 'defau
     row = {'publication_mode': mode, 'command_taken_as': 'bytes' if raw else 'message',
            'transport': transport, 'loop': loop, 'exchanges': periods}
     for key in got[0]:
-        if key == 'threads_us':
+        if key in ('threads_us', 'cpus'):
             row[key + '_runs'] = [g[key] for g in got]
             continue
         row[key] = statistics.median(g[key] for g in got)
@@ -216,6 +219,8 @@ def main(argv=None):
     parser.add_argument('--periods', type=int, default=2000, help='exchanges per run')
     parser.add_argument('--runs', type=int, default=3, help='runs per configuration')
     parser.add_argument('--out', help='directory for lockstep_floor.json (e.g. docs/bench)')
+    parser.add_argument('--cpu', type=int, default=-1,
+                        help='both processes (every thread) on this CPU core; -1: anywhere')
     parser.add_argument('--one', type=int, help=argparse.SUPPRESS)
     parser.add_argument('--raw', action='store_true', help=argparse.SUPPRESS)
     parser.add_argument('--loop', default='executor', help=argparse.SUPPRESS)
@@ -228,7 +233,7 @@ def main(argv=None):
         return 0
     rows = []
     for mode, taken, transport, loop in args.config or CONFIGS:
-        r = floor(mode, taken == 'bytes', args.periods, args.runs, transport, loop)
+        r = floor(mode, taken == 'bytes', args.periods, args.runs, transport, loop, args.cpu)
         rows.append(r)
         print(f'{mode}, command as {taken}, {transport} transports, {loop}: process CPU '
               f'{r["cpu_per_exchange_us"]:.0f} µs per exchange (runs '
@@ -240,7 +245,7 @@ def main(argv=None):
               flush=True)
     if args.out:
         report({'command': command_line(__spec__, argv), 'control_rate_hz': RATE,
-                'rows': rows}, args.out, 'lockstep_floor.json')
+                'rows': rows, 'cpu_affinity': args.cpu}, args.out, 'lockstep_floor.json')
         from ..bench import report as summary
         summary.write(args.out)  # the benchmarks page's figures, this floor's with them
     return 0
