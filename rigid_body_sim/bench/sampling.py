@@ -43,7 +43,7 @@ def _simulate_cpu(name, duration, rate, overrides, repeats, counts=None):
     back the previous run's) pays ~1.5-2 µs a 4 KiB page here, 88 bytes a sample; the
     least run is often one that reused them (generated scene 2, 30,000 samples: 1.3-1.5
     ms without its 613 faults, 1.9-2.4 ms with them)."""
-    from ..offline import engine_for, simulate
+    from ..offline import _faults, engine_for, simulate
     from ..scene import load
     scene = load(name, [f'publish_rate={rate:g}']) if isinstance(name, str) else \
         _at_rate(name, rate)
@@ -61,12 +61,6 @@ def _simulate_cpu(name, duration, rate, overrides, repeats, counts=None):
         counts.update(evaluations=engine.total_evaluations, samples=result.sample_count,
                       faults=faults)
     return best
-
-
-def _faults():
-    """This process's minor page faults so far."""
-    import resource
-    return resource.getrusage(resource.RUSAGE_SELF).ru_minflt
 
 
 def _dense_cost(slow, fast, a, b):
