@@ -152,8 +152,23 @@ def rk4_free_end(q, m, moments, tau, model, coefficient, herm, at):
     herm[at + 3, 0], herm[at + 3, 1], herm[at + 3, 2] = dm0, dm1, dm2
 
 
+@jit
+def hermite_end(q, m, moments, tau_p, model, coefficient, t, env, herm, at):
+    """The state and its derivative into herm[at:at + 4] = (q, m, dq, dm): one evaluation
+    (sample_kernel.segment's step ends, any right-hand side)."""
+    for i in range(4):
+        herm[at, i] = q[i]
+    for i in range(3):
+        herm[at + 1, i] = m[i]
+        herm[at + 3, i] = 0.0
+    _rates(herm[at], herm[at + 1, :3], moments, tau_p, model, coefficient, herm[at + 2],
+           herm[at + 3, :3])
+    if env is not None:
+        _environment(herm[at], t, env, moments, herm[at + 3, :3])
+
+
 # they call the shared rates of another file (see jit.depends_on)
-for _kernel in (euler_run, euler_steps, rk4_run, rk4_steps):
+for _kernel in (euler_run, euler_steps, rk4_run, rk4_steps, hermite_end):
     depends_on(_kernel, dynamics_kernel, orbit_kernel, magnetic_kernel, facets_kernel)
 
 
