@@ -54,4 +54,5 @@ def test_the_faults_said_are_the_least_runs_and_the_most_of_any(monkeypatch):
     counts = {}
     best = sampling._simulate_cpu('slew', 300.0, 100.0, {}, 3, counts)
     assert best == 2e-3
-    assert counts == {'evaluations': 12, 'samples': 30001, 'faults': [100, 613]}
+    assert counts == {'evaluations': 12, 'samples': 30001, 'faults': [100, 613],
+                      'engine': engine}
