@@ -27,7 +27,7 @@ from ..physics.integrators.dop853_dense import DIM, interpolate_lanes
 from .. import physics
 from ..physics import dynamics_kernel
 from ..physics.exact import constants, double_double, elliptic_kernel, kernel as exact_kernel
-from ..physics.integrators import dop853_dense
+from ..physics.integrators import dop853_dense, explicit_kernel
 from ..physics.jit import depends_on, jit
 from .common import cpu
 
@@ -90,32 +90,14 @@ def dense_build(memory, moments, tau, model, coefficient, n):
 def hermite(herm, h, n, lanes):
     """n values of the cubic Hermite interpolant of the step whose ends herm (8, 4) holds
     (q0, m0, dq0, dm0, q1, m1, dq1, dm1, as sample_kernel.segment), at n instants across
-    it, CHUNK at a time: hermite_run's weights and sums, q normalised, into ``lanes``
-    (17, CHUNK), no checks or rows. Returns the last value's q[0]."""
+    it, CHUNK at a time: hermite_run's arithmetic (explicit_kernel.hermite_lanes), q
+    normalised, into ``lanes`` (17, CHUNK), no checks or rows. Returns the last q[0]."""
     last = 0.0
     for first in range(0, n, CHUNK):
         count = min(CHUNK, n - first)
         for k in range(count):
             lanes[0, k] = (first + k + 0.5) / n
-        for c in range(count):
-            theta = lanes[0, c]
-            t2 = theta * theta
-            t3 = t2 * theta
-            a0 = 2.0 * t3 - 3.0 * t2 + 1.0
-            lanes[1, c] = a0
-            lanes[2, c] = 1.0 - a0
-            lanes[3, c] = (t3 - 2.0 * t2 + theta) * h
-            lanes[4, c] = (t3 - t2) * h
-        for i in range(7):
-            p = 0 if i < 4 else 1
-            j = i if i < 4 else i - 4
-            y0, d0, y1, d1 = herm[p, j], herm[p + 2, j], herm[p + 4, j], herm[p + 6, j]
-            for c in range(count):
-                lanes[5 + i, c] = (lanes[1, c] * y0 + lanes[3, c] * d0
-                                   + lanes[2, c] * y1 + lanes[4, c] * d1)
-        for c in range(count):
-            lanes[12, c] = math.sqrt(lanes[5, c] * lanes[5, c] + lanes[6, c] * lanes[6, c]
-                                     + lanes[7, c] * lanes[7, c] + lanes[8, c] * lanes[8, c])
+        explicit_kernel.hermite_lanes(herm, h, count, lanes)
         for i in range(4):
             for c in range(count):
                 lanes[13 + i, c] = lanes[5 + i, c] / lanes[12, c]
@@ -166,8 +148,8 @@ def rates_loop(state, moments, tau, model, coefficient, n):
 
 # they compile in code of other files (see jit.depends_on)
 for _kernel in (dense, dense_build, hermite, exact_lanes, rates_loop):
-    depends_on(_kernel, dop853_dense, grid_kernel, exact_kernel, elliptic_kernel, double_double,
-               constants, dynamics_kernel, physics.jit)
+    depends_on(_kernel, dop853_dense, explicit_kernel, grid_kernel, exact_kernel,
+               elliptic_kernel, double_double, constants, dynamics_kernel, physics.jit)
 
 def _least(call, n, repeats=REPEATS):
     """Least CPU (ns) per item of ``repeats`` calls of ``call`` over n items."""

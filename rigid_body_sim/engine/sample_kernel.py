@@ -72,11 +72,10 @@ def hermite_run(herm, h, a_ns, b_ns, n, span, held, s, sample_period_ns, scratch
                 q_out, m_out, tau_out, tau_body, row):
     """:func:`segment`'s samples from s on that fall strictly inside the step ``held``
     whose ends herm holds, before b_ns, at most CHUNK: its x, j and theta for each, then
-    the cubic Hermite interpolant (weights a0 = 2θ³ − 3θ² + 1, a1 = 1 − a0, b0 = (θ³ −
-    2θ² + θ)h, b1 = (θ³ − θ²)h on the ends y0, y1 and derivatives d0, d1; q normalised)
-    one operation at a time over them all: independent lanes, which the compiler runs
-    several to an instruction, each lane's values the scalar ones (sample by sample this
-    cost ~32 ns a sample). Then the checks and rows sample by sample. ``scratch`` (13,
+    the cubic Hermite interpolant one operation at a time over them all (explicit_kernel.
+    hermite_lanes: independent lanes, which the compiler runs several to an instruction,
+    each lane's values the scalar ones; sample by sample this cost ~32 ns a sample), q
+    normalised. Then the checks and rows sample by sample. ``scratch`` (13,
     CHUNK). Returns (rows written, False if a sample was not finite: the rows before it
     are written)."""
     count = 0
@@ -89,29 +88,7 @@ def hermite_run(herm, h, a_ns, b_ns, n, span, held, s, sample_period_ns, scratch
             break
         scratch[0, count] = theta
         count += 1
-    for c in range(count):  # the weights: a0, a1, b0, b1 in rows 1-4
-        theta = scratch[0, c]
-        t2 = theta * theta
-        t3 = t2 * theta
-        a0 = 2.0 * t3 - 3.0 * t2 + 1.0
-        scratch[1, c] = a0
-        scratch[2, c] = 1.0 - a0
-        scratch[3, c] = (t3 - 2.0 * t2 + theta) * h
-        scratch[4, c] = (t3 - t2) * h
-    for i in range(7):  # q's 4 components, then m's 3, in rows 5-11
-        p = 0 if i < 4 else 1
-        k = i if i < 4 else i - 4
-        y0, d0, y1, d1 = herm[p, k], herm[p + 2, k], herm[p + 4, k], herm[p + 6, k]
-        for c in range(count):
-            scratch[5 + i, c] = (scratch[1, c] * y0 + scratch[3, c] * d0
-                                 + scratch[2, c] * y1 + scratch[4, c] * d1)
-    for c in range(count):  # |q| in row 12
-        norm = 0.0
-        norm += scratch[5, c] * scratch[5, c]
-        norm += scratch[6, c] * scratch[6, c]
-        norm += scratch[7, c] * scratch[7, c]
-        norm += scratch[8, c] * scratch[8, c]
-        scratch[12, c] = math.sqrt(norm)
+    explicit_kernel.hermite_lanes(herm, h, count, scratch)
     for c in range(count):
         r = row + c
         norm = scratch[12, c]
