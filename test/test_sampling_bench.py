@@ -48,10 +48,11 @@ def test_the_faults_said_are_the_least_runs_and_the_most_of_any(monkeypatch):
     engine = SimpleNamespace(selection_cpu=0.0, total_evaluations=12)
     result = SimpleNamespace(selection_cpu_seconds=0.0, sample_count=30001)
     monkeypatch.setattr(sampling, 'cpu', fake_cpu)
-    monkeypatch.setattr(sampling, '_faults', lambda: next(faults))
+    monkeypatch.setattr('rigid_body_sim.offline._faults', lambda: next(faults))
     monkeypatch.setattr('rigid_body_sim.offline.engine_for', lambda scene, **k: engine)
     monkeypatch.setattr('rigid_body_sim.offline.simulate', lambda scene, **k: result)
     counts = {}
     best = sampling._simulate_cpu('slew', 300.0, 100.0, {}, 3, counts)
     assert best == 2e-3
-    assert counts == {'evaluations': 12, 'samples': 30001, 'faults': [100, 613]}
+    assert counts == {'evaluations': 12, 'samples': 30001, 'faults': [100, 613],
+                      'engine': engine}

@@ -6,7 +6,10 @@ the clock (as the CLI does); the ratio of the two CPU times. CLI overhead: ``rig
 run SCENE --json`` in a fresh process (bag written; its ``cpu_seconds`` is the run, the
 bag's cost is ``output_cpu_seconds``) against the same run in-process with the kernels
 warm. Both are minima of a few runs, the CLI's alternated with the in-process ones: the
-machine may be shared.
+machine may be shared. On the generated scenes each row also says the samples' floor
+(:mod:`.sampling_floor`: writing the same rows and the cheapest evaluation, measured in
+the same run), the ratio the scene would read at it, and a target row judges the samples'
+CPU against it.
 
     python -m rigid_body_sim.bench.sampling [--quick] [--update docs/bench]
 """
@@ -37,13 +40,13 @@ CLI_REPEATS = {True: 2, False: 5}
 
 def _simulate_cpu(name, duration, rate, overrides, repeats, counts=None):
     """Least CPU (s) of ``repeats`` in-process runs, samples kept, engine built outside;
-    ``counts`` (a dict), if given, gets the last run's evaluations and samples, and the
+    ``counts`` (a dict), if given, gets the last run's evaluations, samples and engine, and the
     page faults in the clock of the least run and the most of any run (``faults``): a
     run whose sample arrays got pages the process had not touched (glibc's malloc gave
     back the previous run's) pays ~1.5-2 µs a 4 KiB page here, 88 bytes a sample; the
     least run is often one that reused them (generated scene 2, 30,000 samples: 1.3-1.5
     ms without its 613 faults, 1.9-2.4 ms with them)."""
-    from ..offline import engine_for, simulate
+    from ..offline import _faults, engine_for, simulate
     from ..scene import load
     scene = load(name, [f'publish_rate={rate:g}']) if isinstance(name, str) else \
         _at_rate(name, rate)
@@ -59,14 +62,8 @@ def _simulate_cpu(name, duration, rate, overrides, repeats, counts=None):
         best = min(best, spent)
     if counts is not None:
         counts.update(evaluations=engine.total_evaluations, samples=result.sample_count,
-                      faults=faults)
+                      faults=faults, engine=engine)
     return best
-
-
-def _faults():
-    """This process's minor page faults so far."""
-    import resource
-    return resource.getrusage(resource.RUSAGE_SELF).ru_minflt
 
 
 def _dense_cost(slow, fast, a, b):
@@ -183,10 +180,10 @@ def generated_rows(quick, log=print, count=None):
     a params file, as a user would, against the same run in-process at the scene's rate."""
     import os
     from ..offline import simulate
-    from . import generated, targets
+    from . import generated, sampling_floor, targets
     count = GENERATED_SCENES[quick] if count is None else min(count, GENERATED_SCENES[quick])
     repeats = 2 if quick else 3
-    rows, sampling, cli = [], [], []
+    rows, sampling, cli, floors = [], [], [], []
     for scene in generated.scenes(generated.SEED, count, quick):
         duration = min(scene.duration, GENERATED_SPAN[quick])
         f = scene.scene_file()
@@ -199,12 +196,14 @@ def generated_rows(quick, log=print, count=None):
         fast = _simulate_cpu(f, duration, 100.0, fixed, repeats, b)
         sampling.append(fast / slow)
         dense = _dense_cost(slow, fast, a, b) if fixed['integrator'] == 'dop853' else ''
+        floor = sampling_floor.judge(slow, fast, a, b, fixed['integrator'])
+        floors.append((scene.name, floor))
         rows.append({'what': 'sampling overhead', 'scene': scene.name, 'duration': duration,
                      'rate_a': 1.0, 'cpu_a_s': slow, 'rate_b': 100.0, 'cpu_b_s': fast,
                      'ratio': fast / slow, 'note': f'{scene.kind}, {fixed["integrator"]} '
                      f'h {fixed["step"]:.3g} s, |ω| {np.linalg.norm(scene.omega):.3g} '
                      f'rad/s; 100/s page faults in the clock: {b["faults"][0]} in the least '
-                     f'run, up to {b["faults"][1]}{dense}'})
+                     f'run, up to {b["faults"][1]}{dense}; {floor["note"]}'})
         log(f'  {scene.name:16s} {scene.kind:14s} {duration:7.4g} s: sampling x{sampling[-1]:.3g}'
             f' ({slow * 1e3:.3g} → {fast * 1e3:.3g} ms, {fixed["integrator"]})')
         if len(cli) >= CLI_GENERATED[quick][0]:
@@ -226,7 +225,9 @@ def generated_rows(quick, log=print, count=None):
     span = f'runs cut to {GENERATED_SPAN[quick]:g} s; seed {generated.SEED}'
     out = [targets.simple('sampling overhead: 100 samples/s / 1 sample/s (CPU)', max(sampling),
                           SAMPLING_MAX, max(sampling) <= SAMPLING_MAX,
-                          f'{_spread(sampling)}; {span}', scene='generated (worst)')]
+                          f'{_spread(sampling)}; {span}; {sampling_floor.at_floor(floors)}',
+                          scene='generated (worst)')]
+    out += sampling_floor.targets(floors, span)
     if cli:
         out.append(targets.simple(
             'CLI overhead: rigid-body-sim run cpu_seconds / in-process', max(cli), CLI_MAX,
@@ -240,7 +241,7 @@ def update(folder, log=print):
     from .common import replace_section
     rows, t_rows = run(False, log)
     return replace_section(folder, 'sampling.csv', FIELDS, rows, t_rows,
-                           ('sampling overhead', 'CLI overhead'))
+                           ('sampling overhead', 'sampling: ', 'CLI overhead'))
 
 
 def _scene_rate(name):

@@ -1,34 +1,31 @@
 """Samples between steps: a fixed-step method's steps do not land on the sample instants.
 
-Landing on every sample shortened the steps to divide the sample period, so a run at 100
-samples/s ran other steps (and ``auto`` another method) than the same run at 1 sample/s:
-detumble's splitting6 at 20 ms became splitting4 at 5 ms, 1.6x the CPU. Here the steps
-are the method's own, splitting only the intervals between the events that change the
-physics (control instants, the end, a command's expiry), and a sample inside a step is
+Landing on every sample shortened the steps to divide the sample period (detumble's
+splitting6 at 20 ms became splitting4 at 5 ms at 100 samples/s, 1.6x the CPU). Here the
+steps are the method's own, splitting only the intervals between the events that change
+the physics (control instants, the end, a command's expiry), and a sample inside a step is
 the cubic Hermite interpolant of the step's two ends and their derivatives (two
 right-hand-side evaluations per step holding a sample, shared by consecutive steps;
-evaluated a chunk of samples at a time, :func:`hermite_run`): its error is ~(hΩ)⁴/384 of
-the rotation, checked against the accuracy budget before it is used
-(:func:`interpolation_allowed`). The state only ever advances by whole steps; interpolated
-values go to the block, never back into the trajectory.
+a chunk at a time, :func:`hermite_run`): its error, ~(hΩ)⁴/384 of the rotation, is
+checked against the budget before use (:func:`interpolation_allowed`). The state only
+advances by whole steps; interpolated values go to the block, never to the trajectory.
 
 :func:`fixed_steps` runs n steps of any fixed-step method's compiled loop (the closed
 loop's dispatch, shared by both paths); :func:`segment` runs one interval between events
 with its samples interpolated. Frames and arguments as in ``closed_loop.closed_loop_run``.
-All are inlined into it, and for the free body versions of :func:`_end` and rk4's loop
-with numbers for stages (``_free_end``): a call between kernels costs a reference-count
-round trip per array and view (~0.1 µs for these ~20), per sample between steps.
+All are inlined into it, and rk4's loop and ends in numbers for the free body (a call
+between kernels costs ~0.1 µs of reference counts for these ~20 arrays and views).
 """
 import math
 
 import numpy as np
 
 from ..physics import dynamics_kernel
-from ..physics.dynamics_kernel import _environment, _rates
 from ..physics.integrators import (dop853_dense, dop853_kernel, exact_flow_kernel,
                                    explicit_kernel, splitting_kernel)
-from ..physics.integrators.dop853_dense import _CLOCK, _FF, _LAST, _Y_OLD, DIM, POWER
-from ..physics.jit import depends_on, inline, jit
+from ..physics.exact.grid_kernel import grid_instants  # noqa: F401 (stepping calls it)
+from ..physics.integrators.dop853_dense import _CLOCK, _LAST, DIM
+from ..physics.jit import depends_on, inline
 from ..physics.environment import facets_kernel, magnetic_kernel
 from ..physics.orbit import kernel as orbit_kernel
 
@@ -40,18 +37,6 @@ ON_STEP = 1e-9
 # of CHUNK stays in the L1 cache; LANES rows of it (the closed loop allocates them once)
 CHUNK = 64
 LANES = 16
-
-
-@jit
-def grid_instants(first_ns, period_ns, anchor_ns, t_ns, ts):
-    """t_ns[k] ← first_ns + k·period_ns and ts[k] ← (t_ns[k] − anchor_ns)/1e9 s, k <
-    len(ts): a torque-free exact stretch's sample instants (``Engine._free_samples``) and
-    their times from its anchor, in one pass, numpy's arithmetic to the bit (its six
-    passes over the stretch cost ~8 ns a sample, a third of the closed form's own)."""
-    for k in range(ts.shape[0]):
-        t = first_ns + k * period_ns
-        t_ns[k] = t
-        ts[k] = (t - anchor_ns) / 1e9
 
 
 @inline
@@ -78,21 +63,8 @@ def fixed_steps(method, q, m, h, n, weights, split_axes, moments, tau_p, has_tau
     return failed, n if failed < 0 else failed + 1
 
 
-@jit
-def _end(q, m, moments, tau_p, model, coefficient, t, env, herm, at):
-    """The state and its derivative into herm[at:at + 4] = (q, m, dq, dm): one evaluation."""
-    for i in range(4):
-        herm[at, i] = q[i]
-    for i in range(3):
-        herm[at + 1, i] = m[i]
-        herm[at + 3, i] = 0.0
-    _rates(herm[at], herm[at + 1, :3], moments, tau_p, model, coefficient, herm[at + 2],
-           herm[at + 3, :3])
-    if env is not None:
-        _environment(herm[at], t, env, moments, herm[at + 3, :3])
-
-
-_free_end = explicit_kernel.rk4_free_end  # its rates in numbers (no views of herm)
+# a step's ends for the Hermite: any right-hand side, and the free body's in numbers
+_end, _free_end = explicit_kernel.hermite_end, explicit_kernel.rk4_free_end
 
 
 @inline
@@ -100,11 +72,10 @@ def hermite_run(herm, h, a_ns, b_ns, n, span, held, s, sample_period_ns, scratch
                 q_out, m_out, tau_out, tau_body, row):
     """:func:`segment`'s samples from s on that fall strictly inside the step ``held``
     whose ends herm holds, before b_ns, at most CHUNK: its x, j and theta for each, then
-    the cubic Hermite interpolant (weights a0 = 2θ³ − 3θ² + 1, a1 = 1 − a0, b0 = (θ³ −
-    2θ² + θ)h, b1 = (θ³ − θ²)h on the ends y0, y1 and derivatives d0, d1; q normalised)
-    one operation at a time over them all: independent lanes, which the compiler runs
-    several to an instruction, each lane's values the scalar ones (sample by sample this
-    cost ~32 ns a sample). Then the checks and rows sample by sample. ``scratch`` (13,
+    the cubic Hermite interpolant one operation at a time over them all (explicit_kernel.
+    hermite_lanes: independent lanes, which the compiler runs several to an instruction,
+    each lane's values the scalar ones; sample by sample this cost ~32 ns a sample), q
+    normalised. Then the checks and rows sample by sample. ``scratch`` (13,
     CHUNK). Returns (rows written, False if a sample was not finite: the rows before it
     are written)."""
     count = 0
@@ -117,29 +88,7 @@ def hermite_run(herm, h, a_ns, b_ns, n, span, held, s, sample_period_ns, scratch
             break
         scratch[0, count] = theta
         count += 1
-    for c in range(count):  # the weights: a0, a1, b0, b1 in rows 1-4
-        theta = scratch[0, c]
-        t2 = theta * theta
-        t3 = t2 * theta
-        a0 = 2.0 * t3 - 3.0 * t2 + 1.0
-        scratch[1, c] = a0
-        scratch[2, c] = 1.0 - a0
-        scratch[3, c] = (t3 - 2.0 * t2 + theta) * h
-        scratch[4, c] = (t3 - t2) * h
-    for i in range(7):  # q's 4 components, then m's 3, in rows 5-11
-        p = 0 if i < 4 else 1
-        k = i if i < 4 else i - 4
-        y0, d0, y1, d1 = herm[p, k], herm[p + 2, k], herm[p + 4, k], herm[p + 6, k]
-        for c in range(count):
-            scratch[5 + i, c] = (scratch[1, c] * y0 + scratch[3, c] * d0
-                                 + scratch[2, c] * y1 + scratch[4, c] * d1)
-    for c in range(count):  # |q| in row 12
-        norm = 0.0
-        norm += scratch[5, c] * scratch[5, c]
-        norm += scratch[6, c] * scratch[6, c]
-        norm += scratch[7, c] * scratch[7, c]
-        norm += scratch[8, c] * scratch[8, c]
-        scratch[12, c] = math.sqrt(norm)
+    explicit_kernel.hermite_lanes(herm, h, count, scratch)
     for c in range(count):
         r = row + c
         norm = scratch[12, c]
@@ -155,6 +104,33 @@ def hermite_run(herm, h, a_ns, b_ns, n, span, held, s, sample_period_ns, scratch
             tau_out[r, i] = tau_body[i]
         t_out[r] = s + c * sample_period_ns
     return count, True
+
+
+@inline
+def _hermite_one(herm, h, theta, s, q_out, m_out, t_out, tau_out, tau_body, r):
+    """:func:`hermite_run` where a step holds one sample at most, row r at s, the same values
+    (its loops cost ~36 ns of ~140 a sample: rk4 under a law, generated scene 13)."""
+    t2 = theta * theta
+    t3 = t2 * theta
+    a0 = 2.0 * t3 - 3.0 * t2 + 1.0
+    a1, b0, b1 = 1.0 - a0, (t3 - 2.0 * t2 + theta) * h, (t3 - t2) * h
+    norm = 0.0
+    for i in range(4):
+        v = a0 * herm[0, i] + b0 * herm[2, i] + a1 * herm[4, i] + b1 * herm[6, i]
+        q_out[r, i] = v
+        norm += v * v
+    norm = math.sqrt(norm)
+    finite = math.isfinite(norm) and norm > 0.0
+    for i in range(3):
+        m_out[r, i] = a0 * herm[1, i] + b0 * herm[3, i] + a1 * herm[5, i] + b1 * herm[7, i]
+        finite = finite and math.isfinite(m_out[r, i])
+        tau_out[r, i] = tau_body[i]
+    if not finite:
+        return 0, False
+    for i in range(4):
+        q_out[r, i] /= norm
+    t_out[r] = s
+    return 1, True
 
 
 @inline
@@ -219,9 +195,13 @@ def segment(method, q, m, a_ns, b_ns, n, sample_ns, sample_period_ns, weights, s
             evals += 1
             held = j
         if theta != 0.0:  # this sample and the next ones inside the same step
-            written, finite = hermite_run(herm, h, a_ns, b_ns, n, span, held, s,
-                                          sample_period_ns, lanes, t_out, q_out, m_out,
-                                          tau_out, tau_body, r)
+            if sample_period_ns * n >= span:  # the next sample is in a later step
+                written, finite = _hermite_one(herm, h, theta, s, q_out, m_out, t_out,
+                                               tau_out, tau_body, r)
+            else:
+                written, finite = hermite_run(herm, h, a_ns, b_ns, n, span, held, s,
+                                              sample_period_ns, lanes, t_out, q_out, m_out,
+                                              tau_out, tau_body, r)
             rows += written
             s += written * sample_period_ns
             if not finite:
@@ -305,35 +285,7 @@ def dense_samples(q, m, tau_p, memory, hn_first, hn, room, s, sample_period_ns, 
             xs[k] = targets[k] / h_step
         for k in range(count):
             ys[k] = 1.0 - xs[k]
-        for i in range(DIM):  # _interpolate, lane by lane
-            y_old = memory[_Y_OLD + i]
-            f0 = memory[_FF + (POWER - 1) * DIM + i]
-            f1 = memory[_FF + (POWER - 2) * DIM + i]
-            f2 = memory[_FF + (POWER - 3) * DIM + i]
-            f3 = memory[_FF + (POWER - 4) * DIM + i]
-            f4 = memory[_FF + (POWER - 5) * DIM + i]
-            f5 = memory[_FF + (POWER - 6) * DIM + i]
-            f6 = memory[_FF + (POWER - 7) * DIM + i]
-            row_i = raw[i]
-            for k in range(count):
-                x = xs[k]
-                y = ys[k]
-                v = 0.0
-                v += f0
-                v *= x
-                v += f1
-                v *= y
-                v += f2
-                v *= x
-                v += f3
-                v *= y
-                v += f4
-                v *= x
-                v += f5
-                v *= y
-                v += f6
-                v *= x
-                row_i[k] = v + y_old
+        dop853_dense.interpolate_lanes(memory, xs, ys, count, raw)
         for k in range(count):
             norms[k] = math.sqrt(raw[0, k] * raw[0, k] + raw[1, k] * raw[1, k]
                                  + raw[2, k] * raw[2, k] + raw[3, k] * raw[3, k])
@@ -391,7 +343,7 @@ def interpolation_allowed(engine, m) -> bool:
 
 
 # they call the step loops from their own files (see jit.depends_on)
-for _kernel in (grid_instants, fixed_steps, _end, segment, dense_samples):
+for _kernel in (fixed_steps, _hermite_one, segment, dense_samples):
     depends_on(_kernel, splitting_kernel, explicit_kernel, dop853_kernel, dop853_dense,
                exact_flow_kernel, dynamics_kernel, orbit_kernel, magnetic_kernel,
                facets_kernel)

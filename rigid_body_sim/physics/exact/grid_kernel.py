@@ -277,6 +277,18 @@ def at_grid(c, ts, dt, tab, q, m):
         block += 1
 
 
+@jit
+def grid_instants(first_ns, period_ns, anchor_ns, t_ns, ts):
+    """t_ns[k] ← first_ns + k·period_ns and ts[k] ← (t_ns[k] − anchor_ns)/1e9 s, k <
+    len(ts): a torque-free exact stretch's sample instants (``Engine._free_samples``) and
+    their times from its anchor, in one pass, numpy's arithmetic to the bit (its six
+    passes over the stretch cost ~8 ns a sample, a third of the closed form's own)."""
+    for k in range(ts.shape[0]):
+        t = first_ns + k * period_ns
+        t_ns[k] = t
+        ts[k] = (t - anchor_ns) / 1e9
+
+
 for _kernel in (_half, _half_r, offsets, _anchor, _hop, _onto, _lanes, half_width, at_grid):
     depends_on(_kernel, double_double, elliptic_kernel, exact_constants, exact_kernel,
                jit_settings)

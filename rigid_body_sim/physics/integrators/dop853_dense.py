@@ -140,6 +140,43 @@ def _interpolate(y_old, F, x, out):
         out[i] = v + y_old[i]
 
 
+@inline
+def interpolate_lanes(memory, xs, ys, count, raw):
+    """:func:`_interpolate` over ``count`` lanes: raw[i, k] ← the interpolant of the step
+    whose F and y_old ``memory`` holds, at xs[k] (ys[k] = 1 − xs[k]); each lane's
+    arithmetic the scalar one, lanes in one loop that the compiler runs several to an
+    instruction (sample_kernel.dense_samples; the samples' floor, bench.sampling_floor)."""
+    for i in range(DIM):
+        y_old = memory[_Y_OLD + i]
+        f0 = memory[_FF + (POWER - 1) * DIM + i]
+        f1 = memory[_FF + (POWER - 2) * DIM + i]
+        f2 = memory[_FF + (POWER - 3) * DIM + i]
+        f3 = memory[_FF + (POWER - 4) * DIM + i]
+        f4 = memory[_FF + (POWER - 5) * DIM + i]
+        f5 = memory[_FF + (POWER - 6) * DIM + i]
+        f6 = memory[_FF + (POWER - 7) * DIM + i]
+        row_i = raw[i]
+        for k in range(count):
+            x = xs[k]
+            y = ys[k]
+            v = 0.0
+            v += f0
+            v *= x
+            v += f1
+            v *= y
+            v += f2
+            v *= x
+            v += f3
+            v *= y
+            v += f4
+            v *= x
+            v += f5
+            v *= y
+            v += f6
+            v *= x
+            row_i[k] = v + y_old
+
+
 @jit
 def advance(q, m, span, tau, memory, moments, model, coefficient, rtol, atol, t0, env):
     """One output step of ``span`` s from time ``t0`` for an integrator that keeps its

@@ -152,8 +152,55 @@ def rk4_free_end(q, m, moments, tau, model, coefficient, herm, at):
     herm[at + 3, 0], herm[at + 3, 1], herm[at + 3, 2] = dm0, dm1, dm2
 
 
+@jit
+def hermite_end(q, m, moments, tau_p, model, coefficient, t, env, herm, at):
+    """The state and its derivative into herm[at:at + 4] = (q, m, dq, dm): one evaluation
+    (sample_kernel.segment's step ends, any right-hand side)."""
+    for i in range(4):
+        herm[at, i] = q[i]
+    for i in range(3):
+        herm[at + 1, i] = m[i]
+        herm[at + 3, i] = 0.0
+    _rates(herm[at], herm[at + 1, :3], moments, tau_p, model, coefficient, herm[at + 2],
+           herm[at + 3, :3])
+    if env is not None:
+        _environment(herm[at], t, env, moments, herm[at + 3, :3])
+
+
+@inline
+def hermite_lanes(herm, h, count, scratch):
+    """The cubic Hermite interpolant of the step whose ends herm (8, 4) holds (q0, m0, dq0,
+    dm0, q1, m1, dq1, dm1) at the θ of scratch[0, :count]: weights a0, a1, b0, b1 in rows
+    1-4 (a0 = 2θ³ − 3θ² + 1, a1 = 1 − a0, b0 = (θ³ − 2θ² + θ)h, b1 = (θ³ − θ²)h), q and m
+    in rows 5-11, |q| in row 12; one operation at a time over the lanes, which the compiler
+    runs several to an instruction (sample_kernel.hermite_run; the samples' floor)."""
+    for c in range(count):
+        theta = scratch[0, c]
+        t2 = theta * theta
+        t3 = t2 * theta
+        a0 = 2.0 * t3 - 3.0 * t2 + 1.0
+        scratch[1, c] = a0
+        scratch[2, c] = 1.0 - a0
+        scratch[3, c] = (t3 - 2.0 * t2 + theta) * h
+        scratch[4, c] = (t3 - t2) * h
+    for i in range(7):  # q's 4 components, then m's 3, in rows 5-11
+        p = 0 if i < 4 else 1
+        k = i if i < 4 else i - 4
+        y0, d0, y1, d1 = herm[p, k], herm[p + 2, k], herm[p + 4, k], herm[p + 6, k]
+        for c in range(count):
+            scratch[5 + i, c] = (scratch[1, c] * y0 + scratch[3, c] * d0
+                                 + scratch[2, c] * y1 + scratch[4, c] * d1)
+    for c in range(count):  # |q| in row 12
+        norm = 0.0
+        norm += scratch[5, c] * scratch[5, c]
+        norm += scratch[6, c] * scratch[6, c]
+        norm += scratch[7, c] * scratch[7, c]
+        norm += scratch[8, c] * scratch[8, c]
+        scratch[12, c] = math.sqrt(norm)
+
+
 # they call the shared rates of another file (see jit.depends_on)
-for _kernel in (euler_run, euler_steps, rk4_run, rk4_steps):
+for _kernel in (euler_run, euler_steps, rk4_run, rk4_steps, hermite_end):
     depends_on(_kernel, dynamics_kernel, orbit_kernel, magnetic_kernel, facets_kernel)
 
 
