@@ -198,7 +198,7 @@ def choosing(body: RigidBody, dissipation: Dissipation, attitude, angular_veloci
     # cheapest first by the least each could cost (at its largest step); one that could not
     # save more than asking it costs is not asked: on a short run the fixed part of the run
     # dominates every candidate's cost, and the a-priori pass would be its largest share
-    least = [] if _none_could_pay(s, kind, best, accuracy) else \
+    least = [] if _none_could_pay(s, usable, kind, best, accuracy) else \
         sorted((s.least_cost(c), i, c) for i, c in enumerate(usable) if math.isfinite(c.k))
     if not least and best is not None:
         unasked += finite_names(*kind)
@@ -307,14 +307,16 @@ def _concluded(s, found, said, pilot):
                      spent, prior_cost, options(c, tolerances, s.G))
 
 
-def _none_could_pay(s, kind, best, accuracy) -> bool:
+def _none_could_pay(s, usable, kind, best, accuracy) -> bool:
     """Whether no step-based candidate could save what asking it costs, by one bound for
     all (each one's ``least_cost`` asked for nothing; Explorer 1 over 1 s, exact at the
     sample period): the fewest steps any takes (hΩ ≤ H_OMEGA_PRIOR, at most the event
-    spacing) at the least cost per step and per event of all, beside the run's fixed part."""
-    if best is None or best[3] > accuracy or not usable_of_kind(*kind):
+    spacing) at the least cost per step and per event of all, beside the run's fixed part.
+    ``usable``: the candidates of ``kind`` (:func:`.kinds.usable`, already asked)."""
+    if best is None or best[3] > accuracy or not usable:
         return False
-    h = min(H_OMEGA_PRIOR / s.omega, s.max_step)
+    h = H_OMEGA_PRIOR / s.omega  # a compare, not min(): see model.RunModel
+    h = s.max_step if s.max_step < h else h
     per_step, event = least_costs(s, kind)
     floor = RUN_COST + s.events * event + s.horizon / h * per_step * 1e-6
     # as _worth_asking, for a geometric candidate (the preference can only favour it)
