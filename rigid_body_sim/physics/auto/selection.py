@@ -263,7 +263,13 @@ def choosing(body: RigidBody, dissipation: Dissipation, attitude, angular_veloci
     prior = 'a priori (k·(hΩ)^p·ΩT): ' + ', '.join(why)
     said = (f'{head}; {prior}', prior_cost, tolerances)
     if torque and law_runner is not None and s.law_alone and not prior_only:
-        return _under_law(s, best, usable, adaptive, law_runner, control_period, said)
+        planned = law_pilot.plans(s, best, usable)
+        if not planned and not (best[3] > accuracy and adaptive and not best[0].adaptive):
+            # nothing to pilot and nothing to weigh (_under_law's two questions): at once
+            return _concluded(s, (*best, 0, 0.0, [law_pilot.NO_PLAN]), said,
+                              'pilot under the law')
+        return _under_law(s, best, usable, adaptive, law_runner, control_period, said,
+                          planned)
     if torque or prior_only:
         c, h, cost, err = best
         return Selection(c.name, h, said[0], err, cost, prior_cost=prior_cost,
@@ -274,12 +280,13 @@ def choosing(body: RigidBody, dissipation: Dissipation, attitude, angular_veloci
         rotation.validated(attitude)), said)
 
 
-def _under_law(s, best, usable, adaptive, law_runner, control_period, said):
+def _under_law(s, best, usable, adaptive, law_runner, control_period, said, planned):
     """Generator: the a-priori choice ``best`` refined by the law's pilot (:mod:`.law_pilot`),
     and dop853 weighed where nothing promises; returns the Selection. ``said``: the reason
-    so far, the a-priori pass's cost and the adaptive candidates' rtols (updated here)."""
+    so far, the a-priori pass's cost and the adaptive candidates' rtols (updated here);
+    ``planned``: what the pilot would run (``law_pilot.plans``)."""
     (c, h, cost, err), spent, steps, notes = yield from law_pilot.refine(
-        s, best, usable, law_runner, control_period)
+        s, best, usable, law_runner, control_period, planned)
     if err > s.accuracy and adaptive and not c.adaptive:  # nothing promises: weighed
         (c, h, cost, err), rtol, more, done, more_notes = yield from law_pilot.weigh(
             s, (c, h, cost, err), adaptive[0], law_runner, control_period)
