@@ -66,6 +66,7 @@ CALL = 1e-5          # s per pilot run part (Python around the compiled loop)
 SETUP = 5e-5         # s: the runner (the law's and the state's arrays)
 VERIFY_SHRINK = 1.5  # a step this much below the piloted one is piloted again
 MAX_PLANS = 3        # candidates piloted at most
+NO_PLAN = 'none (no candidate could beat the a-priori choice)'  # where plans() is empty
 # dop853 weighed where nothing promises: only where its model cost is WEIGH_GAIN× below the
 # fixed method's (where the pilot keeps the fixed method its cost is lost: seed 20261125
 # scenes 13 and 105 went from 2.95× to 3.3× the oracle's CPU), the pilot at most
@@ -159,11 +160,10 @@ def _start(s, c):
 
 def plans(s, best, usable):
     """[(cost at its largest plausible step, index, candidate, that step)]: the fixed
-    candidates that could beat ``best``, cheapest first (at most MAX_PLANS); asked before
-    :func:`refine`'s generator is made, which is not where it is empty (``selection``)."""
+    candidates that could beat ``best``, cheapest first (at most MAX_PLANS); none: no
+    generator for :func:`refine` is made (``selection``)."""
     c0, _, cost0, err0 = best
-    found = []
-    met = err0 <= s.accuracy
+    found, met = [], err0 <= s.accuracy
     for i, c in enumerate(usable):
         if not math.isfinite(c.k) or c.adaptive:
             continue
@@ -191,17 +191,13 @@ def plans(s, best, usable):
     return sorted(found, key=lambda p: p[:2])[:MAX_PLANS]
 
 
-NO_PLAN = 'none (no candidate could beat the a-priori choice)'  # where plans() is empty
-
-
 def refine(s, best, usable, make_runner, period, planned=None):
     """Generator: ``best`` (candidate, h, cost, error), the a-priori choice under a law,
     refined by pilots (module docstring). ``usable``: the fixed candidates;
     ``make_runner()``: made only if a pilot runs, gives ``runner(name, options, h_max,
     ends)``, a generator that runs the method with the law in the loop
-    (``engine.law_pilot.LawRunner.run``); ``period``: the control period (s);
-    ``planned``: :func:`plans` if already asked.
-    Returns (best, pilot cost s, pilot steps, notes)."""
+    (``engine.law_pilot.LawRunner.run``); ``period``: the control period (s); ``planned``:
+    :func:`plans` if already asked. Returns (best, pilot cost s, pilot steps, notes)."""
     T = s.horizon
     planned = plans(s, best, usable) if planned is None else planned
     if not planned:
