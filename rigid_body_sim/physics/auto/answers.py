@@ -46,25 +46,6 @@ class Selection(NamedTuple):
         return self.prior_cost + self.pilot_cost
 
 
-def g_text(x: float, precision: int) -> str:
-    """``'%.*g' % (precision, x)``, the same text, but a small number's exponent written
-    without libc's sprintf, which CPython calls for it (pystrtod.c) and nothing else in a
-    run touches: with the cold caches a choice runs in, it was ~120 of the ~1,500 L2 misses
-    of Explorer 1's choosing over 1 s (callgrind's cache simulation), the one row whose
-    reason has such a figure. The digits are '%.*f''s at %g's last decimal place: both
-    round the double correctly there, so they are the same."""
-    if not (0.0 < abs(x) < 1e-4):  # %g's fixed form, or no digits to place (0, inf, nan)
-        return '%.*g' % (precision, x)
-    e = math.floor(math.log10(abs(x)))  # may be one off next to a power of ten: see below
-    digits = ('%.*f' % (precision - 1 - e, abs(x)))[2:].lstrip('0')
-    if len(digits) > precision:  # rounded up to the next power of ten (or e was one low)
-        digits, e = digits[:precision], e + 1
-    if e >= -4:  # rounded into %g's fixed form
-        return '%.*g' % (precision, x)
-    rest = digits[1:].rstrip('0')
-    return '%s%s%s%se-%02d' % ('-' if x < 0 else '', digits[0], '.' if rest else '', rest, -e)
-
-
 def prior_cost(asked: int) -> float:
     """What the a-priori pass costs having asked ``asked`` candidates (s, the run's model)."""
     return PRIOR_BASE + PRIOR_EACH * asked
@@ -109,8 +90,8 @@ def symmetric_split(s, exact, why):
         asked += 1
         err = SPLIT_K * pilot.turning(s.dyn, s.m_floats, s.horizon, s.G,
                                       s.moment_floats) if err is None else err
-        why.append('%s h=%.3g (%s = %s, the damping\'s turning, at any step)' % (
-            c.name, s.max_step, SPLIT_NOTE, g_text(err, 2)))
+        why.append('%s h=%.3g (%s = %.2g, the damping\'s turning, at any step)' % (
+            c.name, s.max_step, SPLIT_NOTE, err))
         if err <= s.accuracy:
             best = (c, s.max_step, s.run_cost(c, s.max_step), err)
     return best, asked
