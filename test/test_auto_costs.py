@@ -242,7 +242,7 @@ def test_the_setup_and_the_benchmarks_calibrate_with_the_cost_of_an_event(monkey
                          ids=['free', 'double_bracket', 'viscous'])
 @pytest.mark.parametrize('viscous_factor', [0.6, 1.3])
 def test_the_least_step_cost_is_never_above_a_step_s_cost(damping, viscous_factor):
-    """law_pilot._plans skips a candidate whose run at one step per event at this cost per
+    """law_pilot.plans skips a candidate whose run at one step per event at this cost per
     step cannot beat the best: a bound above some step's cost would change a choice. Each
     branch of step_cost (the damping inside or outside a composition, substeps, a viscous
     factor below 1 from a calibration) at steps from the event spacing down, to the bit."""

@@ -93,6 +93,28 @@ def test_a_short_run_under_a_law_is_not_piloted(name):
     assert 'law: none' in result.reason, result.reason
 
 
+
+@pytest.mark.parametrize('name', ['slew', 'detumble'])
+def test_where_nothing_could_be_piloted_under_a_law_no_generator_is_made(monkeypatch, name):
+    """The bench's slew and detumble over 15 s (their share rows): at the first command no
+    candidate could beat the a-priori rk4 (law_pilot.plans is empty) and it meets the
+    budget, so the selection returns at once, as the generator would have (the law record of
+    test_selection_identity.py holds those choices), without making one."""
+    from rigid_body_sim.engine import method_choice
+    from rigid_body_sim.physics.auto import Selection
+    made = []
+
+    def choosing(*args, **kw):
+        made.append(method_choice_choosing(*args, **kw))
+        return made[-1]
+    method_choice_choosing = method_choice.choosing
+    monkeypatch.setattr(method_choice, 'choosing', choosing)
+    result = simulate(load(os.path.join(REPO, 'config', f'{name}.yaml')), duration=15.0)
+    assert len(made) == 1 and isinstance(made[0], Selection), made
+    assert made[0] == result.selection
+    assert result.selection.name == 'rk4' and result.selection.pilot_steps == 0
+    assert result.reason.endswith('law: ' + law_pilot.NO_PLAN), result.reason
+
 def test_the_extrapolation_grows_with_the_pilots_measured_growth():
     """Linear where the error doubles with the horizon, a power law where it grows faster
     (the free-body pilot's SUPERLINEAR), never below the last reading."""
@@ -296,7 +318,7 @@ def test_where_the_rounding_run_leaves_no_pilot_the_step_doubling_one_runs(monke
     step-doubling reading, as before."""
     rk4 = _Method('rk4', 'random')
     rk4.geometric, rk4.adaptive = False, False
-    monkeypatch.setattr(law_pilot, '_plans', lambda s, best, usable: [(1.0, 0, rk4, 0.01)])
+    monkeypatch.setattr(law_pilot, 'plans', lambda s, best, usable: [(1.0, 0, rk4, 0.01)])
     steps = []
 
     def runner(name, options, h_max, ends):

@@ -66,6 +66,7 @@ CALL = 1e-5          # s per pilot run part (Python around the compiled loop)
 SETUP = 5e-5         # s: the runner (the law's and the state's arrays)
 VERIFY_SHRINK = 1.5  # a step this much below the piloted one is piloted again
 MAX_PLANS = 3        # candidates piloted at most
+NO_PLAN = 'none (no candidate could beat the a-priori choice)'  # where plans() is empty
 # dop853 weighed where nothing promises: only where its model cost is WEIGH_GAIN× below the
 # fixed method's (where the pilot keeps the fixed method its cost is lost: seed 20261125
 # scenes 13 and 105 went from 2.95× to 3.3× the oracle's CPU), the pilot at most
@@ -157,12 +158,12 @@ def _start(s, c):
     return h
 
 
-def _plans(s, best, usable):
+def plans(s, best, usable):
     """[(cost at its largest plausible step, index, candidate, that step)]: the fixed
-    candidates that could beat ``best``, cheapest first (at most MAX_PLANS)."""
+    candidates that could beat ``best``, cheapest first (at most MAX_PLANS); none: no
+    generator for :func:`refine` is made (``selection``)."""
     c0, _, cost0, err0 = best
-    plans = []
-    met = err0 <= s.accuracy
+    found, met = [], err0 <= s.accuracy
     for i, c in enumerate(usable):
         if not math.isfinite(c.k) or c.adaptive:
             continue
@@ -186,26 +187,26 @@ def _plans(s, best, usable):
                 c.rounding != 'random' or _weighed(s, cost0, _adaptive(s))):
             continue
         if not met or cost < cost0:
-            plans.append((cost, i, c, h))
-    return sorted(plans, key=lambda p: p[:2])[:MAX_PLANS]
+            found.append((cost, i, c, h))
+    return sorted(found, key=lambda p: p[:2])[:MAX_PLANS]
 
 
-def refine(s, best, usable, make_runner, period):
+def refine(s, best, usable, make_runner, period, planned=None):
     """Generator: ``best`` (candidate, h, cost, error), the a-priori choice under a law,
     refined by pilots (module docstring). ``usable``: the fixed candidates;
     ``make_runner()``: made only if a pilot runs, gives ``runner(name, options, h_max,
     ends)``, a generator that runs the method with the law in the loop
-    (``engine.law_pilot.LawRunner.run``); ``period``: the control period (s).
-    Returns (best, pilot cost s, pilot steps, notes)."""
+    (``engine.law_pilot.LawRunner.run``); ``period``: the control period (s); ``planned``:
+    :func:`plans` if already asked. Returns (best, pilot cost s, pilot steps, notes)."""
     T = s.horizon
-    plans = _plans(s, best, usable)
-    if not plans:
-        return best, 0.0, 0, ['none (no candidate could beat the a-priori choice)']
+    planned = plans(s, best, usable) if planned is None else planned
+    if not planned:
+        return best, 0.0, 0, [NO_PLAN]
     budget = SHARE * best[2]
     least = max(MIN_PERIODS * period, pilot.ROTATIONS * 2 * math.pi / s.omega)
-    room = FIRST_ROUND * budget - SETUP - 12 * CALL * len(plans)
+    room = FIRST_ROUND * budget - SETUP - 12 * CALL * len(planned)
     for third in (True, False):  # where the rounding's runs leave no pilot, none of them
-        unit = sum(_pilot_cost(s, c, h, 1.0, third) - 12 * CALL for _, _, c, h in plans)
+        unit = sum(_pilot_cost(s, c, h, 1.0, third) - 12 * CALL for _, _, c, h in planned)
         share = min(1.0, room / unit) if unit > 0 else 1.0
         if share * T >= least:
             break
@@ -215,7 +216,7 @@ def refine(s, best, usable, make_runner, period):
     runner, H = make_runner(), share * T
     ends = [H * (k + 1) / 4 for k in range(4)]
     spent, steps, notes = SETUP, 0, []
-    queue = [(cost, i, c, h, 0, None) for cost, i, c, h in plans]
+    queue = [(cost, i, c, h, 0, None) for cost, i, c, h in planned]
     while queue:
         queue.sort(key=lambda q: q[:2])
         estimate, i, c, h, rounds, known = queue.pop(0)

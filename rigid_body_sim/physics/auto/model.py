@@ -85,9 +85,17 @@ SPREAD = 30.0             # non-geometric methods err at least k/SPREAD (calibra
 
 
 def is_symmetric(moments, rtol=1e-12):
-    # plain floats: asked once per selection, where np.sort's per-call cost is a share of it
-    a, b, c = sorted(moments.tolist() if isinstance(moments, np.ndarray) else moments)
-    return abs(b - a) <= rtol * c or abs(c - b) <= rtol * c
+    # plain floats: asked once per selection, where np.sort's per-call cost is a share of it;
+    # sorted by compares (a ≤ b ≤ c), so no abs(): sorted() and abs() were ~1 µs of a short
+    # run's choosing with cold caches (Explorer 1 over 1 s), the compares ~0.1
+    a, b, c = moments.tolist() if isinstance(moments, np.ndarray) else moments
+    if b < a:
+        a, b = b, a
+    if c < b:
+        b, c = c, b
+        if b < a:
+            a, b = b, a
+    return b - a <= rtol * c or c - b <= rtol * c
 
 
 class RunModel:
@@ -127,10 +135,16 @@ class RunModel:
         self.moment_floats = dyn.moments.tolist()
         self.G = math.sqrt(a * a + b * b + c * c)
         self.stiffness = dyn.dissipation_stiffness(self.G)
-        spin = self.G / min(self.moment_floats)
+        # comparisons, not min()/max(), here and in what a selection asks of the model: a
+        # builtin's call (its argument tuple, iterator, compares) is ~1,000 instructions
+        # against ~50, and 13–33 of them were a tenth of a short run's choosing (callgrind)
+        a, b, c = self.moment_floats
+        least = b if b < a else a
+        spin = self.G / (c if c < least else least)
         self.spin, self.torque_rate = spin, torque_rate
         self.omega = spin + torque_rate + self.stiffness
-        self.events = max(1, math.ceil(horizon / max_step - 1e-9))
+        events = math.ceil(horizon / max_step - 1e-9)
+        self.events = events if events > 1 else 1
         self.turned = spin * horizon  # rad, for the round-off
         d = dyn.dissipation
         self.damping = d.model if d.active else None
@@ -153,7 +167,8 @@ class RunModel:
 
     def snap(self, h):
         """The largest step ≤ h that divides the event spacing."""
-        return self.max_step / max(1, math.ceil(self.max_step / h - 1e-9))
+        n = math.ceil(self.max_step / h - 1e-9)
+        return self.max_step / (n if n > 1 else 1)
 
     def step_cost(self, c, h):
         """CPU s per step of c at h."""
@@ -200,11 +215,14 @@ class RunModel:
     def least_cost(self, c):
         """A lower bound of c's run cost, at no call to the models: the fewest steps (at
         its largest step) at its least cost per step (auto orders candidates by it)."""
-        h = min(H_OMEGA_PRIOR / self.omega, c.stability / max(self.omega, self.stiffness),
-                self.max_step)
+        omega, stiffness = self.omega, self.stiffness
+        h, x = H_OMEGA_PRIOR / omega, c.stability / (stiffness if stiffness > omega else omega)
+        h = x if x < h else h
+        h = self.max_step if self.max_step < h else h
         call = self.per_event(c)
+        free, damped = self.costs.cost(c)
         return (RUN_COST + self.events * call
-                + self.horizon / h * (min(self.costs.cost(c))
+                + self.horizon / h * ((damped if damped < free else free)
                                       + self.term_cost * c.environment_evals) * 1e-6)
 
     def tolerance(self, c):
@@ -263,15 +281,18 @@ class RunModel:
         """The adaptive method's a-priori error per unit rtol (rad): the bound's
         k·ΩT·max(1, ΩT/DOP853_DRIFT), plus, where a control law's torque restarts it at
         every event, RESTART_K per restart (``controlled``)."""
-        scale = c.k * turned * max(1.0, turned / DOP853_DRIFT)
+        drift = turned / DOP853_DRIFT
+        scale = c.k * turned * (drift if drift > 1.0 else 1.0)
         return scale + (RESTART_K * self.events if self.controlled else 0.0)
 
     def _adaptive_steps(self, turned, rtol):
         """The adaptive method's steps over the run at rtol: its natural steps (at least
         stiffness·T/DOP853_STABLE), plus, with commanded torque, one step more per event:
         a new torque restarts it, and the last step before each instant is cut short."""
-        natural = max(DOP853_STEPS * turned * rtol ** -0.125,
-                      self.stiffness * self.horizon / DOP853_STABLE, 1.0)
+        natural, x = (DOP853_STEPS * turned * rtol ** -0.125,
+                      self.stiffness * self.horizon / DOP853_STABLE)
+        natural = x if x > natural else natural
+        natural = 1.0 if 1.0 > natural else natural
         return natural + (self.events if self.commanded else 0)
 
     def roundoff(self, c, h):
@@ -296,13 +317,16 @@ class RunModel:
 
     def _cap(self, c, plausible):
         h = (H_OMEGA_PLAUSIBLE if plausible and c.geometric else H_OMEGA_PRIOR) / self.omega
-        h = min(h, c.stability / max(self.omega, self.stiffness))
+        omega, stiffness = self.omega, self.stiffness
+        x = c.stability / (stiffness if stiffness > omega else omega)
+        h = x if x < h else h
         if plausible and not c.geometric and math.isfinite(c.k):
             # no exact axis rotations: the error is within SPREAD of the bound k
             prior = self.prior_step(c)
             if prior is not None:
-                h = min(h, prior * SPREAD ** (1.0 / self.order(c, prior)))
-        return self.snap(min(self.max_step, h))
+                x = prior * SPREAD ** (1.0 / self.order(c, prior))
+                h = x if x < h else h
+        return self.snap(h if h < self.max_step else self.max_step)
 
     def growth(self, c):
         if c.growth == 'drift':

@@ -198,7 +198,7 @@ def choosing(body: RigidBody, dissipation: Dissipation, attitude, angular_veloci
     # cheapest first by the least each could cost (at its largest step); one that could not
     # save more than asking it costs is not asked: on a short run the fixed part of the run
     # dominates every candidate's cost, and the a-priori pass would be its largest share
-    least = [] if _none_could_pay(s, kind, best, accuracy) else \
+    least = [] if _none_could_pay(s, usable, kind, best, accuracy) else \
         sorted((s.least_cost(c), i, c) for i, c in enumerate(usable) if math.isfinite(c.k))
     if not least and best is not None:
         unasked += finite_names(*kind)
@@ -263,7 +263,13 @@ def choosing(body: RigidBody, dissipation: Dissipation, attitude, angular_veloci
     prior = 'a priori (k·(hΩ)^p·ΩT): ' + ', '.join(why)
     said = (f'{head}; {prior}', prior_cost, tolerances)
     if torque and law_runner is not None and s.law_alone and not prior_only:
-        return _under_law(s, best, usable, adaptive, law_runner, control_period, said)
+        planned = law_pilot.plans(s, best, usable)
+        if not planned and not (best[3] > accuracy and adaptive and not best[0].adaptive):
+            # nothing to pilot and nothing to weigh (_under_law's two questions): at once
+            return _concluded(s, (*best, 0, 0.0, [law_pilot.NO_PLAN]), said,
+                              'pilot under the law')
+        return _under_law(s, best, usable, adaptive, law_runner, control_period, said,
+                          planned)
     if torque or prior_only:
         c, h, cost, err = best
         return Selection(c.name, h, said[0], err, cost, prior_cost=prior_cost,
@@ -274,12 +280,13 @@ def choosing(body: RigidBody, dissipation: Dissipation, attitude, angular_veloci
         rotation.validated(attitude)), said)
 
 
-def _under_law(s, best, usable, adaptive, law_runner, control_period, said):
+def _under_law(s, best, usable, adaptive, law_runner, control_period, said, planned):
     """Generator: the a-priori choice ``best`` refined by the law's pilot (:mod:`.law_pilot`),
     and dop853 weighed where nothing promises; returns the Selection. ``said``: the reason
-    so far, the a-priori pass's cost and the adaptive candidates' rtols (updated here)."""
+    so far, the a-priori pass's cost and the adaptive candidates' rtols (updated here);
+    ``planned``: what the pilot would run (``law_pilot.plans``)."""
     (c, h, cost, err), spent, steps, notes = yield from law_pilot.refine(
-        s, best, usable, law_runner, control_period)
+        s, best, usable, law_runner, control_period, planned)
     if err > s.accuracy and adaptive and not c.adaptive:  # nothing promises: weighed
         (c, h, cost, err), rtol, more, done, more_notes = yield from law_pilot.weigh(
             s, (c, h, cost, err), adaptive[0], law_runner, control_period)
@@ -307,14 +314,16 @@ def _concluded(s, found, said, pilot):
                      spent, prior_cost, options(c, tolerances, s.G))
 
 
-def _none_could_pay(s, kind, best, accuracy) -> bool:
+def _none_could_pay(s, usable, kind, best, accuracy) -> bool:
     """Whether no step-based candidate could save what asking it costs, by one bound for
     all (each one's ``least_cost`` asked for nothing; Explorer 1 over 1 s, exact at the
     sample period): the fewest steps any takes (hΩ ≤ H_OMEGA_PRIOR, at most the event
-    spacing) at the least cost per step and per event of all, beside the run's fixed part."""
-    if best is None or best[3] > accuracy or not usable_of_kind(*kind):
+    spacing) at the least cost per step and per event of all, beside the run's fixed part.
+    ``usable``: the candidates of ``kind`` (:func:`.kinds.usable`, already asked)."""
+    if best is None or best[3] > accuracy or not usable:
         return False
-    h = min(H_OMEGA_PRIOR / s.omega, s.max_step)
+    h = H_OMEGA_PRIOR / s.omega  # a compare, not min(): see model.RunModel
+    h = s.max_step if s.max_step < h else h
     per_step, event = least_costs(s, kind)
     floor = RUN_COST + s.events * event + s.horizon / h * per_step * 1e-6
     # as _worth_asking, for a geometric candidate (the preference can only favour it)
