@@ -159,22 +159,10 @@ def interpolate_lanes(memory, xs, ys, count, raw):
         for k in range(count):
             x = xs[k]
             y = ys[k]
-            v = 0.0
-            v += f0
-            v *= x
-            v += f1
-            v *= y
-            v += f2
-            v *= x
-            v += f3
-            v *= y
-            v += f4
-            v *= x
-            v += f5
-            v *= y
-            v += f6
-            v *= x
-            row_i[k] = v + y_old
+            # _interpolate's operations in its order (0.0 + f0 included: the same bits,
+            # signed zeros too; no fastmath, so nothing is fused or reordered)
+            v = ((((((0.0 + f0) * x + f1) * y + f2) * x + f3) * y + f4) * x + f5) * y
+            row_i[k] = (v + f6) * x + y_old
 
 
 @jit
