@@ -357,6 +357,19 @@ def test_the_floor_tool_measures_a_bare_rclpy_exchange():
     assert sum(threads.values()) <= got['cpu_per_exchange_us'] * 1.01 + 1, got
 
 
+def test_the_floor_tool_interleaves_its_runs_and_has_a_compiled_loop():
+    """--interleave: each configuration's runs in rounds, a row per configuration;
+    'rcl': every exchange in one compiled call of rcl's functions, which exchanges with
+    the controller as the wait set does (real processes)."""
+    from rigid_body_sim.tools.lockstep_floor import interleaved
+    rows = interleaved([('SYNCHRONOUS', 'bytes', 'default', 'waitset'),
+                        ('SYNCHRONOUS', 'bytes', 'default', 'rcl')], 20, 2)
+    assert [r['loop'] for r in rows] == ['waitset', 'rcl'], rows
+    for r in rows:
+        assert r['exchanges'] == 20 and len(r['cpu_per_exchange_us_runs']) == 2, r
+        assert 0 < r['thread_cpu_per_exchange_us'] <= r['cpu_per_exchange_us'], r
+
+
 def test_the_parts_tool_times_each_part_of_the_simulators_exchange(capsys):
     """tools/lockstep_parts.py runs the exchange with the simulator in a process of its own
     and a controller (real processes) and reports its thread's CPU per exchange and each
