@@ -21,6 +21,10 @@ import functools
 import numpy as np
 
 RET_OK, RET_TIMEOUT, RET_TAKE_FAILED = 0, 2, 401  # rcl/types.h
+# how the simulator's compiled exchanges (rcl_loop.loop) ended: at the wall time given,
+# with a command left to Python, rcl's context gone, an rcl error, no room left before an
+# acknowledgement wait, a publish refused
+UNTIL, OTHER, SHUTDOWN, ERROR, ROOM, REFUSED = 0, 1, 2, 3, 4, 5
 WAIT_SET_WORDS = 13  # rcl_wait_set_t: six (array, size) pairs and impl
 ARRAY_BYTES = 64  # rcutils_uint8_array_t: buffer, length, capacity, an allocator
 
@@ -82,6 +86,8 @@ def load():
             'wait': (rcl.rcl_wait, 2)}
         c = {k: ctypes.CFUNCTYPE(ctypes.c_int32, *[I64] * n)(ctypes.cast(f, ctypes.c_void_p).value)
              for k, (f, n) in proto.items()}
+        c['valid'] = ctypes.CFUNCTYPE(ctypes.c_bool, I64)(
+            ctypes.cast(rcl.rcl_context_is_valid, ctypes.c_void_p).value)
         init = rcl.rcl_wait_set_init
         init.argtypes = [ctypes.c_void_p] + [ctypes.c_size_t] * 6 + [ctypes.c_void_p, Allocator]
         init.restype = ctypes.c_int32
