@@ -80,3 +80,32 @@ def test_a_library_not_loaded_is_refused_with_the_reason():
     from rigid_body_sim.nodes import rcl_direct
     with pytest.raises(rcl_direct.Unavailable, match='libnot_there.so is not loaded'):
         rcl_direct._mapped('libnot_there.so')
+
+
+def test_without_rcls_functions_the_simulator_keeps_the_python_way(monkeypatch):
+    """Where librcl cannot be had (here: not mapped), the compiled exchanges say why, once
+    in the log, and never run (``Compiled.run`` leaves every exchange to Python)."""
+    from rigid_body_sim.nodes import rcl_direct, sim_rcl
+
+    def missing(name):
+        raise rcl_direct.Unavailable(f'{name} is not loaded in this process')
+    logged = []
+
+    class Log:
+        def info(self, text):
+            logged.append(text)
+    rcl_direct.load.cache_clear()
+    monkeypatch.setattr(rcl_direct, '_mapped', missing)
+    try:
+        compiled = sim_rcl.Compiled(Log())
+    finally:
+        rcl_direct.load.cache_clear()  # the next load reads the real mappings
+    assert compiled.loop is None and 'librcl.so is not loaded' in compiled.why
+    assert logged == [f'lockstep: exchanges taken in Python ({compiled.why})'], logged
+
+    class Craft:
+        engine = None
+
+    class Node:  # what unable reads before its first check
+        _direct = _round_trips = _acks = None
+    assert compiled.unable(Node(), Craft()) == compiled.why
