@@ -67,6 +67,18 @@ def _mapped(name: str) -> str:
 I64 = ctypes.c_int64  # every pointer passed as an int64 (the same register on x86-64)
 
 
+def as_pointer(function, restype, n: int):
+    """The C function ``function`` (a ctypes one) as a function pointer of ``n`` int64
+    arguments returning ``restype``: what numba calls from compiled code."""
+    return ctypes.CFUNCTYPE(restype, *[I64] * n)(ctypes.cast(function, ctypes.c_void_p).value)
+
+
+def _typed(function, restype, *argtypes):
+    """``function`` (ctypes) with its argument and result types set, for calls from Python."""
+    function.argtypes, function.restype = list(argtypes), restype
+    return function
+
+
 @functools.lru_cache(maxsize=None)
 def load():
     """(the ctypes functions, the compiled loops) of this process: see the module
@@ -78,36 +90,23 @@ def load():
     try:
         rcl = ctypes.CDLL(_mapped('librcl.so'))
         rcutils = ctypes.CDLL(_mapped('librcutils.so'))
-        proto = {
+        c = {k: as_pointer(f, ctypes.c_int32, n) for k, (f, n) in {
             'publish': (rcl.rcl_publish_serialized_message, 3),
             'take': (rcl.rcl_take_serialized_message, 4),
             'clear': (rcl.rcl_wait_set_clear, 1),
             'add': (rcl.rcl_wait_set_add_subscription, 3),
-            'wait': (rcl.rcl_wait, 2)}
-        c = {k: ctypes.CFUNCTYPE(ctypes.c_int32, *[I64] * n)(ctypes.cast(f, ctypes.c_void_p).value)
-             for k, (f, n) in proto.items()}
-        c['valid'] = ctypes.CFUNCTYPE(ctypes.c_bool, I64)(
-            ctypes.cast(rcl.rcl_context_is_valid, ctypes.c_void_p).value)
-        init = rcl.rcl_wait_set_init
-        init.argtypes = [ctypes.c_void_p] + [ctypes.c_size_t] * 6 + [ctypes.c_void_p, Allocator]
-        init.restype = ctypes.c_int32
-        fini = rcl.rcl_wait_set_fini
-        fini.argtypes, fini.restype = [ctypes.c_void_p], ctypes.c_int32
-        allocator = rcutils.rcutils_get_default_allocator
-        allocator.argtypes, allocator.restype = [], Allocator
-        array_init = rcutils.rcutils_uint8_array_init
-        array_init.argtypes = [ctypes.c_void_p, ctypes.c_size_t, ctypes.c_void_p]
-        array_init.restype = ctypes.c_int32
-        array_fini = rcutils.rcutils_uint8_array_fini
-        array_fini.argtypes, array_fini.restype = [ctypes.c_void_p], ctypes.c_int32
-        error = rcutils.rcutils_get_error_string
-        error.argtypes, error.restype = [], _ErrorString
-        reset = rcutils.rcutils_reset_error
-        reset.argtypes, reset.restype = [], None
+            'wait': (rcl.rcl_wait, 2)}.items()}
+        c['valid'] = as_pointer(rcl.rcl_context_is_valid, ctypes.c_bool, 1)
+        V, S, R = ctypes.c_void_p, ctypes.c_size_t, ctypes.c_int32
+        lib = dict(c, init=_typed(rcl.rcl_wait_set_init, R, V, *[S] * 6, V, Allocator),
+                   fini=_typed(rcl.rcl_wait_set_fini, R, V),
+                   allocator=_typed(rcutils.rcutils_get_default_allocator, Allocator),
+                   array_init=_typed(rcutils.rcutils_uint8_array_init, R, V, S, V),
+                   array_fini=_typed(rcutils.rcutils_uint8_array_fini, R, V),
+                   error=_typed(rcutils.rcutils_get_error_string, _ErrorString),
+                   reset=_typed(rcutils.rcutils_reset_error, None))
     except (OSError, AttributeError) as exc:
         raise Unavailable(f'librcl: {exc}') from None
-    lib = dict(c, init=init, fini=fini, allocator=allocator, array_init=array_init,
-               array_fini=array_fini, error=error, reset=reset)
     return lib, _loops(c)
 
 

@@ -51,10 +51,8 @@ def functions(c) -> tuple:
     and libc's clock_gettime and memcpy. Passed as arguments, not read as globals, so that
     the loop is cached on disk like the other kernels (numba keys it on their types)."""
     libc = ctypes.CDLL(None)
-    clock = ctypes.CFUNCTYPE(ctypes.c_int32, I64, I64)(
-        ctypes.cast(libc.clock_gettime, ctypes.c_void_p).value)
-    memcpy = ctypes.CFUNCTYPE(I64, I64, I64, I64)(
-        ctypes.cast(libc.memcpy, ctypes.c_void_p).value)
+    clock = rcl_direct.as_pointer(libc.clock_gettime, ctypes.c_int32, 2)
+    memcpy = rcl_direct.as_pointer(libc.memcpy, I64, 3)
     return (c['publish'], c['take'], c['clear'], c['add'], c['wait'], c['valid'], clock,
             memcpy)
 
