@@ -117,9 +117,9 @@ def loop(publish, take, clear, add, wait, valid, clock, memcpy, h, into, pubs, m
             ret = take(sub, into.ctypes.data, 0, 0)
             if ret == RET_TAKE_FAILED:
                 continue
-        if ret != RET_OK:
+        if ret != RET_OK:  # (rcl's context shut down meanwhile: Ctrl-C, not an error)
             ints[RET] = ret
-            code = ERROR
+            code = ERROR if valid(ctx) else SHUTDOWN
             break
         code = OTHER  # until the command is known to be the held instant's
         length = into[1]
