@@ -15,6 +15,10 @@ one the general checks let through (neither ahead of the node's stamp nor older 
 frame are left to check. As fast as possible, that command's call then steps to the next
 instant, publishes it and holds it at once (``_direct_exchange``).
 
+Where it may (``sim_rcl.Compiled``), that loop of exchanges runs without Python at all:
+wait, take, decode, check, apply, step, pack and publish in one compiled call of rcl's C
+functions (``rcl_loop``), which hands anything unusual to ``_on_torque_bytes``.
+
 The wait for that command is the node's loop's, not the executor's (``_serve_exchange``):
 in lockstep the node's own ``torque_command`` is taken out of the executor and read from
 an rcl wait set of that one subscription, and the executor is turned for everything else
@@ -115,6 +119,8 @@ class Exchange:
                            f'{time.monotonic() - start:.3g} s')
 
     def destroy_node(self):
+        if self._compiled is not None:
+            self._compiled.close()
         sub = getattr(self, '_exchange_sub', None)
         if sub is not None and sub not in self._subscriptions:
             self._subscriptions.append(sub)

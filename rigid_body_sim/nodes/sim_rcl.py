@@ -100,6 +100,8 @@ class Compiled:
         # in order, each read only if those before held (a later one needs them)
         for fails, why in (
                 (lambda: self.loop is None, self.why),
+                (lambda: node._held is None or node._awaiting != {('', 'torque')},
+                 'no instant held for the torque command alone'),
                 (lambda: node._layout is None, 'no command taken the short way yet'),
                 (lambda: direct is None or direct.engine is not e, 'no direct period'),
                 (lambda: len(node._crafts) != 1 or node._fault, 'several spacecraft or a fault'),
@@ -119,6 +121,12 @@ class Compiled:
             if fails():
                 return why
         return None
+
+    def close(self):
+        """The rcl wait set and message go (the node's teardown)."""
+        if self.exchange is not None:
+            self.exchange.close()
+            self.exchange, self._key, self.tables = None, None, None
 
     def _build(self, node, craft):
         """The tables of ``craft``'s templated topics and the command's layout."""

@@ -101,7 +101,8 @@ def _compiled(node, sub, pub, frames):
 def _measure(periods: int, raw: bool, loop: str = 'executor') -> dict:
     """In this process (its environment chose the publication mode and the transports):
     the figures. ``loop``: 'executor' turns the events executor until the command has
-    been taken; 'waitset' takes it from an rcl wait set of the one subscription."""
+    been taken; 'waitset' takes it from an rcl wait set of the one subscription; 'rcl'
+    as 'waitset', every exchange after instant 0 in one compiled call (``_compiled``)."""
     import rclpy
     from geometry_msgs.msg import Vector3Stamped
     from nav_msgs.msg import Odometry
@@ -169,6 +170,8 @@ def _measure(periods: int, raw: bool, loop: str = 'executor') -> dict:
             for k in range(k0, k1):
                 send(frames[k])
                 answer(k)
+        if loop == 'rcl':  # every exchange in one compiled call (nodes/rcl_direct.py),
+            exchanges = _compiled(node, sub, odometry, frames)  # compiled before instant 0
         # Instant 0 is sent again each second until it is answered: our writer's match
         # (above) says nothing of the controller's reader, which drops what a writer sent
         # before it had matched that writer (a CI run under load waited 10 s for instant 0).
@@ -182,8 +185,6 @@ def _measure(periods: int, raw: bool, loop: str = 'executor') -> dict:
             except NoCommand:
                 if time.monotonic() > until:
                     raise
-        if loop == 'rcl':  # every exchange in one compiled call (nodes/rcl_direct.py)
-            exchanges = _compiled(node, sub, odometry, frames)
         exchanges(1, 100)  # discovery settled, caches warm
         threads = _threads()
         # the process's window holds the threads' (each thread's share, summed, is then
