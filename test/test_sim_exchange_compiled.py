@@ -26,8 +26,9 @@ def _started(rclpy_node, build, compiled=True, **more):
     exchange done the Python way (the command's layout kept); this node's publisher on
     its torque_command, matched; and a subscription to its odometry."""
     from rigid_body_sim.nodes.sim_rcl import Compiled
-    sim = build(lockstep=True, publish_clock=True, real_time_factor=0.0,
-                publish_rate=50.0, control_rate=50.0, lockstep_timeout=30.0, **more)
+    sim = build(**dict(dict(lockstep=True, publish_clock=True, real_time_factor=0.0,
+                            publish_rate=50.0, control_rate=50.0, lockstep_timeout=30.0),
+                       **more))
     pub = rclpy_node.create_publisher(Vector3Stamped, sim._exchange_sub.topic_name, 100)
     states = []
     from nav_msgs.msg import Odometry
@@ -112,3 +113,28 @@ def _run_commands(rclpy_node, build, compiled):
     odometry = [(m.header.stamp.sec, m.header.stamp.nanosec, m.pose.pose.orientation.x,
                  m.pose.pose.orientation.w, m.twist.twist.angular.y) for m in states]
     return got, odometry
+
+
+def test_a_pause_while_compiled_is_reported_and_resumed_by_python(rclpy_node, simulator):  # noqa: F811
+    """A command that does not come within lockstep_timeout while the exchanges run
+    compiled: the compiled call returns at the held instant's timeout, the loop reports
+    the pause (once), and the command, when it comes, resumes the run the Python way
+    (its log, pacing anew); the next exchanges run compiled again."""
+    sim, pub, states = _started(rclpy_node, simulator, lockstep_timeout=0.3)
+    pub.publish(_command(PERIOD))  # one compiled exchange, then nothing for 40 ms
+    assert spin_until(rclpy_node, lambda: (sim._exchanges(time.monotonic() + 0.2),
+                                           sim.t_ns)[1] == 2 * PERIOD, 60), sim.t_ns
+    assert sim._round_trips.compiled == 1
+    held_since = sim._held_since
+    sim._exchanges(time.monotonic() + 5.0)  # returns at held_since + 0.3 s, not 5 s
+    assert time.monotonic() < held_since + 5.0 and sim.t_ns == 2 * PERIOD
+    assert sim._lockstep_pauses == 0
+    sim.run_once()  # the loop's turn reports it
+    assert sim._lockstep_pauses == 1 and sim._paused_reported
+    pub.publish(_command(2 * PERIOD))
+    pub.publish(_command(3 * PERIOD))
+    assert spin_until(rclpy_node, lambda: (sim._exchanges(time.monotonic() + 0.2),
+                                           sim.t_ns)[1] == 4 * PERIOD, 60), sim.t_ns
+    # the resuming command the Python way (paused), the next compiled
+    assert sim._round_trips.compiled == 2 and sim._lockstep_pauses == 1
+    assert not sim._paused_reported
