@@ -50,9 +50,12 @@ def functions(c) -> tuple:
     """The C functions :func:`loop` calls, in its order: rcl's ``c`` (``rcl_direct.load``)
     and libc's clock_gettime and memcpy. Passed as arguments, not read as globals, so that
     the loop is cached on disk like the other kernels (numba keys it on their types)."""
-    libc = ctypes.CDLL(None)
-    clock = rcl_direct.as_pointer(libc.clock_gettime, ctypes.c_int32, 2)
-    memcpy = rcl_direct.as_pointer(libc.memcpy, I64, 3)
+    try:
+        libc = ctypes.CDLL(None)
+        clock = rcl_direct.as_pointer(libc.clock_gettime, ctypes.c_int32, 2)
+        memcpy = rcl_direct.as_pointer(libc.memcpy, I64, 3)
+    except (OSError, AttributeError) as exc:
+        raise rcl_direct.Unavailable(f'libc: {exc}') from None
     return (c['publish'], c['take'], c['clear'], c['add'], c['wait'], c['valid'], clock,
             memcpy)
 
