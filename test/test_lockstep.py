@@ -6,6 +6,7 @@ possible, at real time and beside a process that keeps both cores busy; a contro
 does not answer pauses the simulator, which reports it and resumes on the answer.
 """
 import os
+import re
 import signal
 import sys
 
@@ -48,10 +49,12 @@ def _offline_bag(tmp_path, overrides=OVERRIDES, path=SCENE, scene=None, label='o
 
 
 def _live_bag(ros_process, namespace, tmp_path, label, rtf, integrator='splitting4',
-              path=SCENE, recorder=(), duration=3.0, topics=('torque_command',), busy=0):
+              path=SCENE, recorder=(), duration=3.0, topics=('torque_command',), busy=0,
+              compiled=False):
     """Recorder, controller and simulator in lockstep on the scene; the bag.
     ``recorder``: more arguments for the recorder (``-p name:=value``). ``busy``: processes
-    busy-looping from the simulator's kernels loaded (before t = 0) to its end."""
+    busy-looping from the simulator's kernels loaded (before t = 0) to its end.
+    ``compiled``: check that the exchanges ran compiled (``nodes/sim_rcl.py``)."""
     rate = load(path).controller['control_rate']
     over = tmp_path / f'{label}.yaml'
     over.write_text('/**/attitude_simulator:\n  ros__parameters:\n'
@@ -83,19 +86,24 @@ def _live_bag(ros_process, namespace, tmp_path, label, rtf, integrator='splittin
     # the control instants: t = 0 … the duration less one period
     assert f'lockstep: {round(duration * rate)} exchanges' in out, out[-3000:]
     assert 'paused' not in out, out[-3000:]
+    if compiled:  # as fast as possible: the exchanges ran in one compiled call (sim_rcl),
+        # nearly all (the first is the Python way's: its layout; the last, the run's end)
+        got = re.search(r'; (\d+) compiled', out)
+        assert got and int(got.group(1)) >= 0.9 * duration * rate, out[-3000:]
     assert ctl.stop() == 0, ctl.output()[-3000:]
     assert rec.stop() == 0, rec.output()[-3000:]
     return bag, _state_messages(bag, STATE_TOPICS + tuple(topics))
 
 
 def test_lockstep_runs_equal_each_other_and_the_offline_run(ros_process, namespace, tmp_path):
-    """As fast as possible, then at real time beside two busy-looping processes: both
-    lockstep runs give the offline run's state messages (every field, stamps included),
-    and the same commands as each other. Before lockstep, the controller's commands landed
-    wherever the wall clock put them, and the runs differed from the first command on."""
+    """As fast as possible (its exchanges compiled: sim_rcl), then at real time beside two
+    busy-looping processes: both lockstep runs give the offline run's state messages
+    (every field, stamps included), and the same commands as each other. Before
+    lockstep, the controller's commands landed wherever the wall clock put them, and the
+    runs differed from the first command on."""
     expected = _state_messages(_offline_bag(tmp_path))
     assert len(expected['attitude']) == 151  # t = 0 … 3 s at 50 Hz
-    fast_bag, fast = _live_bag(ros_process, namespace, tmp_path, 'fast', 0.0)
+    fast_bag, fast = _live_bag(ros_process, namespace, tmp_path, 'fast', 0.0, compiled=True)
     # both cores kept busy through the real-time run
     slow_bag, slow = _live_bag(ros_process, namespace, tmp_path, 'loaded', 1.0, busy=2)
     for topic, messages in expected.items():
@@ -355,6 +363,19 @@ def test_the_floor_tool_measures_a_bare_rclpy_exchange():
     threads = got['threads_us_runs'][0]
     assert 0 < threads['main'] <= got['cpu_per_exchange_us'], got
     assert sum(threads.values()) <= got['cpu_per_exchange_us'] * 1.01 + 1, got
+
+
+def test_the_floor_tool_interleaves_its_runs_and_has_a_compiled_loop():
+    """--interleave: each configuration's runs in rounds, a row per configuration;
+    'rcl': every exchange in one compiled call of rcl's functions, which exchanges with
+    the controller as the wait set does (real processes)."""
+    from rigid_body_sim.tools.lockstep_floor import interleaved
+    rows = interleaved([('SYNCHRONOUS', 'bytes', 'default', 'waitset'),
+                        ('SYNCHRONOUS', 'bytes', 'default', 'rcl')], 20, 2)
+    assert [r['loop'] for r in rows] == ['waitset', 'rcl'], rows
+    for r in rows:
+        assert r['exchanges'] == 20 and len(r['cpu_per_exchange_us_runs']) == 2, r
+        assert 0 < r['thread_cpu_per_exchange_us'] <= r['cpu_per_exchange_us'], r
 
 
 def test_the_parts_tool_times_each_part_of_the_simulators_exchange(capsys):

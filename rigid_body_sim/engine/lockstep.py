@@ -163,6 +163,7 @@ class RoundTrips:
 
     def __init__(self):
         self.count = 0
+        self.compiled = 0  # of them, exchanges run in one compiled call (nodes/sim_rcl.py)
         self.wall_total = self.wall_max = 0.0
         self._sent = None      # wall time when the held instant's state went out
         self._first = self._last = None  # (exchanges, cpu, thread cpu) at two commands
@@ -244,4 +245,5 @@ class RoundTrips:
                 f'{v["lockstep_cpu_per_period_us"]:.0f} µs per control period ('
                 f'{v["lockstep_thread_cpu_per_period_us"]:.0f} µs in its own thread)'
                 + (f'; by thread to the end: {parts} µs' if parts else '')
-                + (f'; wake-ups per period: {wakes}' if wakes else ''))
+                + (f'; wake-ups per period: {wakes}' if wakes else '')
+                + (f'; {self.compiled} compiled' if self.compiled else ''))

@@ -172,30 +172,40 @@ class DirectPeriod:
             not e.dynamics.environment_active  # Stepping._free_exact but the torque
         self._end = e.end_ns
 
+    def prepared(self) -> bool:
+        """Whether the engine's periods can be direct now (its method, its body, no
+        selection pending, not finished, no fault), ``f``'s constants written for them;
+        what ``step`` checks beside the period's own conditions (``nodes/rcl_loop.py``
+        checks those per period)."""
+        e = self.engine
+        key = self._key
+        if e._integ is not key[0] or e.config is not key[1] or e.dynamics is not key[2] \
+                or e.body is not key[3]:
+            self._pack(e)
+        if not self._able or e._selection is not None or e.finished or e.fault:
+            return False
+        # each numpy call of a period counts: one that follows a wake-up costs several
+        # times its cost in a loop (tools.lockstep_parts), so what rarely changes is
+        # written only when it does, and the counts are read in one call
+        written = (e.step_max, e.dynamics.dissipation.coefficient)
+        if written != self._written:
+            self.f[H_MAX], self.f[COEFFICIENT] = self._written = written
+        return True
+
     def step(self, until_ns: int):
         """The sample values (a list of 17 floats, ``SampleBlock.values``) at ``until_ns``,
         the engine advanced there as ``advance(until_ns)`` would advance it; None (the
         engine untouched) where the period is not one plain stretch, or the method failed
         (the general path then meets the failure and reports it)."""
         e = self.engine
-        key = self._key
-        if e._integ is not key[0] or e.config is not key[1] or e.dynamics is not key[2] \
-                or e.body is not key[3]:
-            self._pack(e)
         tau_p = e._tau_p
-        if not self._able or e._selection is not None or e.finished or e.fault or \
-                until_ns != e._next_sample or until_ns <= e.t_ns or until_ns >= self._end \
-                or e.command.expiry <= until_ns or (tau_p is None and self._free):
+        if not self.prepared() or until_ns != e._next_sample or until_ns <= e.t_ns or \
+                until_ns >= self._end or e.command.expiry <= until_ns or \
+                (tau_p is None and self._free):
             return None
         tau = e._tau_body
         zero = self._zero
         f, ticks = self.f, self.ticks
-        # each numpy call of a period counts: one that follows a wake-up costs several
-        # times its cost in a loop (tools.lockstep_parts), so what rarely changes is
-        # written only when it does, and the counts are read in one call
-        written = (e.step_max, e.dynamics.dissipation.coefficient)
-        if written != self._written:
-            f[H_MAX], f[COEFFICIENT] = self._written = written
         ticks[T_NS], ticks[UNTIL_NS] = e.t_ns, until_ns
         q, m = np.empty(4), np.empty(3)
         period_kernel(f, ticks, e.dynamics.environment, e._q, e._m,

@@ -15,6 +15,10 @@ one the general checks let through (neither ahead of the node's stamp nor older 
 frame are left to check. As fast as possible, that command's call then steps to the next
 instant, publishes it and holds it at once (``_direct_exchange``).
 
+Where it may (``sim_rcl.Compiled``), that loop of exchanges runs without Python at all:
+wait, take, decode, check, apply, step, pack and publish in one compiled call of rcl's C
+functions (``rcl_loop``), which hands anything unusual to ``_on_torque_bytes``.
+
 The wait for that command is the node's loop's, not the executor's (``_serve_exchange``):
 in lockstep the node's own ``torque_command`` is taken out of the executor and read from
 an rcl wait set of that one subscription, and the executor is turned for everything else
@@ -27,6 +31,7 @@ itself, runs alternating with and without it (load 7-10, 9 each): 333 (243-359) 
 271 (228-358).
 """
 import math
+import os
 import struct
 import time
 
@@ -34,6 +39,7 @@ from geometry_msgs.msg import Vector3Stamped
 from rclpy._rclpy_pybind11 import RCLError
 from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 
+from . import rcl_direct
 from .commands import stamped_fields, vector3_stamped
 from .state_messages import N_VALUES
 
@@ -79,6 +85,7 @@ class Exchange:
     DirectPeriod of the unnamed spacecraft's engine (``_direct_exchange``), or None."""
 
     _direct = None
+    _compiled = None  # sim_rcl.Compiled (lockstep: _warm)
     _layout = None  # command_layout's, of the last command the short way took
     _packing = None  # _packers': (active_raw, templates, packers, constants)
 
@@ -93,9 +100,27 @@ class Exchange:
         self._subscriptions.remove(sub)
         self._exchange_wait = _rclpy.WaitSet(1, 0, 0, 0, 0, 0, self.context.handle)
         self._executor_due = 0.0  # wall time of the executor's next turn while held
+        self._compiled = None  # sim_rcl.Compiled, made by _warm
         self._context_ok = self.context.handle.ok  # (simulator.run: why not Context.ok)
 
+    def _warm(self):
+        """And the compiled exchanges' loop (``sim_rcl``), before t = 0: compiled per
+        process (~1-2 s), it must not stall a held instant."""
+        super()._warm()
+        craft = self._crafts.get('')
+        if self._exchange_sub is None or craft is None or \
+                os.environ.get('RIGID_BODY_SIM_RCL_LOOP', '').strip() == '0':
+            return
+        from .sim_rcl import Compiled
+        start = time.monotonic()
+        self._compiled = Compiled(self._log)
+        if self._compiled.warm(craft.engine):
+            self._log.info(f'lockstep: compiled exchanges ready in '
+                           f'{time.monotonic() - start:.3g} s')
+
     def destroy_node(self):
+        if self._compiled is not None:
+            self._compiled.close()
         sub = getattr(self, '_exchange_sub', None)
         if sub is not None and sub not in self._subscriptions:
             self._subscriptions.append(sub)
@@ -158,6 +183,7 @@ class Exchange:
         handle = self._exchange_sub.handle
         take, wait_set = handle.take_message, self._exchange_wait
         timeout = self._p['lockstep_timeout']
+        compiled = self._compiled
         # waited for first, then taken: once a command is handled the next cannot have
         # come yet (its state just went out), and a take that finds nothing costs as
         # much as the one that finds it (~5 µs on the loaded machine)
@@ -165,6 +191,19 @@ class Exchange:
             now = monotonic()
             if now >= until:
                 return
+            # the exchanges in one compiled call where they may (sim_rcl.Compiled.run)
+            got = None if compiled is None else compiled.run(self, until)
+            if got is not None:
+                code, data = got
+                if code == rcl_direct.OTHER:  # a command it left to the Python way
+                    self._on_torque_bytes(data)
+                    if self._held is None or self._awaiting != _AWAITING:
+                        return
+                    until = min(until, self._held_since + timeout)
+                if code in (rcl_direct.OTHER, rcl_direct.REFUSED):
+                    continue
+                if code != rcl_direct.ROOM:  # (ROOM: this exchange the Python way)
+                    return
             wait_set.clear_entities()
             wait_set.add_subscription(handle)
             wait_set.wait(int(1e9 * (until - now)))

@@ -1,7 +1,7 @@
 """Lockstep floor: the least an rclpy process spends per exchange with our controller.
 
 ``python -m rigid_body_sim.tools.lockstep_floor [--periods 2000] [--runs 3] [--out docs/bench]
-[--config MODE:TAKEN:TRANSPORT:LOOP ...] [--cpu CORE]``
+[--config MODE:TAKEN:TRANSPORT:LOOP ...] [--cpu CORE] [--interleave]``
 
 The simulator's side of a lockstep exchange (``tools.lockstep``) with everything of ours
 taken out: a bare rclpy node publishes the state the controller answers in lockstep (one
@@ -14,8 +14,11 @@ otherwise, ``process.py`` says why; the synchronous rows with its heartbeat prof
 with the command taken as a message or as bytes (the simulator takes bytes), over Fast
 DDS's default transports or shared memory only (``FASTDDS_BUILTIN_TRANSPORTS=SHM``, both
 processes), and taken by turning the events executor or from an rcl wait set of the one
-subscription (the simulator's loop does the latter: ``nodes/sim_lockstep.py``). Each
-configuration runs in its own process, ``--runs`` times; figures are the runs' medians,
+subscription (the simulator's loop does the latter: ``nodes/sim_lockstep.py``), or
+('rcl') with every exchange of the run in one compiled call of rcl's C functions, no
+Python and no GIL between them (``nodes/rcl_direct.py``). Each configuration runs in its
+own process, ``--runs`` times (``--interleave``: in rounds, one run of each configuration
+per round, so that the load's changes weigh on each alike); figures are the runs' medians,
 and each run gives its threads' parts (``threads_us``: 'main' is this one, ``dds.shm``
 Fast DDS's shared-memory receiver, ``dds.ev`` its timed events, ...). ``--cpu CORE``
 runs both processes on that one core, as ``tools.lockstep --cpu`` does.
@@ -43,14 +46,15 @@ CONFIGS = (('ASYNCHRONOUS', 'message', 'default', 'executor'),
            ('SYNCHRONOUS', 'bytes', 'default', 'executor'),
            ('SYNCHRONOUS', 'bytes', 'shm', 'executor'),
            ('SYNCHRONOUS', 'bytes', 'default', 'waitset'),
-           ('SYNCHRONOUS', 'bytes', 'shm', 'waitset'))
+           ('SYNCHRONOUS', 'bytes', 'shm', 'waitset'),
+           ('SYNCHRONOUS', 'bytes', 'default', 'rcl'))
 
 
 def _config(text: str) -> tuple:
     """--config's MODE:TAKEN:TRANSPORT:LOOP, checked."""
     parts = tuple(text.split(':'))
     choices = (('ASYNCHRONOUS', 'SYNCHRONOUS'), ('message', 'bytes'), ('default', 'shm'),
-               ('executor', 'waitset'))
+               ('executor', 'waitset', 'rcl'))
     if len(parts) != 4 or any(p not in c for p, c in zip(parts, choices)):
         raise argparse.ArgumentTypeError(
             f'{text!r}: expected MODE:TAKEN:TRANSPORT:LOOP, each one of '
@@ -71,10 +75,34 @@ class NoCommand(RuntimeError):
     """No command answered a state within the time allowed."""
 
 
+def _compiled(node, sub, pub, frames):
+    """The 'rcl' loop's ``exchanges(k0, k1)``: exchanges k0 .. k1-1 in one compiled call
+    of rcl's C functions, no Python and no GIL between them (``nodes/rcl_direct.py``)."""
+    import ctypes
+    import numpy as np
+    from ..nodes import rcl_direct
+    direct = rcl_direct.Exchange(node.context, sub, pub)
+    arrays, data = rcl_direct.frames_array(frames, direct.allocator)
+    loop, out = direct.loops['floor_loop'], np.zeros(2, dtype=np.int64)
+    args = (direct.wait_set, direct.sub, direct.pub, ctypes.addressof(arrays))
+
+    def exchanges(k0, k1):
+        loop(*args, k0, k1, direct.into, 10_000_000_000, out)  # 10 s, as by_wait_set
+        k, ret = out.tolist()
+        if ret == rcl_direct.RET_TIMEOUT:
+            raise NoCommand(f'no command for instant {k} within 10 s')
+        if ret != rcl_direct.RET_OK:
+            raise RuntimeError(rcl_direct.error(direct.lib, ret, f'exchange {k}'))
+    exchanges.kept = (direct, arrays, data)  # alive as long as the loop
+    exchanges(0, 0)  # compiled now, not in the first exchanges
+    return exchanges
+
+
 def _measure(periods: int, raw: bool, loop: str = 'executor') -> dict:
     """In this process (its environment chose the publication mode and the transports):
     the figures. ``loop``: 'executor' turns the events executor until the command has
-    been taken; 'waitset' takes it from an rcl wait set of the one subscription."""
+    been taken; 'waitset' takes it from an rcl wait set of the one subscription; 'rcl'
+    as 'waitset', every exchange after instant 0 in one compiled call (``_compiled``)."""
     import rclpy
     from geometry_msgs.msg import Vector3Stamped
     from nav_msgs.msg import Odometry
@@ -138,9 +166,12 @@ def _measure(periods: int, raw: bool, loop: str = 'executor') -> dict:
                 wait_set.wait(round(min(within, 1.0) * 1e9))
         answer = by_executor if loop == 'executor' else by_wait_set
 
-        def exchange(k):
-            send(frames[k])
-            answer(k)
+        def exchanges(k0, k1):
+            for k in range(k0, k1):
+                send(frames[k])
+                answer(k)
+        if loop == 'rcl':  # every exchange in one compiled call (nodes/rcl_direct.py),
+            exchanges = _compiled(node, sub, odometry, frames)  # compiled before instant 0
         # Instant 0 is sent again each second until it is answered: our writer's match
         # (above) says nothing of the controller's reader, which drops what a writer sent
         # before it had matched that writer (a CI run under load waited 10 s for instant 0).
@@ -154,16 +185,14 @@ def _measure(periods: int, raw: bool, loop: str = 'executor') -> dict:
             except NoCommand:
                 if time.monotonic() > until:
                     raise
-        for k in range(1, 100):  # discovery settled, caches warm
-            exchange(k)
+        exchanges(1, 100)  # discovery settled, caches warm
         threads = _threads()
         # the process's window holds the threads' (each thread's share, summed, is then
         # within the process's CPU; the other order let the DDS threads run outside it)
         c0 = time.process_time()
         before = _clocks(threads)
         t0, w0 = time.thread_time(), time.monotonic()
-        for k in range(100, 100 + periods):
-            exchange(k)
+        exchanges(100, 100 + periods)
         t1, w1 = time.thread_time(), time.monotonic()
         after = _clocks(threads)
         c1 = time.process_time()
@@ -180,12 +209,8 @@ def _measure(periods: int, raw: bool, loop: str = 'executor') -> dict:
             'threads_us': threads, 'cpus': sorted(os.sched_getaffinity(0))}
 
 
-def floor(mode: str, raw: bool, periods: int, runs: int, transport: str = 'default',
-          loop: str = 'executor', cpu: int = -1) -> dict:
-    """``runs`` runs of one configuration, each in a process of its own: the medians.
-    ``transport``: Fast DDS's built-in transports (FASTDDS_BUILTIN_TRANSPORTS: 'default'
-    is UDPv4 and shared memory, 'shm' shared memory only), for both processes; ``cpu``:
-    both on that core (the run's process, and the controller it starts, inherit it)."""
+def _env(mode: str, transport: str) -> dict:
+    """The environment of a run of ``mode`` over ``transport`` (see ``floor``)."""
     env = dict(os.environ, RMW_FASTRTPS_PUBLICATION_MODE=mode,
                ROS_DOMAIN_ID=os.environ.get('ROS_DOMAIN_ID', str(random.randint(101, 200))))
     if transport == 'shm':
@@ -193,16 +218,23 @@ def floor(mode: str, raw: bool, periods: int, runs: int, transport: str = 'defau
     if mode == 'SYNCHRONOUS' and not env.get('FASTRTPS_DEFAULT_PROFILES_FILE'):
         from ..nodes.process import heartbeat_profile  # as the nodes publish in lockstep
         env['FASTRTPS_DEFAULT_PROFILES_FILE'] = heartbeat_profile()
-    got = []
-    for _ in range(runs):
-        out = subprocess.run([sys.executable, '-m', __spec__.name, '--one', str(periods),
-                              '--loop', loop] + (['--raw'] if raw else []), env=env,
-                             capture_output=True, text=True, timeout=600,
-                             preexec_fn=_on_cpu(cpu))
-        if out.returncode != 0:
-            raise RuntimeError(f'floor run ({mode}, raw {raw}, {transport}, {loop}) exited '
-                               f'{out.returncode}:\n' + out.stderr[-2000:])
-        got.append(json.loads(out.stdout.strip().splitlines()[-1]))
+    return env
+
+
+def _run(mode: str, raw: bool, periods: int, transport: str, loop: str, cpu: int) -> dict:
+    """One run of one configuration, in a process of its own: its figures."""
+    out = subprocess.run([sys.executable, '-m', __spec__.name, '--one', str(periods),
+                          '--loop', loop] + (['--raw'] if raw else []),
+                         env=_env(mode, transport), capture_output=True, text=True,
+                         timeout=600, preexec_fn=_on_cpu(cpu))
+    if out.returncode != 0:
+        raise RuntimeError(f'floor run ({mode}, raw {raw}, {transport}, {loop}) exited '
+                           f'{out.returncode}:\n' + out.stderr[-2000:])
+    return json.loads(out.stdout.strip().splitlines()[-1])
+
+
+def _row(mode: str, raw: bool, periods: int, transport: str, loop: str, got) -> dict:
+    """One configuration's row from its runs' figures ``got``: the medians, and each run's."""
     row = {'publication_mode': mode, 'command_taken_as': 'bytes' if raw else 'message',
            'transport': transport, 'loop': loop, 'exchanges': periods}
     for key in got[0]:
@@ -212,6 +244,28 @@ def floor(mode: str, raw: bool, periods: int, runs: int, transport: str = 'defau
         row[key] = statistics.median(g[key] for g in got)
         row[key + '_runs'] = [g[key] for g in got]
     return row
+
+
+def floor(mode: str, raw: bool, periods: int, runs: int, transport: str = 'default',
+          loop: str = 'executor', cpu: int = -1) -> dict:
+    """``runs`` runs of one configuration, each in a process of its own: the medians.
+    ``transport``: Fast DDS's built-in transports (FASTDDS_BUILTIN_TRANSPORTS: 'default'
+    is UDPv4 and shared memory, 'shm' shared memory only), for both processes; ``cpu``:
+    both on that core (the run's process, and the controller it starts, inherit it)."""
+    return _row(mode, raw, periods, transport, loop,
+                [_run(mode, raw, periods, transport, loop, cpu) for _ in range(runs)])
+
+
+def interleaved(configs, periods: int, runs: int, cpu: int = -1) -> list:
+    """``floor``'s rows of ``configs`` (MODE, TAKEN, TRANSPORT, LOOP), their runs in
+    rounds, one run of each configuration per round: a load that changes meanwhile
+    weighs on each alike."""
+    got = [[] for _ in configs]
+    for _ in range(runs):
+        for runs_of, (mode, taken, transport, loop) in zip(got, configs):
+            runs_of.append(_run(mode, taken == 'bytes', periods, transport, loop, cpu))
+    return [_row(mode, taken == 'bytes', periods, transport, loop, g)
+            for (mode, taken, transport, loop), g in zip(configs, got)]
 
 
 def main(argv=None):
@@ -227,15 +281,21 @@ def main(argv=None):
     parser.add_argument('--config', type=_config, action='append', help='only this '
                         'configuration, MODE:TAKEN:TRANSPORT:LOOP (e.g. '
                         'SYNCHRONOUS:bytes:shm:waitset); repeatable')
+    parser.add_argument('--interleave', action='store_true', help='the configurations\' '
+                        'runs in rounds, one of each per round, rather than one after another')
     args = parser.parse_args(argv)
     if args.one:  # one run, in this process (floor() starts these)
         print(json.dumps(_measure(args.one, args.raw, args.loop)))
         return 0
-    rows = []
-    for mode, taken, transport, loop in args.config or CONFIGS:
-        r = floor(mode, taken == 'bytes', args.periods, args.runs, transport, loop, args.cpu)
-        rows.append(r)
-        print(f'{mode}, command as {taken}, {transport} transports, {loop}: process CPU '
+    configs = args.config or CONFIGS
+    if args.interleave:
+        rows = interleaved(configs, args.periods, args.runs, args.cpu)
+    else:
+        rows = [floor(mode, taken == 'bytes', args.periods, args.runs, transport, loop,
+                      args.cpu) for mode, taken, transport, loop in configs]
+    for r in rows:
+        print(f'{r["publication_mode"]}, command as {r["command_taken_as"]}, '
+              f'{r["transport"]} transports, {r["loop"]}: process CPU '
               f'{r["cpu_per_exchange_us"]:.0f} µs per exchange (runs '
               f'{", ".join(f"{v:.0f}" for v in r["cpu_per_exchange_us_runs"])}), its '
               f'thread {r["thread_cpu_per_exchange_us"]:.0f} µs (runs '

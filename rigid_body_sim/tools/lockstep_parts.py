@@ -8,7 +8,9 @@ part of its loop can be timed: this thread's CPU (``time.thread_time``) around t
 call, the state's bytes, their write, the command taken and applied, the wait, and the
 whole loop (``loop``: what neither ``run_once`` nor the wait spent), per exchange from
 t = 0 to the end. The parts nest (``PARTS`` says how), and each timer adds ~0.5 µs. Each
-run is a process of its own; figures: the runs' medians, with min-max.
+run is a process of its own; figures: the runs' medians, with min-max. The exchange timed
+is the Python way's (``RIGID_BODY_SIM_RCL_LOOP=0``): the compiled one runs none of these
+parts.
 """
 import argparse
 import json
@@ -112,7 +114,9 @@ def main(argv=None):
     if args.one:  # one run, in this process (the runs below start these)
         print(json.dumps(_measure(args.periods, args.rate)))
         return 0
-    env = dict(os.environ, PYTHONUNBUFFERED='1',
+    # the Python way's exchange: the compiled one (nodes/sim_rcl.py) runs none of the
+    # parts timed here, each a Python method
+    env = dict(os.environ, PYTHONUNBUFFERED='1', RIGID_BODY_SIM_RCL_LOOP='0',
                ROS_DOMAIN_ID=os.environ.get('ROS_DOMAIN_ID', str(random.randint(101, 200))))
     load, runs = [os.getloadavg()[0]], []
     for _ in range(args.runs):
