@@ -37,7 +37,23 @@ def warm() -> bool:
             pass
     from .engine import lockstep_direct  # a lockstep node's period (nodes/sim_lockstep.py)
     lockstep_direct.warm()
+    if compiled:
+        _warm_exchanges(Engine(config))
     return compiled
+
+
+def _warm_exchanges(engine):
+    """A lockstep node's compiled exchanges (``nodes/rcl_loop.py``), where rcl's calls can
+    be had: compiled here, once, not before a lockstep node's first instant (~10 CPU-s).
+    Where they cannot (no rclpy, no librcl mapped), the node takes the Python way and
+    says why; so does this."""
+    import logging
+    try:
+        from .nodes.sim_rcl import Compiled
+    except ImportError as exc:  # no rclpy: offline use only
+        logging.getLogger(__name__).info(f'lockstep exchanges not compiled: {exc}')
+        return
+    Compiled(logging.getLogger(__name__)).warm(engine)
 
 
 def warm_scenes() -> int:

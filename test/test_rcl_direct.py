@@ -109,3 +109,23 @@ def test_without_rcls_functions_the_simulator_keeps_the_python_way(monkeypatch):
     class Node:  # what unable reads before its first check
         _direct = _round_trips = _acks = None
     assert compiled.unable(Node(), Craft()) == compiled.why
+
+
+def test_the_setup_compiles_the_exchanges_for_the_scenes_a_node_runs():
+    """``python -m rigid_body_sim.compiled`` (the setup) compiles the lockstep exchanges'
+    loop for the argument types a lockstep node passes, so no node compiles it (~10 CPU-s)
+    before its first instant: warming it for each built-in scene's engine afterwards adds
+    no compiled version."""
+    import logging
+    from rigid_body_sim import compiled, offline, scene
+    from rigid_body_sim.engine import Engine, EngineConfig
+    from rigid_body_sim.nodes import rcl_loop, sim_rcl
+    config = EngineConfig.from_parameters(
+        {'integrator': 'rk4', 'duration': 0.1, 'publish_rate': 20.0},
+        {'mode': 'slew', 'target_attitude': [0.0, 0.0, 0.6, 0.8]})
+    compiled._warm_exchanges(Engine(config))
+    versions = len(rcl_loop.loop.signatures)
+    assert versions >= 1
+    for name in ('slew', 'detumble', 'wheel_slew', 'explorer1'):
+        sim_rcl.Compiled(logging.getLogger(__name__)).warm(offline.engine_for(scene.load(name)))
+        assert len(rcl_loop.loop.signatures) == versions, name
