@@ -8,7 +8,7 @@ import mpmath
 import numpy as np
 import pytest
 
-from rigid_body_sim.bench import extended, generated
+from rigid_body_sim.bench import extended, generated, oracle
 from rigid_body_sim.bench.generated_scenes import Scene
 from rigid_body_sim.offline import simulate
 from rigid_body_sim.physics import rotation
@@ -144,3 +144,37 @@ def test_a_free_body_with_an_environment_torque_is_refused_by_name():
     scene = generated.draw_gravity_gradient(generated.SEED, 0)
     with pytest.raises(extended.Unavailable, match='torque-free body.*gravity gradient'):
         extended.Problem(scene.scene_file())
+
+
+@pytest.mark.slow
+def test_an_undecided_double_bracket_scene_is_decided_and_auto_meets_it():
+    """Seed 20261125 scene 137 (double bracket, 1e-10 rad over 4.3e3 rad): undecided
+    before (rk4 fine enough to check dop853's ladder would pass the cap). The Taylor
+    reference's bound is ~3e-14 rad; auto (dop853) errs ~2e-11: met."""
+    scene = generated.draw(generated.SEED, 137)
+    ref = oracle.reference(scene)
+    assert ref.error * oracle.JUDGE <= scene.budget and 'double bracket' in ref.what, ref.what
+    result = simulate(scene.scene_file())
+    err = generated.error(result, ref.attitude)
+    assert ref.decide(err, scene.budget) == 'met', (err, ref.error, result.reason)
+
+
+@pytest.mark.slow
+def test_where_float64_cannot_reach_the_budget_auto_says_so_beforehand():
+    """Seed 20261125 scene 99 (double bracket, 1e-10 rad over 1.6e4 rad): decided now, a
+    miss (auto's dop853 at rtol 3e-15 errs ~2.3e-10), and float64's round-off is the floor:
+    dop853 errs 1.05–3.6× the budget from rtol 1e-13 to 1e-15 (the judge's sweep tries
+    the rest). auto said so beforehand: its predicted error is over the budget and its
+    reason says no method can be shown to meet it (what the judge's INFEASIBLE needs)."""
+    scene = generated.draw(generated.SEED, 99)
+    ref = oracle.reference(scene)
+    assert ref.error * oracle.JUDGE <= scene.budget, ref.what
+    result = simulate(scene.scene_file())
+    err = generated.error(result, ref.attitude)
+    assert ref.decide(err, scene.budget) == 'missed', (err, ref.error)
+    assert result.selection.predicted_error > scene.budget
+    assert 'no method can be shown to meet 1e-10 rad' in result.reason
+    for rtol in (1e-13, 1e-15):
+        run = simulate(scene.scene_file(), integrator='dop853',
+                       integrator_options={'rtol': rtol, 'atol': rtol * 1e-3})
+        assert generated.error(run, ref.attitude) > scene.budget, rtol
