@@ -1,18 +1,22 @@
-"""An extended-precision reference for scenes under an in-process detumble law: what the
-judge trusts where float64's own references cannot resolve the budget.
+"""An extended-precision reference for scenes under an in-process detumble law and for
+torque-free bodies with dissipation: what the judge trusts where float64's own references
+cannot resolve the budget.
 
 Over 10⁴–10⁵ rad at budgets of 1e-9 rad, every float64 method meets its round-off floor
 before the budget: dop853's rungs stop agreeing at ~1e-7 rad (seed 20261127 scene 154)
 and rk4 fine enough to check them would pass any cap, so three held-out detumble scenes
-(46, 119, 154) stayed undecided. This reference leaves float64:
+(46, 119, 154) stayed undecided, and 18 dissipative scenes of seed 20261125 (budgets
+1e-9/1e-10 rad over 2e3–9e4 rad) likewise. This reference leaves float64:
 
-* Euler's equations and the quaternion kinematics are quadratic, so their Taylor
+* Euler's equations and the quaternion kinematics are quadratic, the double bracket
+  (dm/dt ⊃ α m×(m×Ω)) cubic and viscous damping (−c Ω) linear, so their Taylor
   coefficients follow from Cauchy products with exact factors 1/(n+1) (no tableau whose
   digits cap the accuracy at float64's); a small C run sums them in long double
   (64-bit mantissa, unit round-off 2⁻⁶⁴ ≈ 5.4e-20, 2048× below float64's) until two terms
-  fall under TOL, over steps of at most TURN rad, landing on every control instant (the
-  law, the same detumble law as ``control_law`` with its norm limit and clip, evaluated
-  on the extended state) and every sample instant (the C: :mod:`.extended_source`).
+  fall under TOL, over steps of at most TURN rad (or TURN over the dissipation's own rate
+  where that is faster), landing on every control instant (the law, the same detumble
+  law as ``control_law`` with its norm limit and clip, evaluated on the extended state)
+  and every sample instant (the C: :mod:`.extended_source`).
 * Its own error bound, measured in the same call: truncation as its distance to a second
   run with half the turn per step and TOL_FINE (more terms); round-off as the distance of
   the same run done in float64 (the same code, REAL = double), scaled by the ratio of the
@@ -41,10 +45,12 @@ OUTPUT = 1e-15       # rad: the samples handed back in float64, turned into the 
 
 class Unavailable(RuntimeError):
     """The reference cannot run here (no C compiler, no 80-bit long double), or does not
-    apply to the scene (what it models: the detumble law alone on a rigid body)."""
+    apply to the scene (what it models: the detumble law alone on a rigid body, or a
+    torque-free body with or without dissipation)."""
 
 
 _LIBS = {}
+MODELS = {'double_bracket': 1, 'viscous': 2}  # the C's dissipation codes (0: none)
 
 
 def _library(real: str):
@@ -74,8 +80,9 @@ def _library(real: str):
         os.replace(tmp, path)
     lib = ctypes.CDLL(path)
     d, ll = ctypes.POINTER(ctypes.c_double), ctypes.POINTER(ctypes.c_longlong)
-    lib.taylor_run.argtypes = [d] * 7 + [ctypes.c_double] * 2 + [ctypes.c_longlong] * 3 + \
-        [ll, ctypes.c_longlong, ctypes.c_double, ctypes.c_double, d, d, ll]
+    lib.taylor_run.argtypes = [d] * 7 + [ctypes.c_double] * 2 + [ctypes.c_int, ctypes.c_double] \
+        + [ctypes.c_longlong] * 3 + [ll, ctypes.c_longlong, ctypes.c_double, ctypes.c_double,
+                                     d, d, ll]
     lib.taylor_run.restype = ctypes.c_int
     _LIBS[real] = lib
     return lib
@@ -87,37 +94,60 @@ def _ptr(a, kind=ctypes.c_double):
 
 class Problem:
     """What the C run needs of a scene's engine, taken before it runs; Unavailable where
-    the scene is not the detumble law alone on a rigid body."""
+    the scene is neither the detumble law alone on a rigid body nor a torque-free body
+    with or without dissipation (double bracket, viscous)."""
 
     def __init__(self, scene_file):
-        from ..control_law import MODE_CODES
         from ..engine.closed_loop_args import Packing
         from ..offline import engine_for
         engine = engine_for(scene_file, integrator='rk4')
-        law = engine._law
-        if law is None or engine._law_runner() is None:
-            raise Unavailable('not a law alone on the body in the compiled loop (a held '
-                              'command, actuators, sensors or environment torques)')
-        ctl = law.controller
-        if MODE_CODES[ctl.mode] != 1 or law.mission.active or \
-                engine.dynamics.dissipation.active:
-            raise Unavailable(f'models the detumble law alone (mode {ctl.mode!r}, mission '
-                              f'{"on" if law.mission.active else "off"}, dissipation '
-                              f'{"on" if engine.dynamics.dissipation.active else "off"})')
         state, packing = engine._state(), Packing()
-        moments, axes, _, _ = packing.body(engine.dynamics, engine.body)
-        _, law_axes, _, _, _, kw, _ = packing.law(ctl)
+        dissipation = engine.dynamics.dissipation
         f64 = lambda a: np.ascontiguousarray(a, dtype=np.float64)  # noqa: E731
+        moments, axes, _, _ = packing.body(engine.dynamics, engine.body)
         self.q0, self.m0 = f64(state.q), f64(state.m)
-        self.tau0 = f64(np.zeros(3) if law.torque is None else law.torque)
-        self.moments, self.axes, self.law_axes, self.kw = \
-            f64(moments), f64(axes), f64(law_axes), f64(kw)
-        self.torque_limit, self.clip = float(ctl.config.torque_limit), float(law.clip)
-        self.t0, self.control0, self.period = state.t_ns, law.next_t, law.settings.period_ns
+        self.moments, self.axes = f64(moments), f64(axes)
+        self.model = MODELS[dissipation.model] if dissipation.active else 0
+        self.coefficient = dissipation.coefficient if dissipation.active else 0.0
+        if engine._law is None:
+            self._free(engine)
+        else:
+            self._law(engine, packing, f64)
         p, end = engine.config.sample_period_ns, engine.end_ns
         grid = np.arange(-(-state.t_ns // p) * p, end, p, dtype=np.int64)
         self.t_ns = np.append(grid, np.int64(end))
-        self.body = engine.body
+        self.t0, self.body = state.t_ns, engine.body
+
+    def _free(self, engine):
+        """No law: nothing but the body and its dissipation (no torque at all)."""
+        others = [type(s).__name__ for s in engine.sources if s is not engine.command]
+        if others or engine.command.torque is not None or engine.actuators is not None \
+                or engine.environment_terms or engine.dynamics.environment_active:
+            raise Unavailable('models a torque-free body (with its dissipation) or the '
+                              'detumble law alone: this scene has '
+                              + ', '.join(others + list(engine.environment_terms)
+                                          or ['a held torque or actuators']))
+        self.tau0, self.law_axes, self.kw = np.zeros(3), np.eye(3).ravel(), np.zeros(3)
+        self.torque_limit = self.clip = 0.0
+        # no control instant: the first lies past every sample instant (never reached)
+        self.control0, self.period = np.iinfo(np.int64).max, 1
+
+    def _law(self, engine, packing, f64):
+        from ..control_law import MODE_CODES
+        law = engine._law
+        if engine._law_runner() is None:
+            raise Unavailable('not a law alone on the body in the compiled loop (a held '
+                              'command, actuators, sensors or environment torques)')
+        ctl = law.controller
+        if MODE_CODES[ctl.mode] != 1 or law.mission.active or self.model:
+            raise Unavailable(f'models the detumble law alone (mode {ctl.mode!r}, mission '
+                              f'{"on" if law.mission.active else "off"}, dissipation '
+                              f'{"on" if self.model else "off"})')
+        _, law_axes, _, _, _, kw, _ = packing.law(ctl)
+        self.tau0 = f64(np.zeros(3) if law.torque is None else law.torque)
+        self.law_axes, self.kw = f64(law_axes), f64(kw)
+        self.torque_limit, self.clip = float(ctl.config.torque_limit), float(law.clip)
+        self.control0, self.period = law.next_t, law.settings.period_ns
 
     def run(self, real='long double', turn=TURN, tol=TOL):
         """(q principal (n, 4), m (n, 3), steps, terms) at the sample instants."""
@@ -129,8 +159,8 @@ class Problem:
         status = lib.taylor_run(
             _ptr(self.q0), _ptr(self.m0), _ptr(self.tau0), _ptr(self.moments),
             _ptr(self.axes), _ptr(self.law_axes), _ptr(self.kw), self.torque_limit,
-            self.clip, self.t0, self.control0, self.period, _ptr(self.t_ns, ll), n, turn,
-            tol, _ptr(q), _ptr(m), _ptr(counts, ll))
+            self.clip, self.model, self.coefficient, self.t0, self.control0, self.period,
+            _ptr(self.t_ns, ll), n, turn, tol, _ptr(q), _ptr(m), _ptr(counts, ll))
         if status != 0:
             raise ArithmeticError(f'the Taylor series did not converge ({real})')
         return q, m, int(counts[0]), int(counts[1])
@@ -139,6 +169,9 @@ class Problem:
         """Body → inertial attitudes of principal states, as the engine's samples give."""
         from ..engine.samples import SampleBlock
         return SampleBlock(self.t_ns, q, m, np.zeros((len(q), 3)), self.body).attitude
+
+
+_WHAT = {0: '', 1: ', double bracket', 2: ', viscous'}
 
 
 def reference(scene_file):
@@ -154,7 +187,7 @@ def reference(scene_file):
     truncation = float(np.max(rotation.angle_between(a, b)))
     rounding = float(np.max(rotation.angle_between(a, d)))
     bound = truncation + ROUND_SAFETY * UNIT_RATIO * rounding + OUTPUT
-    what = (f'Taylor series in long double ({steps} steps, {terms / steps:.3g} terms a '
-            f'step; ±{bound:.2g} rad: {truncation:.2g} to a finer run, float64\'s rounding '
-            f'{rounding:.2g} × {ROUND_SAFETY * UNIT_RATIO:.2g})')
+    what = (f'Taylor series in long double{_WHAT[problem.model]} ({steps} steps, '
+            f'{terms / steps:.3g} terms a step; ±{bound:.2g} rad: {truncation:.2g} to a finer '
+            f'run, float64\'s rounding {rounding:.2g} × {ROUND_SAFETY * UNIT_RATIO:.2g})')
     return a, bound, what, problem.t_ns

@@ -10,8 +10,9 @@ is the command line, and keeps the names the suite's users import from it.
 
 The oracle is the cheapest fixed choice of the registry proven to meet the budget, found by
 a sweep of bounded CPU, and the reference carries a bound on its own error (the exact
-solution checked against the 40-digit closed form torque-free; else ``dop853`` down a
-ladder of rtol): see :mod:`.oracle`. A row is judged when the bound decides it.
+solution checked against the 40-digit closed form torque-free; a Taylor series in long
+double with dissipation or under the detumble law; else ``dop853`` down a ladder of
+rtol): see :mod:`.oracle`. A row is judged when the bound decides it.
 """
 from . import generated_judge, generated_scenes
 from .generated_judge import (COUNTS, FAMILIES, FIELDS, INFEASIBLE, JUDGE, JUDGED, SEED,

@@ -16,10 +16,12 @@ Reference (:func:`reference`), with a bound on its own error:
   (the ladder goes on down while they disagree); the one with the smaller own bound is
   the reference, its bound at least their distance. Without that agreement (they differ,
   or rk4 would pass the cap) the bound is infinite and ``what`` says why: undecided.
-* under an in-process detumble law alone: first a Taylor series in long double
-  (:mod:`.extended`), with its bound from a finer run and from the same run in float64.
-  Over 10⁴–10⁵ rad at 1e-9 rad both float64 references above meet their round-off floor
-  first (seed 20261127, scenes 46, 119, 154 stayed undecided); this one does not.
+* under an in-process detumble law alone, or a torque-free body with dissipation (double
+  bracket, viscous): first a Taylor series in long double (:mod:`.extended`), with its
+  bound from a finer run and from the same run in float64. Over 10⁴–10⁵ rad at 1e-9 rad
+  both float64 references above meet their round-off floor first (seed 20261127, detumble
+  scenes 46, 119, 154, and 18 dissipative scenes of seed 20261125 stayed undecided);
+  this one does not.
 
 Judging with a bound r: an error e (against the reference) meets the budget b if e + r ≤ b
 and misses it if e − r > b (both proven); in between the row says it is undecided, with r.
@@ -192,7 +194,9 @@ def reference(scene, cap: float = REF_CAP) -> Reference:
         return Reference(result.samples['attitude'], _exact_bound(result.samples),
                          'exact (checked against the 40-digit closed form)')
     start, fallback = time.process_time(), ''
-    if f.controlled:  # the law alone on the body: extended precision, when it applies
+    # the law alone on the body, or a body with dissipation alone: extended precision,
+    # when it applies (float64's references cannot resolve 1e-10 rad over 1e4–1e5 rad)
+    if f.controlled or getattr(scene, 'dissipative', False):
         from . import extended
         try:
             attitude, bound, what, _ = extended.reference(f)
