@@ -134,7 +134,10 @@ class RunModel:
         self.m_floats = a, b, c = m.tolist()
         self.moment_floats = dyn.moments.tolist()
         self.G = math.sqrt(a * a + b * b + c * c)
-        self.stiffness = dyn.dissipation_stiffness(self.G)
+        d = dyn.dissipation
+        self.damping = d.model if d.active else None
+        # without dissipation none (not asked: a call each of a controlled run's choosing)
+        self.stiffness = dyn.dissipation_stiffness(self.G) if self.damping else 0.0
         # comparisons, not min()/max(), here and in what a selection asks of the model: a
         # builtin's call (its argument tuple, iterator, compares) is ~1,000 instructions
         # against ~50, and 13–33 of them were a tenth of a short run's choosing (callgrind)
@@ -146,8 +149,6 @@ class RunModel:
         events = math.ceil(horizon / max_step - 1e-9)
         self.events = events if events > 1 else 1
         self.turned = spin * horizon  # rad, for the round-off
-        d = dyn.dissipation
-        self.damping = d.model if d.active else None
         self.integrators = {}
         self.memo = {}  # costs and steps per (method, step): asked for many times
         self.orders = {}  # effective order per (method, step)
