@@ -86,3 +86,33 @@ def test_environment_terms_are_costed_per_run():
     per_step, _ = kinds.least(s, kind)
     assert per_step == min(min(s.costs.cost(c)) + s.term_cost * c.environment_evals
                            for c in usable) > min(min(s.costs.cost(c)) for c in usable)
+
+
+@pytest.mark.parametrize('commanded', [False, True])
+@pytest.mark.parametrize('environment', [(), ('gravity gradient',)])
+@pytest.mark.parametrize('model,coefficients', [
+    ('none', [0.0]), ('double_bracket', [1e-6, 1e3]), ('viscous', [1e-4, 1e4])])
+def test_one_lookup_per_kind_answers_as_each_question(commanded, environment, model,
+                                                      coefficients):
+    """kinds.kind_of and by_stiff (the selection's one lookup) give what the kind's
+    separate questions give, for each answer of the stiffness the runs ask, and keep each
+    answer in the kind."""
+    torque = commanded or bool(environment)
+    for coefficient in coefficients:
+        dyn = Dynamics(MOMENTS, Dissipation(model, coefficient))
+        s = RunModel(dyn, None, M, 1e-6, 100.0, 0.01, 0.5 if torque else 0.0)
+        k = kinds.kind_of(commanded, s.damping, environment)
+        assert k is kinds.kind_of(commanded, s.damping, environment)
+        env = bool(environment)
+        assert (k.torque, k.damping, k.environment) == (torque, s.damping, env)
+        assert k.adaptive == kinds.applicable(torque, s.damping, env)[1]
+        assert k.deciding == kinds.deciding(torque, s.damping, env)
+        assert k.effects == kinds.effects(commanded, s.damping, environment)
+        kind = _kind(s, torque, env)
+        stiff = kind[3]
+        assert stiff == tuple(map(s.stiff_enough, k.deciding))
+        found = k.stiff.get(stiff) or kinds.by_stiff(k, stiff)
+        usable = kinds.usable(*kind)
+        assert found == (usable, tuple(c for c in usable if np.isfinite(c.k)),
+                         kinds.finite_names(*kind), kinds.split_exact(*kind))
+        assert k.stiff[stiff] is found
