@@ -84,6 +84,13 @@ H_OMEGA_PLAUSIBLE = 2.0   # the largest step a pilot starts from
 SPREAD = 30.0             # non-geometric methods err at least k/SPREAD (calibration: k/4 median)
 
 
+# the candidates' orders without dissipation, by name: Integrator.order_on depends on the
+# step and |m| only through the damping's stiffness (its contract: test_auto_kinds), so
+# without damping each is its class's; asked per run they were ~10 calls of a controlled
+# run's choosing (the registry, order_on, the dissipation's active, per candidate)
+FREE_ORDERS = {}
+
+
 def is_symmetric(moments, rtol=1e-12):
     # plain floats: asked once per selection, where np.sort's per-call cost is a share of it;
     # sorted by compares (a ≤ b ≤ c), so no abs(): sorted() and abs() were ~1 µs of a short
@@ -160,6 +167,11 @@ class RunModel:
 
     def order(self, c, h):
         """The effective order of c at h (``Integrator.order_on``: no instance needed)."""
+        if self.damping is None:  # a fact of c's class: kept for the process (FREE_ORDERS)
+            p = FREE_ORDERS.get(c.name)
+            if p is None:
+                p = FREE_ORDERS[c.name] = get_integrator(c.name).order_on(self.dyn, self.G, h)
+            return p
         key = (c.name, h)
         p = self.orders.get(key)
         if p is None:
