@@ -107,6 +107,12 @@ def is_symmetric(moments, rtol=1e-12):
 
 class RunModel:
     """The time scales of a run, and the cost and a-priori error of a method on it."""
+    # slots: one made per choice, with ~25 figures set and read many times (its init was
+    # a tenth of a short run's choosing: Explorer 1 over 1 s)
+    __slots__ = ('dyn', 'q', 'm', 'commanded', 'controlled', 'law_alone', 'costs',
+                 'term_cost', 'event', 'accuracy', 'horizon', 'max_step', 'm_floats',
+                 'moment_floats', 'G', 'damping', 'stiffness', 'spin', 'torque_rate', 'omega',
+                 'events', 'turned', 'integrators', 'memo', 'orders')
 
     def __init__(self, dyn, q, m, accuracy, horizon, max_step, torque_rate, costs=None,
                  environment=(), commanded=False, controlled=False, law_in_loop=False):
