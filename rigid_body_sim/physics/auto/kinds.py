@@ -16,6 +16,13 @@ from ..integrators import AUTO_CANDIDATES as CANDIDATES  # model.CANDIDATES
 from ..integrators import get_integrator
 
 
+# the candidates' orders without dissipation, by name (RunModel.order): Integrator.order_on
+# depends on the step and |m| only through the damping's stiffness (its contract:
+# test_auto_kinds), so without damping each is its class's; asked per run they were ~10
+# calls of a controlled run's choosing (the registry, order_on, the dissipation's active)
+FREE_ORDERS = {}
+
+
 def applicability(c, torque: bool, damping):
     """Whether c applies to a run with (``torque``) or without commanded or environment
     torque, under ``damping`` (the dissipation model, None without): True, False, or None

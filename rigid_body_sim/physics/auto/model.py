@@ -12,7 +12,7 @@ import numpy as np
 
 from ..integrators import AUTO_CANDIDATES, create, get_integrator
 from . import calibration
-from .kinds import applicability
+from .kinds import FREE_ORDERS, applicability
 from .calibration import DAMP_SUBSTEP
 
 # What auto may choose: the registry's candidates (integrators.AUTO_CANDIDATES).
@@ -84,13 +84,6 @@ H_OMEGA_PLAUSIBLE = 2.0   # the largest step a pilot starts from
 SPREAD = 30.0             # non-geometric methods err at least k/SPREAD (calibration: k/4 median)
 
 
-# the candidates' orders without dissipation, by name: Integrator.order_on depends on the
-# step and |m| only through the damping's stiffness (its contract: test_auto_kinds), so
-# without damping each is its class's; asked per run they were ~10 calls of a controlled
-# run's choosing (the registry, order_on, the dissipation's active, per candidate)
-FREE_ORDERS = {}
-
-
 def is_symmetric(moments, rtol=1e-12):
     # plain floats: asked once per selection, where np.sort's per-call cost is a share of it;
     # sorted by compares (a ≤ b ≤ c), so no abs(): sorted() and abs() were ~1 µs of a short
@@ -107,12 +100,11 @@ def is_symmetric(moments, rtol=1e-12):
 
 class RunModel:
     """The time scales of a run, and the cost and a-priori error of a method on it."""
-    # slots: one made per choice, with ~25 figures set and read many times (its init was
-    # a tenth of a short run's choosing: Explorer 1 over 1 s)
-    __slots__ = ('dyn', 'q', 'm', 'commanded', 'controlled', 'law_alone', 'costs',
-                 'term_cost', 'event', 'accuracy', 'horizon', 'max_step', 'm_floats',
-                 'moment_floats', 'G', 'damping', 'stiffness', 'spin', 'torque_rate', 'omega',
-                 'events', 'turned', 'integrators', 'memo', 'orders')
+    # slots: one per choice, ~25 figures set and read often (its init: a tenth of Explorer 1's)
+    __slots__ = ('dyn', 'q', 'm', 'commanded', 'controlled', 'law_alone', 'costs', 'term_cost',
+                 'event', 'accuracy', 'horizon', 'max_step', 'm_floats', 'moment_floats', 'G',
+                 'damping', 'stiffness', 'spin', 'torque_rate', 'omega', 'events', 'turned',
+                 'integrators', 'memo', 'orders')
 
     def __init__(self, dyn, q, m, accuracy, horizon, max_step, torque_rate, costs=None,
                  environment=(), commanded=False, controlled=False, law_in_loop=False):
@@ -147,9 +139,8 @@ class RunModel:
         self.m_floats = a, b, c = m.tolist()
         self.moment_floats = dyn.moments.tolist()
         self.G = math.sqrt(a * a + b * b + c * c)
-        d = dyn.dissipation
+        d = dyn.dissipation  # without it no stiffness, not asked (a controlled run's call)
         self.damping = d.model if d.active else None
-        # without dissipation none (not asked: a call each of a controlled run's choosing)
         self.stiffness = dyn.dissipation_stiffness(self.G) if self.damping else 0.0
         # comparisons, not min()/max(), here and in what a selection asks of the model: a
         # builtin's call (its argument tuple, iterator, compares) is ~1,000 instructions
@@ -226,9 +217,8 @@ class RunModel:
 
     def per_event(self, c):
         """s per event of a run with c: the closed loop's (calibrated), else the
-        event-by-event loop's (EVENT_COST and c's call around its compiled loop). (The
-        run's costs read ``event`` first where it is set: a call less each, 12 calls of a
-        controlled run's choosing.)"""
+        event-by-event loop's (EVENT_COST and c's call around its compiled loop). The
+        run's costs read ``event`` first (12 calls of a controlled run's choosing)."""
         if self.event is not None:
             return self.event
         return EVENT_COST + c.call[0 if self.damping is None else 1] * 1e-6
