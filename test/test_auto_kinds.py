@@ -86,3 +86,57 @@ def test_environment_terms_are_costed_per_run():
     per_step, _ = kinds.least(s, kind)
     assert per_step == min(min(s.costs.cost(c)) + s.term_cost * c.environment_evals
                            for c in usable) > min(min(s.costs.cost(c)) for c in usable)
+
+
+@pytest.mark.parametrize('commanded', [False, True])
+@pytest.mark.parametrize('environment', [(), ('gravity gradient',)])
+@pytest.mark.parametrize('model,coefficients', [
+    ('none', [0.0]), ('double_bracket', [1e-6, 1e3]), ('viscous', [1e-4, 1e4])])
+def test_one_lookup_per_kind_answers_as_each_question(commanded, environment, model,
+                                                      coefficients):
+    """kinds.kind_of and by_stiff (the selection's one lookup) give what the kind's
+    separate questions give, for each answer of the stiffness the runs ask, and keep each
+    answer in the kind."""
+    torque = commanded or bool(environment)
+    for coefficient in coefficients:
+        dyn = Dynamics(MOMENTS, Dissipation(model, coefficient))
+        s = RunModel(dyn, None, M, 1e-6, 100.0, 0.01, 0.5 if torque else 0.0)
+        k = kinds.kind_of(commanded, s.damping, environment)
+        assert k is kinds.kind_of(commanded, s.damping, environment)
+        env = bool(environment)
+        assert (k.torque, k.damping, k.environment) == (torque, s.damping, env)
+        assert k.adaptive == kinds.applicable(torque, s.damping, env)[1]
+        assert k.deciding == kinds.deciding(torque, s.damping, env)
+        assert k.effects == kinds.effects(commanded, s.damping, environment)
+        kind = _kind(s, torque, env)
+        stiff = kind[3]
+        assert stiff == tuple(map(s.stiff_enough, k.deciding))
+        found = k.stiff.get(stiff) or kinds.by_stiff(k, stiff)
+        usable = kinds.usable(*kind)
+        assert found == (usable, tuple(c for c in usable if np.isfinite(c.k)),
+                         kinds.finite_names(*kind), kinds.split_exact(*kind))
+        assert k.stiff[stiff] is found
+
+
+def test_without_damping_a_candidates_order_is_its_classs_at_any_step_and_momentum():
+    """RunModel.order keeps the undamped order per candidate for the process
+    (model.FREE_ORDERS): it holds only while Integrator.order_on depends on the step and
+    |m| through the damping alone, which this checks for every registered candidate."""
+    from rigid_body_sim.physics.integrators import get_integrator
+    for c in CANDIDATES:
+        seen = set()
+        for moments in (MOMENTS, np.array([0.2, 0.2, 0.04]), np.array([1.0, 2.0, 3.0])):
+            dyn = Dynamics(moments, Dissipation('none', 0.0))
+            for norm in (1e-3, 2.5, 1e3):
+                for h in (1e-4, 0.02, 1.0, 1e3):
+                    seen.add(get_integrator(c.name).order_on(dyn, norm, h))
+        assert len(seen) == 1, c.name
+        s = RunModel(Dynamics(MOMENTS, Dissipation('none', 0.0)), None, M, 1e-6, 100.0,
+                     0.01, 0.5)
+        assert s.order(c, 0.01) == s.order(c, 1e-5) == seen.pop()
+    # damped, the order may depend on the step (a composition with the damping outside)
+    dyn = Dynamics(MOMENTS, Dissipation('double_bracket', 1e3))
+    s = RunModel(dyn, None, M, 1e-6, 100.0, 1.0, 0.0)
+    orders = {s.order(c, h) for c in CANDIDATES if c.name == 'splitting4'
+              for h in (1e-9, 1.0)}
+    assert orders == {2, 4}

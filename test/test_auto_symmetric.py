@@ -103,3 +103,28 @@ def test_over_one_second_nothing_else_is_asked_once_exact_takes_one_step_per_sam
         unasked.split(';')[0].split(', ')), sel.reason
     assert 'rtol=' not in sel.reason and sel.prior_cost == pytest.approx(
         answers.PRIOR_BASE + answers.PRIOR_EACH)
+
+
+def test_the_settled_shortcut_chooses_as_asking_both_tables(monkeypatch):
+    """Where every run pays the closed loop's calibrated cost per event, selection._settled
+    stands for _none_could_pay and the adaptive candidates' test when a run's fixed part and
+    events alone could not save what asking costs. Explorer 1 over 1-30 s (exact at the
+    sample period; the shortcut holds up to ~4 s here): the same Selection, reason and
+    figures included, as with the shortcut never taken, on both sides of where it stops."""
+    from rigid_body_sim.physics.auto import calibration, selection
+    monkeypatch.setattr(calibration, 'current',
+                        lambda: calibration.Costs(event=0.15, source='test costs'))
+    body = RigidBody.from_inertia(np.diag(EXPLORER_I))
+    real, taken = selection._settled, []
+
+    def spy(s, best, accuracy):
+        taken.append(real(s, best, accuracy))
+        return taken[-1]
+    for horizon in (1.0, 2.0, 5.0, 10.0, 30.0):
+        kw = dict(torque=False, accuracy=1e-2, duration=horizon, max_step=1.0)
+        monkeypatch.setattr(selection, '_settled', spy)
+        shortcut = select(body, EXPLORER_D, Q_ID, EXPLORER_W, **kw)
+        monkeypatch.setattr(selection, '_settled', lambda s, best, accuracy: False)
+        assert shortcut == select(body, EXPLORER_D, Q_ID, EXPLORER_W, **kw), horizon
+        assert shortcut.name == 'exact' and 'not asked' in shortcut.reason
+    assert taken[:2] == [True, True] and taken[-1] is False, taken

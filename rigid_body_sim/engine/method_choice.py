@@ -77,7 +77,9 @@ class MethodChoice:
         # run, uncounted); creating the chosen method is the run's (_use)
         cpu0 = time.process_time()
         # the environment's torques act from the start, as a torque the pilot cannot foresee
-        terms = self.environment_terms
+        # (environment_terms and orbit_anchored read here, not asked: a property call each)
+        env = c.environment
+        terms = () if env is None else env.terms
         torque = self._torque_seen or bool(terms)
         if not torque and not c.dissipation.active:  # the free body: exact, no model needed
             sel = free_choice(self.body.principal_moments, self._m, c.accuracy,
@@ -88,46 +90,49 @@ class MethodChoice:
             return
         # the budget covers the rest of the run (what went before was exact or is done)
         left = (self.end_ns - self.t_ns) / NS if c.duration_ns > 0 else 0.0
-        kw = dict(torque=self._torque_seen, accuracy=c.accuracy, duration=left,
-                  max_step=self._spacing(), dynamics=self.dynamics,
-                  # an adaptive method restarts where the environment is re-made per event
-                  restarting=self.orbit_anchored or bool(terms) and c.environment.magnetorquers,
-                  # commands priced as the compiled closed loop's instants (Engine.advance),
-                  # whoever makes them: the choice is the scene's, not the path's, so the
-                  # event-by-event loop, the live node and lockstep (the law in another
-                  # process) choose as the offline run does and their samples stay equal
-                  # (selecting leaves out restarting runs, an orbit's among them)
-                  law_in_loop=True,
-                  # the state's own momentum, not I·ω from the ω it gives: two array
-                  # operations of the selection's time
-                  momentum=self._m)
         # ω only where the selection reads it, the gravity gradient's equilibrium test (the
         # momentum stands for it elsewhere); the torque's rate and the environment's terms
-        # left at selecting's defaults where there are none: each a share of a short
-        # dissipative run's choosing (Explorer 1, 1 s)
-        omega = None
+        # asked only where there are any: each a share of a short dissipative run's
+        # choosing (Explorer 1, 1 s); without them, choosing's defaults
+        omega = orbit_state = runner = None
+        forced, rate, period = False, 0.0, 0.0
         if torque:
-            kw.update(torque_rate=c.torque_rate(self._torque_seen))
+            rate = c.torque_rate(self._torque_seen)
         if terms:
-            env = c.environment
-            kw.update(environment=terms, forced=env.periodic_forcing)
+            forced = env.periodic_forcing
             if env.gravity_gradient:  # auto tests the equilibrium it starts near
-                kw.update(orbit_state=env.orbit.state(self.t_ns / NS))
+                orbit_state = env.orbit.state(self.t_ns / NS)
                 omega = self.angular_velocity
         # the state's own arrays where the choice is made at once (blocking, or with torque
         # a priori), before the state moves; copies where the pilot outlives this instant
         # (a numpy call each, cold, was a share of a short run's choosing: Explorer 1, 1 s)
         at_once = self.blocking_selection or torque
-        if not at_once:
-            kw.update(momentum=self._m.copy())
         state = (self.body, c.dissipation,
                  self._q if at_once and self._aligned else self.attitude, omega)
-        runner = self._law_runner() if torque else None
-        if runner is not None:  # the law runs here: a pilot can measure it
-            kw.update(law_runner=runner, control_period=c.control.period_ns / NS)
+        if torque:
+            runner = self._law_runner()
+            if runner is not None:  # the law runs here: a pilot can measure it
+                period = c.control.period_ns / NS
+        spacing = self._spacing()
+        # an adaptive method restarts where the environment is re-made per event
+        restarting = env is not None and (env.anchored or bool(terms) and env.magnetorquers)
         if at_once:  # with torque the choice is a priori: at once
             try:
-                work = choosing(*state, **kw)
+                # keywords written out, not a dict unpacked (**kw): building, updating and
+                # unpacking it was a share of a short run's choosing (callgrind, Explorer 1
+                # over 1 s); commands priced as the compiled closed loop's instants
+                # (law_in_loop, Engine.advance), whoever makes them: the choice is the
+                # scene's, not the path's, so the event-by-event loop, the live node and
+                # lockstep (the law in another process) choose as the offline run does and
+                # their samples stay equal (selecting leaves out restarting runs, an
+                # orbit's among them); the state's own momentum, not I·ω from the ω it
+                # gives (two array operations of the selection's time)
+                work = choosing(*state, torque=self._torque_seen, accuracy=c.accuracy,
+                                duration=left, max_step=spacing, torque_rate=rate,
+                                dynamics=self.dynamics, environment=terms, forced=forced,
+                                restarting=restarting, orbit_state=orbit_state,
+                                law_in_loop=True, law_runner=runner, control_period=period,
+                                momentum=self._m)
             except (ValueError, IntegrationError) as exc:
                 self.selection_cpu += time.process_time() - cpu0
                 self._failed(exc)
@@ -139,6 +144,12 @@ class MethodChoice:
             self._selection = work
             self.work(cpu0=cpu0)  # one bracket: each clock reading is a ~0.7 µs system call
         else:
+            # the pilot outlives this instant: a copy of the momentum (no torque here, so
+            # no rate, law or period: choosing's defaults)
+            kw = dict(torque=self._torque_seen, accuracy=c.accuracy, duration=left,
+                      max_step=spacing, dynamics=self.dynamics, environment=terms,
+                      forced=forced, restarting=restarting, orbit_state=orbit_state,
+                      law_in_loop=True, momentum=self._m.copy())
             work = selecting(*state, **kw)
             sel = select(*state, prior_only=True, **kw)
             self.selection_cpu += time.process_time() - cpu0

@@ -23,6 +23,12 @@ PRIOR_BASE = 2e-5         # s: the a-priori pass before it asks a candidate (tim
 PRIOR_EACH = 1e-5         # s: asking one candidate a priori (its step and cost)
 SPLIT_K = 2.0             # × Δβ: exact's split error bound on a symmetric body (measured ≤ 1.0)
 SPLIT_NOTE = f'symmetric body: E ≤ {SPLIT_K:g}·Δβ'
+# the free body's reason by whether the body is symmetric: constants, not formatted per
+# choice (a controlled run's first choice, before any command, is the free body's)
+FREE_REASON = {symmetric: 'torque-free, no dissipation → exact solution (%s); no stepping '
+               'error at any horizon' % shape for symmetric, shape in (
+                   (True, 'symmetric body: closed-form free precession'),
+                   (False, 'Jacobi elliptic functions + Carlson integrals'))}
 
 
 class Selection(NamedTuple):
@@ -63,12 +69,9 @@ def free_choice(moments, m, accuracy: float, max_step: float) -> Selection:
     """The choice for a torque-free body without dissipation (``exact``), from the principal
     moments and m = I·ω alone: cheaper than building :func:`.selection.selecting`'s arguments."""
     checked(accuracy, max_step)
-    shape = 'symmetric body: closed-form free precession' if is_symmetric(moments) else \
-        'Jacobi elliptic functions + Carlson integrals'
     if not any(m.tolist() if isinstance(m, np.ndarray) else m):  # numpy's any: 1.5 µs
         return Selection('exact', max_step, 'body at rest: exact', 0.0)
-    return Selection('exact', max_step, 'torque-free, no dissipation → exact solution '
-                     f'({shape}); no stepping error at any horizon', 0.0)
+    return Selection('exact', max_step, FREE_REASON[is_symmetric(moments)], 0.0)
 
 
 def symmetric_split(s, exact, why):

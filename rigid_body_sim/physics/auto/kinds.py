@@ -10,9 +10,17 @@ each run's figures (its time scales, steps, errors and costs) are its own.
 """
 import functools
 import math
+from typing import NamedTuple
 
 from ..integrators import AUTO_CANDIDATES as CANDIDATES  # model.CANDIDATES
 from ..integrators import get_integrator
+
+
+# the candidates' orders without dissipation, by name (RunModel.order): Integrator.order_on
+# depends on the step and |m| only through the damping's stiffness (its contract:
+# test_auto_kinds), so without damping each is its class's; asked per run they were ~10
+# calls of a controlled run's choosing (the registry, order_on, the dissipation's active)
+FREE_ORDERS = {}
 
 
 def applicability(c, torque: bool, damping):
@@ -128,3 +136,41 @@ def free_flow_exact() -> frozenset:
     errs (once: a registry lookup per candidate is a share of a short run's selection)."""
     return frozenset(c.name for c in CANDIDATES
                      if get_integrator(c.name).orders.get('torque_free', 0) is None)
+
+
+class Kind(NamedTuple):
+    """What a run of one kind asks, in one lookup (:func:`kind_of`): its torque (commanded
+    or environment), dissipation model and environment torques at all, the adaptive
+    candidates that apply (:func:`applicable`), the step-based ones whose stiffness decides
+    (:func:`deciding`), what the model holds for the reason (:func:`effects`), and per
+    answer of the stiffness (``stiff``, the argument of :func:`usable`): (usable, those with
+    an a-priori bound, their names, split exact), filled by :func:`by_stiff`."""
+    torque: bool
+    damping: object
+    environment: bool
+    adaptive: tuple
+    deciding: tuple
+    effects: str
+    stiff: dict
+
+
+@functools.lru_cache(maxsize=None)
+def kind_of(commanded: bool, damping, environment: tuple) -> Kind:
+    """The :class:`Kind` of a run with (``commanded``) or without commands, under
+    ``damping`` (the dissipation model, None without) and the environment's torques named
+    in ``environment``: one lookup where a selection asked six (each a share of a short
+    run's choosing: Explorer 1 over 1 s, callgrind)."""
+    torque, env = commanded or bool(environment), bool(environment)
+    return Kind(torque, damping, env, applicable(torque, damping, env)[1],
+                deciding(torque, damping, env), effects(commanded, damping, environment), {})
+
+
+def by_stiff(kind: Kind, stiff: tuple) -> tuple:
+    """(:func:`usable`, those of them with a finite k, :func:`finite_names`,
+    :func:`split_exact`) of ``kind`` with the stiffness answers ``stiff``, kept in the kind
+    (a caller asks ``kind.stiff`` first)."""
+    key = kind.torque, kind.damping, kind.environment, stiff
+    fixed = usable(*key)
+    found = kind.stiff[stiff] = (fixed, tuple(c for c in fixed if math.isfinite(c.k)),
+                                 finite_names(*key), split_exact(*key))
+    return found

@@ -12,7 +12,7 @@ import numpy as np
 
 from ..integrators import AUTO_CANDIDATES, create, get_integrator
 from . import calibration
-from .kinds import applicability
+from .kinds import FREE_ORDERS, applicability
 from .calibration import DAMP_SUBSTEP
 
 # What auto may choose: the registry's candidates (integrators.AUTO_CANDIDATES).
@@ -100,6 +100,11 @@ def is_symmetric(moments, rtol=1e-12):
 
 class RunModel:
     """The time scales of a run, and the cost and a-priori error of a method on it."""
+    # slots: one per choice, ~25 figures set and read often (its init: a tenth of Explorer 1's)
+    __slots__ = ('dyn', 'q', 'm', 'commanded', 'controlled', 'law_alone', 'costs', 'term_cost',
+                 'event', 'accuracy', 'horizon', 'max_step', 'm_floats', 'moment_floats', 'G',
+                 'damping', 'stiffness', 'spin', 'torque_rate', 'omega', 'events', 'turned',
+                 'integrators', 'memo', 'orders')
 
     def __init__(self, dyn, q, m, accuracy, horizon, max_step, torque_rate, costs=None,
                  environment=(), commanded=False, controlled=False, law_in_loop=False):
@@ -134,7 +139,9 @@ class RunModel:
         self.m_floats = a, b, c = m.tolist()
         self.moment_floats = dyn.moments.tolist()
         self.G = math.sqrt(a * a + b * b + c * c)
-        self.stiffness = dyn.dissipation_stiffness(self.G)
+        d = dyn.dissipation  # without it no stiffness, not asked (a controlled run's call)
+        self.damping = d.model if d.active else None
+        self.stiffness = dyn.dissipation_stiffness(self.G) if self.damping else 0.0
         # comparisons, not min()/max(), here and in what a selection asks of the model: a
         # builtin's call (its argument tuple, iterator, compares) is ~1,000 instructions
         # against ~50, and 13–33 of them were a tenth of a short run's choosing (callgrind)
@@ -146,8 +153,6 @@ class RunModel:
         events = math.ceil(horizon / max_step - 1e-9)
         self.events = events if events > 1 else 1
         self.turned = spin * horizon  # rad, for the round-off
-        d = dyn.dissipation
-        self.damping = d.model if d.active else None
         self.integrators = {}
         self.memo = {}  # costs and steps per (method, step): asked for many times
         self.orders = {}  # effective order per (method, step)
@@ -159,6 +164,11 @@ class RunModel:
 
     def order(self, c, h):
         """The effective order of c at h (``Integrator.order_on``: no instance needed)."""
+        if self.damping is None:  # a fact of c's class: kept for the process (FREE_ORDERS)
+            p = FREE_ORDERS.get(c.name)
+            if p is None:
+                p = FREE_ORDERS[c.name] = get_integrator(c.name).order_on(self.dyn, self.G, h)
+            return p
         key = (c.name, h)
         p = self.orders.get(key)
         if p is None:
@@ -202,12 +212,13 @@ class RunModel:
 
     def run_cost(self, c, h):
         steps = self.events * round(self.max_step / h)
-        call = self.per_event(c)
+        call = self.event if self.event is not None else self.per_event(c)
         return RUN_COST + self.events * call + steps * self.step_cost(c, h)
 
     def per_event(self, c):
         """s per event of a run with c: the closed loop's (calibrated), else the
-        event-by-event loop's (EVENT_COST and c's call around its compiled loop)."""
+        event-by-event loop's (EVENT_COST and c's call around its compiled loop). The
+        run's costs read ``event`` first (12 calls of a controlled run's choosing)."""
         if self.event is not None:
             return self.event
         return EVENT_COST + c.call[0 if self.damping is None else 1] * 1e-6
@@ -219,7 +230,7 @@ class RunModel:
         h, x = H_OMEGA_PRIOR / omega, c.stability / (stiffness if stiffness > omega else omega)
         h = x if x < h else h
         h = self.max_step if self.max_step < h else h
-        call = self.per_event(c)
+        call = self.event if self.event is not None else self.per_event(c)
         free, damped = self.costs.cost(c)
         return (RUN_COST + self.events * call
                 + self.horizon / h * ((damped if damped < free else free)
@@ -235,7 +246,7 @@ class RunModel:
             steps = self._adaptive_steps(turned, rtol)
             room = self.accuracy - ROUNDOFF * steps * turned
             rtol = min(max(room / scale, RTOL_RANGE[0]), RTOL_RANGE[1])
-        call = self.per_event(c)
+        call = self.event if self.event is not None else self.per_event(c)
         per_step = (self.costs.cost(c)[0 if self.damping is None else 1]
                     + self.term_cost * c.environment_evals) * 1e-6
         cost = RUN_COST + self.events * call + steps * per_step
@@ -270,7 +281,7 @@ class RunModel:
         """(run cost s, a-priori error rad) of an adaptive candidate at ``rtol``."""
         turned = self.omega * self.horizon
         steps = self._adaptive_steps(turned, rtol)
-        call = self.per_event(c)
+        call = self.event if self.event is not None else self.per_event(c)
         per_step = (self.costs.cost(c)[0 if self.damping is None else 1]
                     + self.term_cost * c.environment_evals) * 1e-6
         scale = self._adaptive_scale(c, turned)

@@ -121,8 +121,9 @@ def turning(dynamics, m0, horizon: float, momentum_norm: float = None,
     the whole of the damping's turning: there its rate is (κ/2)·sin 2β, whose integral is
     Δβ (the Gudermannian of κt). ``momentum_norm``: |m0|, and ``moments``: the dynamics'
     moments as floats, if the caller has them."""
-    a, b, c = m0 = _floats(m0)
-    beta0 = _beta_of(_floats(dynamics.moments if moments is None else moments), m0)
+    # lists passed through without a call (_floats): the selection's own (RunModel's)
+    a, b, c = m0 = m0 if isinstance(m0, list) else _floats(m0)
+    beta0 = _beta_of(_floats(dynamics.moments) if moments is None else moments, m0)
     if momentum_norm is None:
         momentum_norm = math.sqrt(a * a + b * b + c * c)
     u = math.log(math.tan(beta0)) + path_rate(dynamics, momentum_norm) * horizon

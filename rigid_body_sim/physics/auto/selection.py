@@ -57,8 +57,7 @@ from .answers import (PRIOR_EACH, Selection, checked, free_choice, options,
 from .pilot_search import (NO_ROUND, PAYBACK, PREFER, SELECTION_SHARE, better as _better,
                            no_round_fits, piloted)
 from ..integrators import Candidate
-from .kinds import (applicable, deciding, effects, finite_names, least as least_costs,
-                    split_exact, usable as usable_of_kind)
+from .kinds import by_stiff, kind_of, least as least_costs
 from .model import (CANDIDATES, H_OMEGA_PRIOR, MEASURED_K, RTOL_RANGE, RUN_COST, RunModel,
                     is_symmetric)
 
@@ -66,7 +65,14 @@ __all__ = ['CANDIDATES', 'Candidate', 'Selection', 'free_choice', 'select', 'sel
 
 
 DEFAULT_HORIZON = 600.0   # s: the budget horizon for open-ended (duration 0) runs
-# the reason's figures: formatted with % (see .answers)
+# the reason: what the model holds, the budget, horizon and Ω, the costs' source and the
+# a-priori pass; after a pilot (or where none could run) what it found. One % each, its
+# figures formatted there (see .answers): formatted in parts and joined, the text (not
+# ASCII: Ω, →) was copied three times more, a share of a short run's choosing
+# (callgrind: Explorer 1 over 1 s)
+REASON = ('%s → cheapest method meeting %g rad over %g s; Ω = %.3g rad/s; %s; '
+          'a priori (k·(hΩ)^p·ΩT): %s')
+CONCLUDED = REASON + '; %s: %s'
 
 
 def _worth_asking(c, floor, best, accuracy, asked):
@@ -165,22 +171,27 @@ def choosing(body: RigidBody, dissipation: Dissipation, attitude, angular_veloci
     checked(accuracy, max_step)
     moments = body.principal_moments
     m = moments * body.to_principal(angular_velocity) if momentum is None else momentum
-    if not torque and not dissipation.active:
-        return free_choice(moments, m, accuracy, max_step)
     horizon = duration if duration > 0 else DEFAULT_HORIZON
-    # the attitude matters to the pilot only (set below): the a-priori pass skips its cost
+    # the attitude matters to the pilot only (set below): the a-priori pass skips its cost.
+    # Positional (costs None: the calibrated; environment, commanded, controlled,
+    # law_in_loop): a class called with keywords makes a dict of them for its __init__
+    # (callgrind: ~4.7k instructions of Explorer 1's ~130k a choice over 1 s)
     s = RunModel(dynamics or Dynamics(moments, dissipation), None, m, accuracy, horizon,
-                 max_step, torque_rate, environment=environment,
-                 commanded=commanded or restarting, controlled=commanded,
-                 law_in_loop=law_in_loop and commanded and not restarting)
+                 max_step, torque_rate, None, environment, commanded or restarting,
+                 commanded, law_in_loop and commanded and not restarting)
+    # the free body (the engine chooses it itself): asked of the model's damping, where
+    # the dissipation's active (a property) was asked once more per choice
+    if not torque and s.damping is None:
+        return free_choice(moments, m, accuracy, max_step)
     if s.omega == 0.0:
         return Selection('splitting2', max_step, 'body at rest, no torque: any step is exact',
                          0.0, s.run_cost(CANDIDATES[0], max_step))
-    adaptive = applicable(torque, s.damping, bool(environment))[1]
-    kind = torque, s.damping, bool(environment), \
-        tuple(map(s.stiff_enough, deciding(torque, s.damping, bool(environment))))
-    usable = usable_of_kind(*kind)
-    what = effects(commanded, s.damping, environment)
+    # the kind's facts in one lookup, then one per answer of the stiffness (kinds.py)
+    k = kind_of(commanded, s.damping, environment)
+    adaptive, what = k.adaptive, k.effects
+    stiff = tuple(map(s.stiff_enough, k.deciding)) if k.deciding else ()
+    kind = torque, s.damping, k.environment, stiff
+    usable, bounded, finite, split = k.stiff.get(stiff) or by_stiff(k, stiff)
     if forced and not commanded and adaptive and s.torque_rate >= s.spin:
         return unknowable(s, adaptive[0], accuracy, horizon, (
             f'{what} on a non-circular orbit → libration under a periodic forcing (torque '
@@ -194,14 +205,19 @@ def choosing(body: RigidBody, dissipation: Dissipation, attitude, angular_veloci
                 f'{what}: the body starts {near.describe()} → it leaves it exponentially'))
     best, why, unasked, asked = None, [], [], 0
     if not torque and is_symmetric(s.moment_floats):  # exact's split error is known a priori
-        best, asked = symmetric_split(s, split_exact(*kind), why)
+        best, asked = symmetric_split(s, split, why)
     # cheapest first by the least each could cost (at its largest step); one that could not
     # save more than asking it costs is not asked: on a short run the fixed part of the run
     # dominates every candidate's cost, and the a-priori pass would be its largest share
-    least = [] if _none_could_pay(s, usable, kind, best, accuracy) else \
-        sorted((s.least_cost(c), i, c) for i, c in enumerate(usable) if math.isfinite(c.k))
+    # (a loop and a sort in place over the kind's bounded candidates, not sorted() of a
+    # generator resumed per candidate; the same order: they keep usable's)
+    least, settled = [], _settled(s, best, accuracy)
+    if not settled and not _none_could_pay(s, usable, kind, best, accuracy):
+        for i, c in enumerate(bounded):
+            least.append((s.least_cost(c), i, c))
+        least.sort()
     if not least and best is not None:
-        unasked += finite_names(*kind)
+        unasked += finite
     for floor, _, c in least:
         if not _worth_asking(c, floor, best, accuracy, asked):
             unasked.append(c.name)
@@ -220,10 +236,10 @@ def choosing(body: RigidBody, dissipation: Dissipation, attitude, angular_veloci
     # tolerance was a tenth of the selection)
     asking = []  # a loop, not two comprehensions: each a function call of its own
     for c in adaptive:
-        if best is None or best[3] > accuracy or (
+        if not settled and (best is None or best[3] > accuracy or (
                 _better(c, RUN_COST + s.events * s.per_event(c) + PRIOR_EACH, best, accuracy)
                 and _better(c, s.at_tolerance(c, RTOL_RANGE[1])[0] + PRIOR_EACH, best,
-                            accuracy)):
+                            accuracy))):
             asking.append(c)
         else:
             unasked.append(c.name)
@@ -258,10 +274,9 @@ def choosing(body: RigidBody, dissipation: Dissipation, attitude, angular_veloci
         if (_better(c, cost, best, accuracy) if err <= accuracy
                 else best[3] > accuracy and err < best[3]):
             best = (c, max_step, cost, err)
-    head = '%s → cheapest method meeting %g rad over %g s; Ω = %.3g rad/s; %s' % (
-        what, accuracy, horizon, s.omega, s.costs.source)
-    prior = 'a priori (k·(hΩ)^p·ΩT): ' + ', '.join(why)
-    said = (f'{head}; {prior}', prior_cost, tolerances)
+    # the reason's fields, formatted once where the choice is made (REASON, CONCLUDED)
+    said = ((what, accuracy, horizon, s.omega, s.costs.source, ', '.join(why)), prior_cost,
+            tolerances)
     if torque and law_runner is not None and s.law_alone and not prior_only:
         planned = law_pilot.plans(s, best, usable)
         if not planned and not (best[3] > accuracy and adaptive and not best[0].adaptive):
@@ -272,7 +287,7 @@ def choosing(body: RigidBody, dissipation: Dissipation, attitude, angular_veloci
                           planned)
     if torque or prior_only:
         c, h, cost, err = best
-        return Selection(c.name, h, said[0], err, cost, prior_cost=prior_cost,
+        return Selection(c.name, h, REASON % said[0], err, cost, prior_cost=prior_cost,
                          options=options(c, tolerances, s.G))
     if no_round_fits(s, best, prior_cost):  # the pilot's first question, asked here
         return _concluded(s, (*best, 0, 0.0, [NO_ROUND]), said, 'pilot')
@@ -282,9 +297,9 @@ def choosing(body: RigidBody, dissipation: Dissipation, attitude, angular_veloci
 
 def _under_law(s, best, usable, adaptive, law_runner, control_period, said, planned):
     """Generator: the a-priori choice ``best`` refined by the law's pilot (:mod:`.law_pilot`),
-    and dop853 weighed where nothing promises; returns the Selection. ``said``: the reason
-    so far, the a-priori pass's cost and the adaptive candidates' rtols (updated here);
-    ``planned``: what the pilot would run (``law_pilot.plans``)."""
+    and dop853 weighed where nothing promises; returns the Selection. ``said``: the
+    reason's fields so far (REASON), the a-priori pass's cost and the adaptive candidates'
+    rtols (updated here); ``planned``: what the pilot would run (``law_pilot.plans``)."""
     (c, h, cost, err), spent, steps, notes = yield from law_pilot.refine(
         s, best, usable, law_runner, control_period, planned)
     if err > s.accuracy and adaptive and not c.adaptive:  # nothing promises: weighed
@@ -306,12 +321,26 @@ def _piloting(s, usable, best, principal_attitude, said):
 def _concluded(s, found, said, pilot):
     """The Selection of ``found`` (candidate, h, cost, error, pilot steps, pilot cost, notes),
     with what the ``pilot`` noted, and where it misses the budget, that it does."""
-    (c, h, cost, err, steps, spent, notes), (text, prior_cost, tolerances) = found, said
+    (c, h, cost, err, steps, spent, notes), (fields, prior_cost, tolerances) = found, said
     if err > s.accuracy:
         notes.append(f'no method can be shown to meet {s.accuracy:g} rad here; the most '
                      f'accurate predicted ({err:.2g} rad)')
-    return Selection(c.name, h, f'{text}; {pilot}: ' + '; '.join(notes), err, cost, steps,
-                     spent, prior_cost, options(c, tolerances, s.G))
+    return Selection(c.name, h, CONCLUDED % (*fields, pilot, '; '.join(notes)), err, cost,
+                     steps, spent, prior_cost,
+                     options(c, tolerances, s.G) if c.adaptive else ())
+
+
+def _settled(s, best, accuracy) -> bool:
+    """Whether no other candidate, step-based or adaptive, could save what asking it costs,
+    by one bound asked of neither's table: where every run pays the same per event (the
+    compiled closed loop's, calibrated: ``RunModel.event``), a run's fixed part and events
+    alone, plus what asking costs, at or above ``best``'s run. Both tests it stands for
+    (:func:`_none_could_pay`, whose floor adds the steps; the adaptive candidates' first)
+    then answer no, to the last bit (sums of the same terms, rounding monotonic): Explorer 1
+    over 1–100 s, exact at the sample period, where they were a tenth of its choosing."""
+    return best is not None and s.event is not None and best[3] <= accuracy and \
+        RUN_COST + s.events * s.event + PRIOR_EACH >= \
+        best[2] * (1.0 if best[0].geometric else 1.0 + PREFER)
 
 
 def _none_could_pay(s, usable, kind, best, accuracy) -> bool:
