@@ -120,8 +120,8 @@ def segment(method, q, m, a_ns, b_ns, n, sample_ns, sample_period_ns, weights, s
     span = b_ns - a_ns
     if method == RK4 and env is None and sample_period_ns * n >= span:
         return rk4_free_segment(q, m, a_ns, b_ns, n, sample_ns, sample_period_ns, moments,
-                                tau_p, tau_body, model, coefficient, herm, t_out, q_out,
-                                m_out, tau_out, row)
+                                tau_p, tau_body, model, coefficient, t_out, q_out, m_out,
+                                tau_out, row)
     h = span / (n * 1e9)
     t0 = a_ns / 1e9
     k = 0  # steps taken: the state is at a + k·h
