@@ -137,11 +137,10 @@ def rk4_free_segment(q, m, a_ns, b_ns, n, sample_ns, sample_period_ns, moments, 
         if j <= k:  # the sample falls inside this step: its start and rates kept
             start, rates0 = (x, y, z, w, m0, m1, m2), a
             held = True
-        x, y, z, w, m0, m1, m2 = rk4_free_step(x, y, z, w, m0, m1, m2, a, h, i0, i1, i2,
-                                               t0, t1, t2, model, coefficient)
+        x, y, z, w, m0, m1, m2, finite = rk4_free_step(x, y, z, w, m0, m1, m2, a, h, i0, i1,
+                                                       i2, t0, t1, t2, model, coefficient)
         evals += 3
-        v = x + y + z + w + m0 + m1 + m2  # _finite
-        if not v - v == 0.0:
+        if not finite:
             failed = k
             break
     q[0], q[1], q[2], q[3] = x, y, z, w

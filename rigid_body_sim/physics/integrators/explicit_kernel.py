@@ -109,10 +109,9 @@ def rk4_free_steps(q, m, h, n, moments, tau, model, coefficient):
     failed = -1
     for k in range(n):
         a = rates(x, y, z, w, m0, m1, m2, i0, i1, i2, t0, t1, t2, model, coefficient)
-        x, y, z, w, m0, m1, m2 = rk4_free_step(x, y, z, w, m0, m1, m2, a, h, i0, i1, i2,
-                                               t0, t1, t2, model, coefficient)
-        s = x + y + z + w + m0 + m1 + m2  # _finite
-        if not s - s == 0.0:
+        x, y, z, w, m0, m1, m2, finite = rk4_free_step(x, y, z, w, m0, m1, m2, a, h, i0, i1,
+                                                       i2, t0, t1, t2, model, coefficient)
+        if not finite:
             failed = k
             break
     q[0], q[1], q[2], q[3] = x, y, z, w
@@ -124,8 +123,9 @@ def rk4_free_steps(q, m, h, n, moments, tau, model, coefficient):
 def rk4_free_step(x, y, z, w, m0, m1, m2, a, h, i0, i1, i2, t0, t1, t2, model, coefficient):
     """One rk4 step of the free body from the state (x, y, z, w; m0, m1, m2) whose rates a
     (its first stage, ``rates``' 7 numbers) the caller has: the new state, q renormalised
-    (rk4_steps' operations in its order). A caller that needs the rates of a step's ends
-    (the samples' Hermite, sample_steps) takes them from the stages instead of again."""
+    (rk4_steps' operations in its order), and whether it is finite (``_finite``). A caller
+    that needs the rates of a step's ends (the samples' Hermite, sample_steps) takes them
+    from the stages instead of evaluating them again."""
     b = rates(x + 0.5 * h * a[0], y + 0.5 * h * a[1], z + 0.5 * h * a[2],
               w + 0.5 * h * a[3], m0 + 0.5 * h * a[4], m1 + 0.5 * h * a[5],
               m2 + 0.5 * h * a[6], i0, i1, i2, t0, t1, t2, model, coefficient)
@@ -143,7 +143,9 @@ def rk4_free_step(x, y, z, w, m0, m1, m2, a, h, i0, i1, i2, t0, t1, t2, model, c
     m1 += (h / 6.0) * (a[5] + 2.0 * b[5] + 2.0 * c[5] + d[5])
     m2 += (h / 6.0) * (a[6] + 2.0 * b[6] + 2.0 * c[6] + d[6])
     r = 1.0 / math.sqrt(x * x + y * y + z * z + w * w)  # _normalise
-    return x * r, y * r, z * r, w * r, m0, m1, m2
+    x, y, z, w = x * r, y * r, z * r, w * r
+    s = x + y + z + w + m0 + m1 + m2  # x − x is 0 for a finite x, NaN otherwise
+    return x, y, z, w, m0, m1, m2, s - s == 0.0
 
 
 @inline
