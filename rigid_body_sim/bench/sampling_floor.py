@@ -10,7 +10,9 @@ left out), dop853's dense polynomial on the run's own step (``dense_samples``' H
 normalisation), or the cubic Hermite's weights and sums (``hermite_run``'s). Per
 right-hand-side evaluation the samples add, ``added``: for dop853 a third of its
 interpolant's build (``_build``: the 3 extra stages and F, once a step holding a
-sample), else one evaluation (``rates``; the Hermite's two step ends). The floor of a
+sample), else one evaluation (``rates``: the Hermite's step ends where the method does
+not have them; rk4 on the free body takes them from its stages, so its samples add one
+only in a law interval's last step). The floor of a
 run's samples is samples × (store + evaluation) + added evaluations × added: the
 samples' CPU that no bookkeeping can go below, and (1 sample/s CPU + floor) / (1 sample/s
 CPU) the least sampling-overhead ratio the run could read.
@@ -223,6 +225,8 @@ def floor_seconds(parts: dict, samples: int, evaluations: int) -> float:
 # and rows are ~6.7; a step holding a sample ~180 ns for its interpolant's build), rk4
 # under a law 4.2-5.1x (~100 ns a sample where the Hermite's two ends and sums are ~26:
 # the step loop split at every sample, after the one-sample path took 138 -> 102 ns).
+# Then (samples5, load 2-3): rk4 2.4-2.6x of a floor of ~7.6 ns a sample (its ends from
+# its stages: ~19 ns a sample, one loop a law interval), dop853 1.8-2.7x, exact 1.1-1.5x.
 FLOOR_MAX = 2.0
 # judged only where 100 samples/s adds this many samples: fewer are below the timing noise
 # of two least-of-3 CPU figures (~20 µs at load), e.g. 520 samples at the floor are ~8 µs

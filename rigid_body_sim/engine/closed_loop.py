@@ -30,7 +30,7 @@ from ..control_kernel import control_torque
 from ..physics import dynamics_kernel
 from ..physics.integrators import (dop853_dense, dop853_kernel, exact_flow_kernel,
                                    explicit_kernel, splitting_kernel)
-from . import sample_kernel
+from . import sample_kernel, sample_steps
 from .sample_kernel import DOP853, EXACT, EULER, RK4, SPLITTING, fixed_steps
 from ..physics.jit import depends_on, jit
 from ..physics.environment import facets_kernel, magnetic_kernel
@@ -306,7 +306,7 @@ def closed_loop_run(state, ticks, reals, spec, body, law, block, out):
 
 
 # it calls the step loops and the law from their own files (see jit.depends_on)
-closed_loop_run = depends_on(closed_loop_run, sample_kernel, splitting_kernel, explicit_kernel,
-                             dop853_kernel, dop853_dense, exact_flow_kernel, dynamics_kernel,
-                             control_kernel, control_law, orbit_kernel, magnetic_kernel,
-                             facets_kernel)
+closed_loop_run = depends_on(closed_loop_run, sample_kernel, sample_steps, splitting_kernel,
+                             explicit_kernel, dop853_kernel, dop853_dense, exact_flow_kernel,
+                             dynamics_kernel, control_kernel, control_law, orbit_kernel,
+                             magnetic_kernel, facets_kernel)

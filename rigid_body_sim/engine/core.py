@@ -315,8 +315,10 @@ class Engine(MethodChoice, Stepping):
                 if added > 0:
                     # every event and sample through until_ns done (its limit was
                     # until_ns + 1): no second call to find none (lockstep); offline, a
-                    # sample at the limit is the event path's (interpolate_samples)
-                    if self.t_ns >= until_ns and self._next_sample > until_ns:
+                    # sample at the limit is the event path's (interpolate_samples), the run's
+                    # end too: in this block (alone, simulate copied all to join: 15 ns each)
+                    if self.t_ns >= until_ns and self._next_sample > until_ns \
+                            and (self.finished or self.t_ns != self.end_ns):
                         break
                     continue
                 if added < 0 and b.n:  # the next law interval's samples: the next block's

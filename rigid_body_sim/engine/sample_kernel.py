@@ -6,7 +6,8 @@ steps are the method's own, splitting only the intervals between the events that
 the physics (control instants, the end, a command's expiry), and a sample inside a step is
 the cubic Hermite interpolant of the step's two ends and their derivatives (two
 right-hand-side evaluations per step holding a sample, shared by consecutive steps;
-a chunk at a time, :func:`hermite_run`): its error, ~(hΩ)⁴/384 of the rotation, is
+a chunk at a time, :func:`hermite_run`; rk4 on the free body takes them from its stages,
+``sample_steps``): its error, ~(hΩ)⁴/384 of the rotation, is
 checked against the budget before use (:func:`interpolation_allowed`). The state only
 advances by whole steps; interpolated values go to the block, never to the trajectory.
 
@@ -24,6 +25,9 @@ from ..physics import dynamics_kernel
 from ..physics.integrators import (dop853_dense, dop853_kernel, exact_flow_kernel,
                                    explicit_kernel, splitting_kernel)
 from ..physics.exact.grid_kernel import grid_instants  # noqa: F401 (stepping calls it)
+from . import sample_steps
+# a sample this close to a step's end (in steps) is that end's own state; one a step
+from .sample_steps import ON_STEP, hermite_one as _hermite_one, rk4_free_segment
 from ..physics.integrators.dop853_dense import _CLOCK, _LAST, DIM
 from ..physics.jit import depends_on, inline
 from ..physics.environment import facets_kernel, magnetic_kernel
@@ -31,8 +35,6 @@ from ..physics.orbit import kernel as orbit_kernel
 
 # the methods' loops (their classes' ``loop_code``)
 SPLITTING, RK4, EULER, DOP853, EXACT = range(5)
-# a sample this close to a step's end (in steps) is that end's own state
-ON_STEP = 1e-9
 # samples per pass of the interpolants (hermite_run, dense_samples): scratch of a few rows
 # of CHUNK stays in the L1 cache; LANES rows of it (the closed loop allocates them once)
 CHUNK = 64
@@ -107,33 +109,6 @@ def hermite_run(herm, h, a_ns, b_ns, n, span, held, s, sample_period_ns, scratch
 
 
 @inline
-def _hermite_one(herm, h, theta, s, q_out, m_out, t_out, tau_out, tau_body, r):
-    """:func:`hermite_run` where a step holds one sample at most, row r at s, the same values
-    (its loops cost ~36 ns of ~140 a sample: rk4 under a law, generated scene 13)."""
-    t2 = theta * theta
-    t3 = t2 * theta
-    a0 = 2.0 * t3 - 3.0 * t2 + 1.0
-    a1, b0, b1 = 1.0 - a0, (t3 - 2.0 * t2 + theta) * h, (t3 - t2) * h
-    norm = 0.0
-    for i in range(4):
-        v = a0 * herm[0, i] + b0 * herm[2, i] + a1 * herm[4, i] + b1 * herm[6, i]
-        q_out[r, i] = v
-        norm += v * v
-    norm = math.sqrt(norm)
-    finite = math.isfinite(norm) and norm > 0.0
-    for i in range(3):
-        m_out[r, i] = a0 * herm[1, i] + b0 * herm[3, i] + a1 * herm[5, i] + b1 * herm[7, i]
-        finite = finite and math.isfinite(m_out[r, i])
-        tau_out[r, i] = tau_body[i]
-    if not finite:
-        return 0, False
-    for i in range(4):
-        q_out[r, i] /= norm
-    t_out[r] = s
-    return 1, True
-
-
-@inline
 def segment(method, q, m, a_ns, b_ns, n, sample_ns, sample_period_ns, weights, split_axes,
             moments, tau_p, tau_body, has_tau, model, coefficient, inner, scratch, q_flow,
             m_flow, env, herm, lanes, t_out, q_out, m_out, tau_out, row):
@@ -143,6 +118,10 @@ def segment(method, q, m, a_ns, b_ns, n, sample_ns, sample_period_ns, weights, s
     interpolant (herm (8, 4): scratch). Returns (first failing step of the segment or -1,
     -2 if an interpolated sample was not finite, evaluations, rows written)."""
     span = b_ns - a_ns
+    if method == RK4 and env is None and sample_period_ns * n >= span:
+        return rk4_free_segment(q, m, a_ns, b_ns, n, sample_ns, sample_period_ns, moments,
+                                tau_p, tau_body, model, coefficient, t_out, q_out, m_out,
+                                tau_out, row)
     h = span / (n * 1e9)
     t0 = a_ns / 1e9
     k = 0  # steps taken: the state is at a + k·h
@@ -343,7 +322,7 @@ def interpolation_allowed(engine, m) -> bool:
 
 
 # they call the step loops from their own files (see jit.depends_on)
-for _kernel in (fixed_steps, _hermite_one, segment, dense_samples):
-    depends_on(_kernel, splitting_kernel, explicit_kernel, dop853_kernel, dop853_dense,
-               exact_flow_kernel, dynamics_kernel, orbit_kernel, magnetic_kernel,
+for _kernel in (fixed_steps, segment, dense_samples):
+    depends_on(_kernel, sample_steps, splitting_kernel, explicit_kernel, dop853_kernel,
+               dop853_dense, exact_flow_kernel, dynamics_kernel, orbit_kernel, magnetic_kernel,
                facets_kernel)

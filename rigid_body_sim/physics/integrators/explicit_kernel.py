@@ -109,34 +109,43 @@ def rk4_free_steps(q, m, h, n, moments, tau, model, coefficient):
     failed = -1
     for k in range(n):
         a = rates(x, y, z, w, m0, m1, m2, i0, i1, i2, t0, t1, t2, model, coefficient)
-        b = rates(x + 0.5 * h * a[0], y + 0.5 * h * a[1], z + 0.5 * h * a[2],
-                       w + 0.5 * h * a[3], m0 + 0.5 * h * a[4], m1 + 0.5 * h * a[5],
-                       m2 + 0.5 * h * a[6], i0, i1, i2, t0, t1, t2, model, coefficient)
-        c = rates(x + 0.5 * h * b[0], y + 0.5 * h * b[1], z + 0.5 * h * b[2],
-                       w + 0.5 * h * b[3], m0 + 0.5 * h * b[4], m1 + 0.5 * h * b[5],
-                       m2 + 0.5 * h * b[6], i0, i1, i2, t0, t1, t2, model, coefficient)
-        d = rates(x + h * c[0], y + h * c[1], z + h * c[2], w + h * c[3],
-                       m0 + h * c[4], m1 + h * c[5], m2 + h * c[6], i0, i1, i2, t0, t1, t2,
-                       model, coefficient)
-        x += (h / 6.0) * (a[0] + 2.0 * b[0] + 2.0 * c[0] + d[0])
-        y += (h / 6.0) * (a[1] + 2.0 * b[1] + 2.0 * c[1] + d[1])
-        z += (h / 6.0) * (a[2] + 2.0 * b[2] + 2.0 * c[2] + d[2])
-        w += (h / 6.0) * (a[3] + 2.0 * b[3] + 2.0 * c[3] + d[3])
-        m0 += (h / 6.0) * (a[4] + 2.0 * b[4] + 2.0 * c[4] + d[4])
-        m1 += (h / 6.0) * (a[5] + 2.0 * b[5] + 2.0 * c[5] + d[5])
-        m2 += (h / 6.0) * (a[6] + 2.0 * b[6] + 2.0 * c[6] + d[6])
-        r = 1.0 / math.sqrt(x * x + y * y + z * z + w * w)  # _normalise
-        x *= r
-        y *= r
-        z *= r
-        w *= r
-        s = x + y + z + w + m0 + m1 + m2  # _finite
-        if not s - s == 0.0:
+        x, y, z, w, m0, m1, m2, finite = rk4_free_step(x, y, z, w, m0, m1, m2, a, h, i0, i1,
+                                                       i2, t0, t1, t2, model, coefficient)
+        if not finite:
             failed = k
             break
     q[0], q[1], q[2], q[3] = x, y, z, w
     m[0], m[1], m[2] = m0, m1, m2
     return failed
+
+
+@inline
+def rk4_free_step(x, y, z, w, m0, m1, m2, a, h, i0, i1, i2, t0, t1, t2, model, coefficient):
+    """One rk4 step of the free body from the state (x, y, z, w; m0, m1, m2) whose rates a
+    (its first stage, ``rates``' 7 numbers) the caller has: the new state, q renormalised
+    (rk4_steps' operations in its order), and whether it is finite (``_finite``). A caller
+    that needs the rates of a step's ends (the samples' Hermite, sample_steps) takes them
+    from the stages instead of evaluating them again."""
+    b = rates(x + 0.5 * h * a[0], y + 0.5 * h * a[1], z + 0.5 * h * a[2],
+              w + 0.5 * h * a[3], m0 + 0.5 * h * a[4], m1 + 0.5 * h * a[5],
+              m2 + 0.5 * h * a[6], i0, i1, i2, t0, t1, t2, model, coefficient)
+    c = rates(x + 0.5 * h * b[0], y + 0.5 * h * b[1], z + 0.5 * h * b[2],
+              w + 0.5 * h * b[3], m0 + 0.5 * h * b[4], m1 + 0.5 * h * b[5],
+              m2 + 0.5 * h * b[6], i0, i1, i2, t0, t1, t2, model, coefficient)
+    d = rates(x + h * c[0], y + h * c[1], z + h * c[2], w + h * c[3],
+              m0 + h * c[4], m1 + h * c[5], m2 + h * c[6], i0, i1, i2, t0, t1, t2,
+              model, coefficient)
+    x += (h / 6.0) * (a[0] + 2.0 * b[0] + 2.0 * c[0] + d[0])
+    y += (h / 6.0) * (a[1] + 2.0 * b[1] + 2.0 * c[1] + d[1])
+    z += (h / 6.0) * (a[2] + 2.0 * b[2] + 2.0 * c[2] + d[2])
+    w += (h / 6.0) * (a[3] + 2.0 * b[3] + 2.0 * c[3] + d[3])
+    m0 += (h / 6.0) * (a[4] + 2.0 * b[4] + 2.0 * c[4] + d[4])
+    m1 += (h / 6.0) * (a[5] + 2.0 * b[5] + 2.0 * c[5] + d[5])
+    m2 += (h / 6.0) * (a[6] + 2.0 * b[6] + 2.0 * c[6] + d[6])
+    r = 1.0 / math.sqrt(x * x + y * y + z * z + w * w)  # _normalise
+    x, y, z, w = x * r, y * r, z * r, w * r
+    s = x + y + z + w + m0 + m1 + m2  # x − x is 0 for a finite x, NaN otherwise
+    return x, y, z, w, m0, m1, m2, s - s == 0.0
 
 
 @inline
