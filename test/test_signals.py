@@ -213,3 +213,33 @@ def test_a_stop_during_the_nodes_construction_is_not_reported_as_bad_parameters(
     assert 'stopped 0' in out.stdout and 'bad 2' in out.stdout, out.stdout + out.stderr
     assert out.stderr.count('invalid parameters') == 1, out.stderr
     assert 'inertia: not positive' in out.stderr and 'context is not valid' not in out.stderr
+
+
+@pytest.mark.parametrize('sequence', ['sigint', 'sigterm'])
+def test_a_lockstep_simulator_stops_cleanly_inside_its_compiled_exchanges(
+        ros_process, namespace, rclpy_node, sequence):
+    """Simulator and controller in lockstep as fast as possible: the simulator's exchanges
+    run in one compiled call over rcl's C functions (``nodes/rcl_loop.py``), the GIL
+    released. A signal there ends the node as anywhere else: exit 0 within 5 s, no
+    traceback, and the controller then stops cleanly too."""
+    from nav_msgs.msg import Odometry
+    from ros_helpers import wait_output
+    from rigid_body_sim.tools.lockstep import SCENE, overrides
+    over = overrides(0.0, 1e5, 100.0)  # 1e7 exchanges: still running when signalled
+    try:
+        args = ['--ros-args', '-r', f'__ns:={namespace}', '--params-file', SCENE,
+                '--params-file', over]
+        ctl = ros_process(venv_exe('controller'), *args, env={'PYTHONUNBUFFERED': '1'})
+        sim = ros_process(venv_exe('simulator'), *args, env={'PYTHONUNBUFFERED': '1'})
+        assert wait_output(sim, 'compiled exchanges ready', 180.0), sim.output()[-3000:]
+        seen = []  # exchanges under way: each publishes the instant's odometry
+        rclpy_node.create_subscription(Odometry, f'{namespace}/odometry', seen.append, 100)
+        assert spin_until(rclpy_node, lambda: len(seen) > 200, 120.0), sim.output()[-3000:]
+        code, took = _stop(sim, SEQUENCES[sequence])
+        out = sim.output()
+        assert code == 0 and 'Traceback' not in out, out[-3000:]
+        assert took < 5.0, took
+        code, _ = _stop(ctl, SEQUENCES[sequence])
+        assert code == 0 and 'Traceback' not in ctl.output(), ctl.output()[-3000:]
+    finally:
+        os.unlink(over)
