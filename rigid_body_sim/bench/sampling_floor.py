@@ -64,7 +64,7 @@ def dense(memory, n, lanes):
             lanes[0, k] = (first + k + 0.5) / n
         for k in range(count):
             lanes[1, k] = 1.0 - lanes[0, k]
-        interpolate_lanes(memory, lanes[0], lanes[1], count, lanes[2:2 + DIM])
+        interpolate_lanes(memory, lanes, 0, 1, 2, count)
         for k in range(count):
             lanes[2 + DIM, k] = math.sqrt(lanes[2, k] * lanes[2, k] + lanes[3, k] * lanes[3, k]
                                           + lanes[4, k] * lanes[4, k] + lanes[5, k] * lanes[5, k])

@@ -140,6 +140,12 @@ def closed_loop_run(state, ticks, reals, spec, body, law, block, out):
     herm = np.empty((8, 4))  # a step's two ends and derivatives (sample_kernel.segment)
     # the samples' scratch (hermite_run, dense_samples)
     lanes = np.empty((sample_kernel.LANES, sample_kernel.CHUNK))
+    # dop853's output step between samples, split as below (a run's constants)
+    n_p = max(1, int(math.ceil(sample_period_ns / (h_max * 1e9) - 1e-9)))
+    h_p = sample_period_ns / (n_p * 1e9)
+    # the next sample lies past dop853's step in progress: dense_samples, called, would
+    # return 0 at its first test (its output step from the last sample is h_p·n_p too)
+    past = False
     while row + rows < capacity:
         if interpolate:
             # the steps split only the intervals between law instants (and the limit, a
@@ -165,7 +171,7 @@ def closed_loop_run(state, ticks, reals, spec, body, law, block, out):
             if seg_end >= limit_ns:
                 break
             at_limit = False  # the limit ends the loop before it is stepped to
-            if method == DOP853 and sample_ns < control_ns:
+            if method == DOP853 and sample_ns < control_ns and not past:
                 # the samples before the next law instant that fall inside the step in
                 # progress, in one loop (sample_kernel.dense_samples): each the output the
                 # call below would give, its output step split as below
@@ -174,8 +180,6 @@ def closed_loop_run(state, ticks, reals, spec, body, law, block, out):
                 span = sample_ns - t
                 n = max(1, int(math.ceil(span / (h_max * 1e9) - 1e-9)))
                 h = span / (n * 1e9)
-                n_p = max(1, int(math.ceil(sample_period_ns / (h_max * 1e9) - 1e-9)))
-                h_p = sample_period_ns / (n_p * 1e9)
                 written = sample_kernel.dense_samples(
                     q, m, tau_p, memory, h * n, h_p * n_p, room, sample_ns, sample_period_ns,
                     t_out, q_out, m_out, tau_out, tau_body, row + rows, lanes)
@@ -191,7 +195,10 @@ def closed_loop_run(state, ticks, reals, spec, body, law, block, out):
                     rows += written
                     t = sample_ns + (written - 1) * sample_period_ns
                     sample_ns = t + sample_period_ns
+                    past = not (memory[dop853_dense._CLOCK] + h_p * n_p
+                                < memory[dop853_dense._CLOCK + 1])
                     continue
+            past = False  # this pass steps on: the next step's samples are dense_samples'
         span = seg_end - t
         # equal steps no longer than h_max, split as Engine._integrate splits them
         n = max(1, int(math.ceil(span / (h_max * 1e9) - 1e-9)))

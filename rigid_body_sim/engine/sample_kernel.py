@@ -240,9 +240,10 @@ def dense_samples(q, m, tau_p, memory, hn_first, hn, room, s, sample_period_ns, 
     out = last + 10
     h_step = memory[_CLOCK + 1]
     clock = memory[_CLOCK]  # the last output's position in the step
-    targets, xs, ys, norms, check = lanes[0], lanes[1], lanes[2], lanes[3], lanes[4]
-    raw = lanes[5:5 + DIM]  # the interpolant
-    unit = lanes[5 + DIM:9 + DIM]  # q normalised
+    # lanes' rows, by index (views of them cost reference counts): the targets, x, 1 − x,
+    # |q|, the finiteness check, the interpolant (DIM rows), q normalised (4 rows)
+    TARGET, X, Y, NORM, CHECK, RAW = 0, 1, 2, 3, 4, 5
+    UNIT = RAW + DIM
     written = 0
     tried = -1  # the chunk column whose raw output the memory keeps (-1: none)
     span = hn_first
@@ -255,48 +256,52 @@ def dense_samples(q, m, tau_p, memory, hn_first, hn, room, s, sample_period_ns, 
             if not target < h_step:
                 stop = True
                 break
-            targets[count] = target
+            lanes[TARGET, count] = target
             span = hn
             count += 1
         if count == 0:
             break
         for k in range(count):
-            xs[k] = targets[k] / h_step
+            lanes[X, k] = lanes[TARGET, k] / h_step
         for k in range(count):
-            ys[k] = 1.0 - xs[k]
-        dop853_dense.interpolate_lanes(memory, xs, ys, count, raw)
+            lanes[Y, k] = 1.0 - lanes[X, k]
+        dop853_dense.interpolate_lanes(memory, lanes, X, Y, RAW, count)
         for k in range(count):
-            norms[k] = math.sqrt(raw[0, k] * raw[0, k] + raw[1, k] * raw[1, k]
-                                 + raw[2, k] * raw[2, k] + raw[3, k] * raw[3, k])
+            lanes[NORM, k] = math.sqrt(lanes[RAW, k] * lanes[RAW, k]
+                                       + lanes[RAW + 1, k] * lanes[RAW + 1, k]
+                                       + lanes[RAW + 2, k] * lanes[RAW + 2, k]
+                                       + lanes[RAW + 3, k] * lanes[RAW + 3, k])
         # x − x is 0 for a finite x, NaN otherwise; |q| finite covers q's components
         for k in range(count):
-            check[k] = ((norms[k] - norms[k]) + (raw[4, k] - raw[4, k])
-                        + (raw[5, k] - raw[5, k]) + (raw[6, k] - raw[6, k]))
+            lanes[CHECK, k] = ((lanes[NORM, k] - lanes[NORM, k])
+                               + (lanes[RAW + 4, k] - lanes[RAW + 4, k])
+                               + (lanes[RAW + 5, k] - lanes[RAW + 5, k])
+                               + (lanes[RAW + 6, k] - lanes[RAW + 6, k]))
         good = count
         for k in range(count):
-            if not (check[k] == 0.0 and norms[k] > 0.0):
+            if not (lanes[CHECK, k] == 0.0 and lanes[NORM, k] > 0.0):
                 good = k
                 stop = True
                 break
         tried = good if good < count else count - 1
         for i in range(4):
             for k in range(good):
-                unit[i, k] = raw[i, k] / norms[k]
+                lanes[UNIT + i, k] = lanes[RAW + i, k] / lanes[NORM, k]
         for k in range(good):
             r = row + written + k
             for i in range(4):
-                q_out[r, i] = unit[i, k]
+                q_out[r, i] = lanes[UNIT + i, k]
             for i in range(3):
-                m_out[r, i] = raw[4 + i, k]
+                m_out[r, i] = lanes[RAW + 4 + i, k]
                 tau_out[r, i] = tau_body[i]
             t_out[r] = s + k * sample_period_ns
         if good:
-            clock = targets[good - 1]
+            clock = lanes[TARGET, good - 1]
             written += good
             s += good * sample_period_ns
     if tried >= 0:
         for i in range(DIM):  # as _interpolated leaves it: the last output tried
-            memory[out + i] = raw[i, tried]
+            memory[out + i] = lanes[RAW + i, tried]
     if written:
         memory[_CLOCK] = clock
         r = row + written - 1

@@ -43,6 +43,7 @@ output → dense output:
 import math
 
 import numpy as np
+from numpy.lib.stride_tricks import as_strided
 
 from .. import dynamics_kernel
 from .dop853_tableau import coefficients as _coefficients
@@ -87,10 +88,15 @@ MEMORY = _SCRATCH + 2 * DIM
 
 @inline
 def views(memory):
-    """(y, f, y_old, K (16, 7), F (7, 7), clock, last): views into the flat memory."""
+    """(y, f, y_old, K (16, 7), F (7, 7), clock, last): views into the flat memory. K and
+    F by their strides: numba's reshape calls a helper out of line (~12 ns each, at every
+    advance that steps, once a step holding samples), as_strided costs nothing here."""
+    row = memory.itemsize * DIM
     return (memory[_Y:_F_], memory[_F_:_Y_OLD], memory[_Y_OLD:_K],
-            memory[_K:_FF].reshape((N_EXTENDED, DIM)),
-            memory[_FF:_CLOCK].reshape((POWER, DIM)), memory[_CLOCK:_LAST],
+            as_strided(memory[_K:_FF], shape=(N_EXTENDED, DIM),
+                       strides=(row, memory.itemsize)),
+            as_strided(memory[_FF:_CLOCK], shape=(POWER, DIM),
+                       strides=(row, memory.itemsize)), memory[_CLOCK:_LAST],
             memory[_LAST:MEMORY])
 
 
@@ -141,11 +147,14 @@ def _interpolate(y_old, F, x, out):
 
 
 @inline
-def interpolate_lanes(memory, xs, ys, count, raw):
-    """:func:`_interpolate` over ``count`` lanes: raw[i, k] ← the interpolant of the step
-    whose F and y_old ``memory`` holds, at xs[k] (ys[k] = 1 − xs[k]); each lane's
-    arithmetic the scalar one, lanes in one loop that the compiler runs several to an
-    instruction (sample_kernel.dense_samples; the samples' floor, bench.sampling_floor)."""
+def interpolate_lanes(memory, lanes, xs, ys, raw, count):
+    """:func:`_interpolate` over ``count`` lanes: lanes[raw + i, k] ← the interpolant of
+    the step whose F and y_old ``memory`` holds, at lanes[xs, k] (lanes[ys, k] = 1 − that);
+    each lane's arithmetic the scalar one, lanes in one loop that the compiler runs several
+    to an instruction (sample_kernel.dense_samples; the samples' floor,
+    bench.sampling_floor). Rows by index into the one scratch array, not views of it: a
+    view costs its parent's reference count (~2-5 ns each, 7-9 a call, a call or two a
+    step holding samples)."""
     for i in range(DIM):
         y_old = memory[_Y_OLD + i]
         f0 = memory[_FF + (POWER - 1) * DIM + i]
@@ -155,14 +164,14 @@ def interpolate_lanes(memory, xs, ys, count, raw):
         f4 = memory[_FF + (POWER - 5) * DIM + i]
         f5 = memory[_FF + (POWER - 6) * DIM + i]
         f6 = memory[_FF + (POWER - 7) * DIM + i]
-        row_i = raw[i]
+        r = raw + i
         for k in range(count):
-            x = xs[k]
-            y = ys[k]
+            x = lanes[xs, k]
+            y = lanes[ys, k]
             # _interpolate's operations in its order (0.0 + f0 included: the same bits,
             # signed zeros too; no fastmath, so nothing is fused or reordered)
             v = ((((((0.0 + f0) * x + f1) * y + f2) * x + f3) * y + f4) * x + f5) * y
-            row_i[k] = (v + f6) * x + y_old
+            lanes[r, k] = (v + f6) * x + y_old
 
 
 @jit
