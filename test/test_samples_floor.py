@@ -80,6 +80,10 @@ def test_the_floor_counts_the_added_samples_and_evaluations(monkeypatch, method,
     assert got['judged'] and f'{evaluations} added evaluations' in got['note']
     few = sampling_floor.judge(1e-3, 2e-3, a, {**b, 'samples': 301 + 4999}, method)
     assert not few['judged']
+    # a floor under FLOOR_SHARE of the 1 sample/s run: its excess is within the noise
+    slow = floor / sampling_floor.FLOOR_SHARE
+    assert sampling_floor.judge(slow * 0.99, slow * 2, a, b, method)['judged']
+    assert not sampling_floor.judge(slow * 1.01, slow * 2, a, b, method)['judged']
 
 
 def test_the_floor_row_judges_the_worst_scene_with_enough_samples():
@@ -88,6 +92,7 @@ def test_the_floor_row_judges_the_worst_scene_with_enough_samples():
               ('g-3', {'excess': 3.0, 'reach': 1.2, 'judged': True})]
     (row,) = sampling_floor.targets(floors, 'runs cut to 300 s')
     assert row['measured'] == 3.0 and 'g-3' in row['note'] and 'over 2 generated' in row['note']
+    assert 'not judged, 1 scenes: g-2 x9' in row['note']  # said, not hidden
     assert row['verdict'] == 'MISS'
     assert 'would still read 2.7 (g-1)' in sampling_floor.at_floor(floors)
     assert sampling_floor.targets(floors[1:2], '') == []

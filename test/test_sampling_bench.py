@@ -56,3 +56,44 @@ def test_the_faults_said_are_the_least_runs_and_the_most_of_any(monkeypatch):
     assert best == 2e-3
     assert counts == {'evaluations': 12, 'samples': 30001, 'faults': [100, 613],
                       'engine': engine}
+
+
+def test_the_two_rates_alternate_and_each_keeps_its_least_run(monkeypatch):
+    """A generated scene's 1/s and 100/s runs alternate, so that both minima come from one
+    stretch of the machine's load; each rate keeps its least run and that run's faults."""
+    calls = []
+    spent = {1.0: iter([5e-3, 3e-3, 4e-3]), 100.0: iter([9e-3, 8e-3, 9.5e-3])}
+    faults = {1.0: iter([0, 7, 1]), 100.0: iter([600, 0, 900])}
+
+    def simulate_cpu(scene, duration, rate, overrides, n, counts=None):
+        calls.append((rate, n))
+        counts.update(samples=int(rate) * 300, faults=[next(faults[rate])] * 2)
+        return next(spent[rate])
+    monkeypatch.setattr(sampling, '_simulate_cpu', simulate_cpu)
+    a, b = {}, {}
+    assert sampling._alternated('slew', 300.0, {}, 3, a, b) == (3e-3, 8e-3)
+    assert calls == [(1.0, 1), (100.0, 1)] * 3
+    assert a['faults'] == [7, 7] and b['faults'] == [0, 900]
+    assert a['samples'] == 300 and b['samples'] == 30000
+
+
+def _floor(reach):
+    return {'reach': reach}
+
+
+@pytest.mark.parametrize('reaches,verdict,measured', [
+    ((1.1, 3.1, 1.2), 'PASS', 1.4),   # the exact free body past reach: not judged
+    ((1.1, 1.2, 1.2), 'MISS', 2.9),   # every scene in reach: the worst of all
+    ((2.0, 3.1, 1.9), 'n/a', 2.9),    # none in reach: the worst of all, no verdict
+])
+def test_the_generated_sampling_row_judges_scenes_whose_floor_leaves_it_in_reach(
+        reaches, verdict, measured):
+    """1.5 is judged on scenes whose ratio at the samples' floor is at most 1.25 (samples
+    at twice their floor would then read 1.5); the note keeps the spread of all scenes."""
+    assert sampling.reachable() == pytest.approx(1.25)
+    ratios = [1.3, 2.9, 1.4]
+    floors = [(f'gen-{i}', _floor(r)) for i, r in enumerate(reaches)]
+    row = sampling._reachable_row(ratios, floors, 'runs cut to 300 s')
+    assert row['verdict'] == verdict and row['measured'] == measured
+    assert 'over all: p10' in row['note'] and 'worst 2.9 over 3' in row['note']
+    assert '(gen-1) reading' in row['note']
