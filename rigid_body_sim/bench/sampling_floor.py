@@ -236,7 +236,7 @@ FLOOR_SAMPLES = 5000
 # which on a floor of 2 % of the run moves the excess by 1-2 (generated scene 4, rk4 under
 # a law, 6,687 samples on a 2.2 ms run: 1.98 in one run, 4.06 in the next). Such a scene's
 # samples are cheap beside its physics: the sampling ratio row (<= 1.25 at the floor)
-# judges it, so every scene is judged by one row or both.
+# judges it, so every scene adding FLOOR_SAMPLES is judged by one row or both.
 FLOOR_SHARE = 0.1
 
 
