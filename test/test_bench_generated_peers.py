@@ -182,6 +182,23 @@ def test_a_peer_capped_below_the_cheapest_met_makes_the_row_a_lower_bound():
     assert none['status'].startswith('lower bound') and none['peer_cpu_s'] == 3.0
 
 
+def test_where_auto_missed_the_budget_too_no_lower_bound_is_claimed():
+    """A scene that auto could not meet (float64 cannot: auto says so) and no peer met is
+    infeasible, with no ratio; one a peer met is auto's miss, and the target row fails."""
+    row = {'scene': 's'}
+    capped = [('scipy_dop853', None, 4.0, 0.1), ('scipy_rk45', None, 3.0, 1)]
+    gone = gp._row_of(row, capped, 0.01, auto_met=False)
+    assert gone['status'] == gp.INFEASIBLE and 'ratio' not in gone
+    met = ('scipy_dop853', 1e-6, 2.0, 1e-7)
+    lost = gp._row_of(row, [met] + capped, 0.01, auto_met=False)
+    assert lost['status'].startswith('auto missed') and lost['ratio'] == 200.0
+    ok = dict(gp._row_of({'scene': 'a'}, [met], 1e-3), peer_cpu_s=2.0)
+    target = gp.summary_target([ok, dict(gone, scene='b')], 1)
+    assert target['verdict'] == 'PASS' and '1 infeasible' in target['note']
+    target = gp.summary_target([ok, dict(lost, scene='c')], 1)
+    assert target['verdict'] == 'MISS' and 'a peer met it: c' in target['note']
+
+
 def test_a_run_stopped_half_way_resumes_from_its_rows(tmp_path):
     """A share of the run (--from) writes only its rows; the whole run with --resume takes
     the rows already measured as they are (scene 0's row here is one no run would write)
