@@ -221,12 +221,12 @@ def dense_samples(q, m, tau_p, memory, hn_first, hn, room, s, sample_period_ns, 
 
     The samples go CHUNK at a time, each operation over the chunk's samples in a loop of
     its own: independent lanes, which the compiler runs several to an instruction (each
-    lane's arithmetic is the scalar one, so the values are), the checks and the divisions
-    by |q| included, and the rows a column at a time. At 100 samples/s on a slow body,
+    lane's arithmetic is the scalar one, so the values are), the checks included, and the
+    rows a column at a time (q divided by |q| there). At 100 samples/s on a slow body,
     calling ``_interpolated`` sample by sample from the event loop cost ~95 ns a sample;
     one sample after another here, ~24 ns; lane by lane, ~12 ns (the scratch allocated
     per call cost ~250 ns a call, once a step: ~100 ns a sample at ~3 samples a step);
-    then the rows' loops as below, ~10.6 → 7.1 ns a sample (~200 samples a call, its
+    then the rows' loops as below, ~10.6 → 6.7 ns a sample (~200 samples a call, its
     arithmetic and stores alone, bench.sampling_floor's dense + store: ~8).
     A block whose rows are not (4, 3, 3) wide, or a negative row: 0."""
     if memory[_CLOCK + 3] <= 0.0 or memory[_CLOCK + 2] == 0.0 or room <= 0 or row < 0 \
@@ -248,9 +248,8 @@ def dense_samples(q, m, tau_p, memory, hn_first, hn, room, s, sample_period_ns, 
     h_step = memory[_CLOCK + 1]
     clock = memory[_CLOCK]  # the last output's position in the step
     # lanes' rows, by index (views of them cost reference counts): the targets, x, 1 − x,
-    # |q|, the interpolant (DIM rows), q normalised (4 rows)
-    TARGET, X, Y, NORM, RAW = 0, 1, 2, 3, 5
-    UNIT = RAW + DIM
+    # |q|, the interpolant (DIM rows)
+    TARGET, X, Y, NORM, RAW = 0, 1, 2, 3, 4
     tau0, tau1, tau2 = tau_body[0], tau_body[1], tau_body[2]  # (stores to rows may alias)
     written = 0
     tried = -1  # the chunk column whose raw output the memory keeps (-1: none)
@@ -299,20 +298,19 @@ def dense_samples(q, m, tau_p, memory, hn_first, hn, room, s, sample_period_ns, 
                     stop = True
                     break
         tried = good if good < count else count - 1
-        for i in range(4):
-            for k in range(good):
-                lanes[UNIT + i, k] = lanes[RAW + i, k] / lanes[NORM, k]
         # the rows a column at a time, each loop's stores at fixed strides, which the
         # compiler runs several samples to an instruction (sample by sample, all columns
-        # in one loop: ~1.5 ns a sample more); unsigned rows: numba adds no wraparound
-        # test for a negative index (row ≥ 0, tested above)
+        # in one loop: ~1.5 ns a sample more), q divided by |q| on its way (a pass of its
+        # own into lanes: ~0.6 ns more); unsigned rows: numba adds no wraparound test for
+        # a negative index (row ≥ 0, tested above)
         base = np.uint64(row + written)
         for k in range(good):
             r = base + np.uint64(k)
-            q_out[r, 0] = lanes[UNIT, k]
-            q_out[r, 1] = lanes[UNIT + 1, k]
-            q_out[r, 2] = lanes[UNIT + 2, k]
-            q_out[r, 3] = lanes[UNIT + 3, k]
+            norm = lanes[NORM, k]
+            q_out[r, 0] = lanes[RAW, k] / norm
+            q_out[r, 1] = lanes[RAW + 1, k] / norm
+            q_out[r, 2] = lanes[RAW + 2, k] / norm
+            q_out[r, 3] = lanes[RAW + 3, k] / norm
         for k in range(good):
             r = base + np.uint64(k)
             m_out[r, 0] = lanes[RAW + 4, k]
