@@ -221,14 +221,21 @@ def dense_samples(q, m, tau_p, memory, hn_first, hn, room, s, sample_period_ns, 
 
     The samples go CHUNK at a time, each operation over the chunk's samples in a loop of
     its own: independent lanes, which the compiler runs several to an instruction (each
-    lane's arithmetic is the scalar one, so the values are), the checks and the divisions
-    by |q| included; only the copy into the rows goes sample by sample. At 100 samples/s
-    on a slow body, calling ``_interpolated`` sample by sample from the event loop cost
-    ~95 ns a sample; one sample after another here, ~24 ns; lane by lane, ~12 ns (the
-    scratch allocated per call cost ~250 ns a call, once a step: ~100 ns a sample at
-    ~3 samples a step)."""
-    if memory[_CLOCK + 3] <= 0.0 or memory[_CLOCK + 2] == 0.0 or room <= 0 \
+    lane's arithmetic is the scalar one, so the values are), the checks included, and the
+    rows a column at a time (q divided by |q| there). At 100 samples/s on a slow body,
+    calling ``_interpolated`` sample by sample from the event loop cost ~95 ns a sample;
+    one sample after another here, ~24 ns; lane by lane, ~12 ns (the scratch allocated
+    per call cost ~250 ns a call, once a step: ~100 ns a sample at ~3 samples a step);
+    then the rows' loops as below, ~10.6 → 6.7 ns a sample (~200 samples a call, its
+    arithmetic and stores alone, bench.sampling_floor's dense + store: ~8).
+    A block whose rows are not (4, 3, 3) wide, or a negative row: 0."""
+    if memory[_CLOCK + 3] <= 0.0 or memory[_CLOCK + 2] == 0.0 or room <= 0 or row < 0 \
             or not memory[_CLOCK] + hn_first < memory[_CLOCK + 1]:
+        return 0
+    # the rows' lengths as constants for the compiler (numba indexes a C array by its
+    # runtime shape): the row loops' addresses fold (~0.5 ns a sample); any other block
+    # is not this loop's (nothing written: the caller's usual path takes the samples)
+    if q_out.shape[1] != 4 or m_out.shape[1] != 3 or tau_out.shape[1] != 3:
         return 0
     last = _LAST
     for i in range(4):
@@ -241,9 +248,9 @@ def dense_samples(q, m, tau_p, memory, hn_first, hn, room, s, sample_period_ns, 
     h_step = memory[_CLOCK + 1]
     clock = memory[_CLOCK]  # the last output's position in the step
     # lanes' rows, by index (views of them cost reference counts): the targets, x, 1 − x,
-    # |q|, the finiteness check, the interpolant (DIM rows), q normalised (4 rows)
-    TARGET, X, Y, NORM, CHECK, RAW = 0, 1, 2, 3, 4, 5
-    UNIT = RAW + DIM
+    # |q|, the interpolant (DIM rows)
+    TARGET, X, Y, NORM, RAW = 0, 1, 2, 3, 4
+    tau0, tau1, tau2 = tau_body[0], tau_body[1], tau_body[2]  # (stores to rows may alias)
     written = 0
     tried = -1  # the chunk column whose raw output the memory keeps (-1: none)
     span = hn_first
@@ -262,39 +269,60 @@ def dense_samples(q, m, tau_p, memory, hn_first, hn, room, s, sample_period_ns, 
         if count == 0:
             break
         for k in range(count):
-            lanes[X, k] = lanes[TARGET, k] / h_step
-        for k in range(count):
-            lanes[Y, k] = 1.0 - lanes[X, k]
+            x = lanes[TARGET, k] / h_step
+            lanes[X, k] = x
+            lanes[Y, k] = 1.0 - x
         dop853_dense.interpolate_lanes(memory, lanes, X, Y, RAW, count)
+        # |q| and the finiteness check in one pass, the check counted (a sum over the
+        # lanes, not a search that leaves the loop); x − x is 0 for a finite x, NaN
+        # otherwise, and |q| finite covers q's components
+        bad = 0
         for k in range(count):
-            lanes[NORM, k] = math.sqrt(lanes[RAW, k] * lanes[RAW, k]
-                                       + lanes[RAW + 1, k] * lanes[RAW + 1, k]
-                                       + lanes[RAW + 2, k] * lanes[RAW + 2, k]
-                                       + lanes[RAW + 3, k] * lanes[RAW + 3, k])
-        # x − x is 0 for a finite x, NaN otherwise; |q| finite covers q's components
-        for k in range(count):
-            lanes[CHECK, k] = ((lanes[NORM, k] - lanes[NORM, k])
-                               + (lanes[RAW + 4, k] - lanes[RAW + 4, k])
-                               + (lanes[RAW + 5, k] - lanes[RAW + 5, k])
-                               + (lanes[RAW + 6, k] - lanes[RAW + 6, k]))
+            norm = math.sqrt(lanes[RAW, k] * lanes[RAW, k]
+                             + lanes[RAW + 1, k] * lanes[RAW + 1, k]
+                             + lanes[RAW + 2, k] * lanes[RAW + 2, k]
+                             + lanes[RAW + 3, k] * lanes[RAW + 3, k])
+            lanes[NORM, k] = norm
+            check = ((norm - norm) + (lanes[RAW + 4, k] - lanes[RAW + 4, k])
+                     + (lanes[RAW + 5, k] - lanes[RAW + 5, k])
+                     + (lanes[RAW + 6, k] - lanes[RAW + 6, k]))
+            bad += not (check == 0.0 and norm > 0.0)
         good = count
-        for k in range(count):
-            if not (lanes[CHECK, k] == 0.0 and lanes[NORM, k] > 0.0):
-                good = k
-                stop = True
-                break
+        if bad:  # the first output not finite: the rows stop before it
+            for k in range(count):
+                norm = lanes[NORM, k]
+                if not ((norm - norm) + (lanes[RAW + 4, k] - lanes[RAW + 4, k])
+                        + (lanes[RAW + 5, k] - lanes[RAW + 5, k])
+                        + (lanes[RAW + 6, k] - lanes[RAW + 6, k]) == 0.0 and norm > 0.0):
+                    good = k
+                    stop = True
+                    break
         tried = good if good < count else count - 1
-        for i in range(4):
-            for k in range(good):
-                lanes[UNIT + i, k] = lanes[RAW + i, k] / lanes[NORM, k]
+        # the rows a column at a time, each loop's stores at fixed strides, which the
+        # compiler runs several samples to an instruction (sample by sample, all columns
+        # in one loop: ~1.5 ns a sample more), q divided by |q| on its way (a pass of its
+        # own into lanes: ~0.6 ns more); unsigned rows: numba adds no wraparound test for
+        # a negative index (row ≥ 0, tested above)
+        base = np.uint64(row + written)
         for k in range(good):
-            r = row + written + k
-            for i in range(4):
-                q_out[r, i] = lanes[UNIT + i, k]
-            for i in range(3):
-                m_out[r, i] = lanes[RAW + 4 + i, k]
-                tau_out[r, i] = tau_body[i]
-            t_out[r] = s + k * sample_period_ns
+            r = base + np.uint64(k)
+            norm = lanes[NORM, k]
+            q_out[r, 0] = lanes[RAW, k] / norm
+            q_out[r, 1] = lanes[RAW + 1, k] / norm
+            q_out[r, 2] = lanes[RAW + 2, k] / norm
+            q_out[r, 3] = lanes[RAW + 3, k] / norm
+        for k in range(good):
+            r = base + np.uint64(k)
+            m_out[r, 0] = lanes[RAW + 4, k]
+            m_out[r, 1] = lanes[RAW + 5, k]
+            m_out[r, 2] = lanes[RAW + 6, k]
+        for k in range(good):
+            r = base + np.uint64(k)
+            tau_out[r, 0] = tau0
+            tau_out[r, 1] = tau1
+            tau_out[r, 2] = tau2
+        for k in range(good):
+            t_out[base + np.uint64(k)] = s + k * sample_period_ns
         if good:
             clock = lanes[TARGET, good - 1]
             written += good
