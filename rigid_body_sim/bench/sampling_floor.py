@@ -227,6 +227,9 @@ def floor_seconds(parts: dict, samples: int, evaluations: int) -> float:
 # the step loop split at every sample, after the one-sample path took 138 -> 102 ns).
 # Then (samples5, load 2-3): rk4 2.4-2.6x of a floor of ~7.6 ns a sample (its ends from
 # its stages: ~19 ns a sample, one loop a law interval), dop853 1.8-2.7x, exact 1.1-1.5x.
+# Then (dense7: dense_samples' rows a column at a time, unsigned indices): dense_samples
+# ~6.7 ns a sample against the floor's dense + store ~8.2 in one micro-benchmark; scene 1
+# (~150 samples a step) 1.17-1.24x; steps holding ~10 samples 2.0-2.2x (per-step costs).
 FLOOR_MAX = 2.0
 # judged only where 100 samples/s adds this many samples: fewer are below the timing noise
 # of two least-of-3 CPU figures (~20 µs at load), e.g. 520 samples at the floor are ~8 µs
