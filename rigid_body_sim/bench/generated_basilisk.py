@@ -32,9 +32,8 @@ from types import SimpleNamespace
 
 import numpy as np
 
-from ..physics import rotation
-from . import basilisk_gg, peers
-from .common import CpuCapReached, cpu, cpu_limit
+from . import basilisk_gg, generated_mujoco, peers
+from .common import cpu
 
 INTEGRATORS = (('bsk_rk4', 'rk4'), ('bsk_rkf78', 'rkf78'))
 START_ROTATION = 0.5  # rad a step: the coarsest RK4 step tried
@@ -172,34 +171,13 @@ def _params(scene, integrator, times):
 
 def sweep(scene, integrator, ref, times, cap, beat=math.inf):
     """(param, CPU s, error) of the first rung meeting the budget; else (None, bound, error
-    of its last finished run), as ``generated_mujoco.sweep``. ``param``: RK4's step in s,
-    or RKF78's relTol."""
-    spent, last_cost, bound, err_last = 0.0, 0.0, 0.0, math.inf
-    period = _ns(times[1] - times[0]) * 1e-9
-    for p in _params(scene, integrator, times):
-        left = cap - spent
-        if 2.5 * last_cost > left:
-            break  # the next run, at half the step, costs about twice the last
-        limit = min(left, beat)
-        c0 = cpu()
-        try:
-            with cpu_limit(limit):
-                c, q = run(scene, p, integrator, times)
-        except CpuCapReached:
-            spent += cpu() - c0
-            return None, max(bound, cpu() - c0, beat if beat <= left else 0.0), err_last
-        except Exception:  # noqa: BLE001 - a run that blows up is one more rung down
-            last_cost = cpu() - c0
-            spent += last_cost
-            bound = max(bound, last_cost)
-            continue
-        err = float(np.max(rotation.angle_between(q, ref.attitude)))
-        last_cost, err_last = c, err
-        spent += cpu() - c0
-        if err + ref.error <= scene.budget:
-            return (period / p if integrator == 'rk4' else p), c, err
-        bound = max(bound, c)
-    return None, bound, err_last
+    of its last finished run): MuJoCo's sweep (``generated_mujoco.ladder``). ``param``:
+    RK4's step in s, or RKF78's relTol."""
+    out = generated_mujoco.ladder(scene, ref, _params(scene, integrator, times),
+                                  lambda p: run(scene, p, integrator, times), cap, beat)
+    if integrator == 'rk4' and out[0] is not None:
+        return (_ns(times[1] - times[0]) * 1e-9 / out[0],) + out[1:]
+    return out
 
 
 def runs(scene, ref, times, cap, beat=math.inf):
