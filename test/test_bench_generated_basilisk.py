@@ -117,3 +117,33 @@ def test_the_sweep_gives_generated_peers_a_peers_rows():
     assert row['status'] == 'ok' and row['peer'] == 'bsk_rk4' and row['peer_step'] == h
     missed = gb.sweep(replace(scene, budget=1e-16), 'rk4', ref, times, cap=0.05)
     assert missed[0] is None and missed[1] > 0 and missed[2] > 1e-16
+
+
+def test_basilisk_is_imported_before_any_runs_cap():
+    """A first import of Basilisk's modules inside a run's cap, stopped there, left the
+    package half initialised: every later rung failed at once ("partially initialized
+    module 'Basilisk'") and counted as a diverged run. In a fresh interpreter, every run of
+    a sweep now starts with all of them loaded."""
+    import subprocess
+    import sys
+    code = (
+        'import sys\n'
+        'from rigid_body_sim.bench import generated, generated_basilisk as gb\n'
+        'from rigid_body_sim.bench import oracle\n'
+        'import numpy as np\n'
+        'names = ("Basilisk.simulation.svIntegrators", "Basilisk.architecture.sysModel",\n'
+        '         "Basilisk.simulation.extForceTorque", "Basilisk.architecture.messaging")\n'
+        'seen = []\n'
+        'def run(*a):\n'
+        '    seen.append(all(n in sys.modules for n in names))\n'
+        '    raise RuntimeError("stop")\n'
+        'gb.run = run\n'
+        'scene = generated.draw(generated.SEED, 11, True)\n'
+        'ref = oracle.Reference(np.zeros((3, 4)), 0.0, "none")\n'
+        'assert "Basilisk" not in sys.modules\n'
+        'gb.sweep(scene, "rkf78", ref, np.array([0.0, 1.0, 1.5]), cap=1.0)\n'
+        'print(len(seen), all(seen))\n')
+    out = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True,
+                         timeout=120)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.split() == [str(len(gb.RTOLS)), 'True'], out.stdout

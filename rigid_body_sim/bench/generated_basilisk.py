@@ -111,7 +111,6 @@ def run(scene, param, integrator, times):
     """(CPU s, attitude (n, 4) (x, y, z, w) at ``times``) of one Basilisk run: integrator
     'rk4' (``param``: its steps per sample, an int dividing the period in ns) or 'rkf78'
     (``param``: relTol). ``times``: the grid from 0 at one period, and the end."""
-    from Basilisk.utilities import macros  # noqa: F401 - loaded before the clock
     period_ns, end_ns = _ns(times[1] - times[0]), _ns(times[-1])
     if integrator == 'rk4' and period_ns % int(param):
         raise ValueError(f'RK4 at {param} steps a sample: not a divisor of {period_ns} ns')
@@ -169,10 +168,21 @@ def _params(scene, integrator, times):
     return out
 
 
+def load():
+    """Imports every Basilisk module a run uses. Outside any CPU cap: a first import that a
+    cap stops leaves the package half initialised, and every later run of the process then
+    fails ("partially initialized module 'Basilisk'"), each counted as a diverged rung."""
+    from Basilisk.architecture import bskLogging, messaging, sysModel  # noqa: F401
+    from Basilisk.simulation import (GravityGradientEffector, extForceTorque,  # noqa: F401
+                                     gravityEffector, spacecraft, svIntegrators)
+    from Basilisk.utilities import SimulationBaseClass, macros  # noqa: F401
+
+
 def sweep(scene, integrator, ref, times, cap, beat=math.inf):
     """(param, CPU s, error) of the first rung meeting the budget; else (None, bound, error
     of its last finished run): MuJoCo's sweep (``generated_mujoco.ladder``). ``param``:
     RK4's step in s, or RKF78's relTol."""
+    load()
     out = generated_mujoco.ladder(scene, ref, _params(scene, integrator, times),
                                   lambda p: run(scene, p, integrator, times), cap, beat)
     if integrator == 'rk4' and out[0] is not None:
@@ -185,9 +195,6 @@ def runs(scene, ref, times, cap, beat=math.inf):
     integrator, each stopped where it can no longer set the row; [] without Basilisk."""
     if not available():
         return []
-    # imported before any run's CPU cap (as MuJoCo: a first import inside a cap fails it)
-    from Basilisk.simulation import extForceTorque, spacecraft  # noqa: F401
-    from Basilisk.utilities import SimulationBaseClass  # noqa: F401
     out = []
     for name, integrator in INTEGRATORS:
         out.append((name,) + sweep(scene, integrator, ref, times, cap, beat))
