@@ -200,8 +200,5 @@ def runs(scene, ref, times, cap, beat=math.inf):
     integrator, each stopped where it can no longer set the row; [] without Basilisk."""
     if not available():
         return []
-    out = []
-    for name, integrator in INTEGRATORS:
-        out.append((name,) + sweep(scene, integrator, ref, times, cap, beat))
-        beat = min(beat, out[-1][2])
-    return out
+    return generated_mujoco.each(
+        INTEGRATORS, lambda integ, b: sweep(scene, integ, ref, times, cap, b), beat)

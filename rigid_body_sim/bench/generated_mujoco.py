@@ -135,8 +135,14 @@ def runs(scene, ref, times, cap, beat=math.inf):
     # cap was stopped by it and failed ("initialization failed"), a peer's every rung
     # then counted as a diverged run (a scene measured alone lost MuJoCo)
     import mujoco  # noqa: F401
+    return each(INTEGRATORS, lambda integ, b: sweep(scene, integ, ref, times, cap, b), beat)
+
+
+def each(integrators, sweep_one, beat=math.inf):
+    """[(name,) + sweep_one(integrator, beat)] for each (name, integrator), each one's
+    ``beat`` the least CPU of those before it (met, or bounded)."""
     out = []
-    for name, integrator in INTEGRATORS:
-        out.append((name,) + sweep(scene, integrator, ref, times, cap, beat))
+    for name, integrator in integrators:
+        out.append((name,) + sweep_one(integrator, beat))
         beat = min(beat, out[-1][2])
     return out
