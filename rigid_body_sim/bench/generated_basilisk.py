@@ -22,10 +22,14 @@ Dissipative scenes: Basilisk has no internal-dissipation model. Its user writes 
 module (``sysModel.SysModel``) that reads the hub's state message and writes the damping
 torque (``peers._damper``) into an ``extForceTorque``'s ``cmdTorqueInMsg``, both ahead of
 the hub in the task. It runs once per task period, so the torque is held over a step (over
-a sample period with RKF78): that is the accuracy and the Python cost its user gets.
+a sample period with RKF78): that is the accuracy and the Python cost its user gets. The
+error is then first order in the step (RK4 meets only loose budgets, at many steps) and,
+with RKF78, of the held torque over a whole sample period (it meets none measured).
 
-The sweep, its CPU cap (``common.cpu_limit``; the run goes to its stop time in chunks so
-that the interrupt lands) and ``beat`` are MuJoCo's (``generated_mujoco.sweep``).
+The sweep, its CPU cap (``common.cpu_limit``; the run goes to its stop time in ~10 ms
+calls so that the interrupt lands) and ``beat`` are MuJoCo's (``generated_mujoco.ladder``
+and ``each``). CPU: ``ExecuteSimulation`` and the last update; building and
+``InitializeSimulation`` are outside the clock, as in ``basilisk_gg``.
 """
 import math
 from types import SimpleNamespace
