@@ -144,7 +144,8 @@ def build(setup, integrator='rk4', param=10.0, attitude=None, position=None, ext
     initialised: integrator 'rk4' (``param`` = step = task period) or 'rkf78' (``param`` =
     relTol, task = sample period). ``attitude``/``position`` replace the initial ones;
     ``extra(sim, spacecraft)`` adds further modules before the initialisation (its result is
-    kept alive with sim); ``gravity_gradient`` False leaves the effector out (None)."""
+    kept alive with sim); ``gravity_gradient`` False leaves the effector out (None), and
+    ``setup.mu`` None the gravity field too."""
     from Basilisk.architecture import bskLogging
     from Basilisk.simulation import (GravityGradientEffector, gravityEffector, spacecraft,
                                      svIntegrators)
@@ -158,11 +159,13 @@ def build(setup, integrator='rk4', param=10.0, attitude=None, position=None, ext
     sc.hub.mHub = 1.0  # kg: the torque does not depend on it
     sc.hub.r_BcB_B = [[0.0], [0.0], [0.0]]
     sc.hub.IHubPntBc_B = np.diag(setup.moments).tolist()
-    earth = gravityEffector.GravBodyData()  # point mass (its default model)
-    earth.planetName = 'earth_planet_data'
-    earth.mu = setup.mu
-    earth.isCentralBody = True
-    sc.gravField.setGravBodies(gravityEffector.GravBodyVector([earth]))
+    earth = None
+    if setup.mu is not None:  # None: a free body, no gravity field (nor its translation cost)
+        earth = gravityEffector.GravBodyData()  # point mass (its default model)
+        earth.planetName = 'earth_planet_data'
+        earth.mu = setup.mu
+        earth.isCentralBody = True
+        sc.gravField.setGravBodies(gravityEffector.GravBodyVector([earth]))
     sc.hub.r_CN_NInit = _column(setup.r0 if position is None else position)
     sc.hub.v_CN_NInit = _column(setup.v0)
     sc.hub.sigma_BNInit = _column(quat_to_mrp(setup.attitude if attitude is None

@@ -90,8 +90,17 @@ def sweep(scene, integrator, ref, times, cap, beat=math.inf):
     rate = float(np.linalg.norm(scene.omega))
     h = min(float(times[1] - times[0]) if len(times) > 1 else float(times[-1]),
             START_ROTATION / max(rate, 1e-12))
+    return ladder(scene, ref, [h / 2.0 ** k for k in range(HALVINGS)],
+                  lambda step: run(scene, step, integrator, times), cap, beat)
+
+
+def ladder(scene, ref, rungs, run_rung, cap, beat=math.inf):
+    """(rung, CPU s, error) of the first of ``rungs`` (coarse → fine, each run costing
+    about twice the last) whose ``run_rung(rung)`` → (CPU s, attitude at the samples)
+    meets the budget; else (None, bound, error of its last finished run). A run that
+    raises is one more rung down. Basilisk's sweep is this one too."""
     spent, last_cost, bound, err_last = 0.0, 0.0, 0.0, math.inf
-    for _ in range(HALVINGS):
+    for rung in rungs:
         left = cap - spent
         if 2.5 * last_cost > left:
             break  # the next run, at half the step, costs about twice the last
@@ -99,7 +108,7 @@ def sweep(scene, integrator, ref, times, cap, beat=math.inf):
         c0 = cpu()
         try:
             with cpu_limit(limit):
-                c, q = run(scene, h, integrator, times)
+                c, q = run_rung(rung)
         except CpuCapReached:
             spent += cpu() - c0
             return None, max(bound, cpu() - c0, beat if beat <= left else 0.0), err_last
@@ -107,15 +116,13 @@ def sweep(scene, integrator, ref, times, cap, beat=math.inf):
             last_cost = cpu() - c0
             spent += last_cost
             bound = max(bound, last_cost)
-            h /= 2.0
             continue
         err = float(np.max(rotation.angle_between(q, ref.attitude)))
         last_cost, err_last = c, err
         spent += cpu() - c0
         if err + ref.error <= scene.budget:
-            return h, c, err
+            return rung, c, err
         bound = max(bound, c)
-        h /= 2.0
     return None, bound, err_last
 
 
@@ -128,8 +135,14 @@ def runs(scene, ref, times, cap, beat=math.inf):
     # cap was stopped by it and failed ("initialization failed"), a peer's every rung
     # then counted as a diverged run (a scene measured alone lost MuJoCo)
     import mujoco  # noqa: F401
+    return each(INTEGRATORS, lambda integ, b: sweep(scene, integ, ref, times, cap, b), beat)
+
+
+def each(integrators, sweep_one, beat=math.inf):
+    """[(name,) + sweep_one(integrator, beat)] for each (name, integrator), each one's
+    ``beat`` the least CPU of those before it (met, or bounded)."""
     out = []
-    for name, integrator in INTEGRATORS:
-        out.append((name,) + sweep(scene, integrator, ref, times, cap, beat))
+    for name, integrator in integrators:
+        out.append((name,) + sweep_one(integrator, beat))
         beat = min(beat, out[-1][2])
     return out

@@ -32,7 +32,7 @@ from types import SimpleNamespace
 import numpy as np
 
 from ..physics import rotation
-from . import generated, generated_mujoco, oracle, peers, targets
+from . import generated, generated_basilisk, generated_mujoco, oracle, peers, targets
 from .common import CpuCapReached, cpu, cpu_limit, write_csv
 
 FIELDS = ('scene', 'kind', 'budget', 'rotation', 'samples', 'auto_method', 'auto_cpu_s',
@@ -134,7 +134,7 @@ def _row_of(row, runs, auto_cpu, auto_met=True):
         return dict(row, peer=best[0], peer_cpu_s=best[2], peer_error=best[3],
                     ratio=best[2] / auto_cpu, status=f'auto missed: {best[0]} met the budget')
     if best is not None and (low is None or low[2] >= best[2]):
-        setting = 'peer_step' if best[0].startswith('mujoco') else 'peer_rtol'
+        setting = 'peer_step' if best[0].startswith(('mujoco', 'bsk_rk4')) else 'peer_rtol'
         return dict(row, peer=best[0], peer_cpu_s=best[2], peer_error=best[3],
                     ratio=best[2] / auto_cpu, status='ok', **{setting: best[1]})
     status = ('lower bound: no peer met the budget within its cap' if best is None else
@@ -167,6 +167,7 @@ def judge(scene, cap):
         runs.append(r)
         beat = min(beat, r[2])
     runs += generated_mujoco.runs(scene, ref, times, cap, beat)
+    runs += generated_basilisk.runs(scene, ref, times, cap, min([beat] + [r[2] for r in runs]))
     # met as a peer meets it: its error and the reference's own within the budget
     return _row_of(row, runs, auto_cpu, row['auto_error'] + ref.error <= scene.budget)
 
@@ -187,7 +188,8 @@ def summary_target(rows, seed):
             f'met it: {", ".join(missed) or "none"}; {skipped} not '
             'measured (detumble, or a reference too coarse); peers: scipy DOP853 and RK45'
             + (', MuJoCo RK4 and Euler' if generated_mujoco.available() else
-               ', not MuJoCo (not installed)'))
+               ', not MuJoCo (not installed)')
+            + (', Basilisk RK4 and RKF78' if generated_basilisk.available() else ''))
     if ratios:
         note += (f'; ratio p10 {np.percentile(ratios, 10):.3g}, median '
                  f'{np.median(ratios):.3g}, worst {ratios[0]:.3g}')
