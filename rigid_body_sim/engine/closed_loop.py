@@ -180,12 +180,14 @@ def closed_loop_run(state, ticks, reals, spec, body, law, block, out):
                 n = max(1, int(math.ceil(span / (h_max * 1e9) - 1e-9)))
                 h = span / (n * 1e9)
             if method == DOP853 and sample_ns < control_ns and not past \
-                    and memory[dop853_dense._CLOCK] + h * n < memory[dop853_dense._CLOCK + 1]:
+                    and memory[dop853_dense._CLOCK] + h * n + h_p * n_p \
+                    < memory[dop853_dense._CLOCK + 1]:
                 # the samples before the next law instant that fall inside the step in
                 # progress, in one loop (sample_kernel.dense_samples): each the output the
-                # call below would give, its output step split as above. (Its first test,
-                # that the next lies inside the step, made first: where a step holds a
-                # sample or two, most passes fail it, and room costs a division)
+                # call below would give, its output step split as above. Entered where
+                # two or more lie inside (dense_samples' first test, with room for two,
+                # made first: room costs a division): a lone one is the call's below,
+                # whose scalar path costs less than a pass over lanes of one
                 room = min(capacity - row - rows,
                            (min(control_ns, limit_ns) - 1 - sample_ns) // sample_period_ns + 1)
                 written = sample_kernel.dense_samples(
