@@ -29,6 +29,10 @@ CASES = [('slew', {'duration': 6.0}, ['publish_rate=100.0']),
          # slew), splitting2_lstable (its own damping code) and exact's split steps
          ('explorer1', {'duration': 3.37, 'integrator': 'dop853'}, ['publish_rate=100.0']),
          ('slew', {'duration': 4.37, 'integrator': 'dop853'}, ['publish_rate=100.0']),
+         # ~7 ms steps of dop853, 2-3 samples inside each: the first from the step's
+         # advance, then dense_samples where two or more remain, else the lone one from
+         # the loop's own test (both ways, ~20 and ~120 steps)
+         ('explorer1', {'duration': 1.0, 'integrator': 'dop853'}, ['publish_rate=300.0']),
          # ~1 s steps of dop853, 100 samples inside each (sample_kernel.dense_samples)
          ('tennis_racket', {'duration': 5.37, 'integrator': 'dop853'},
           ['publish_rate=100.0', 'dissipation.model=viscous', 'dissipation.coefficient=0.01']),

@@ -171,15 +171,25 @@ def closed_loop_run(state, ticks, reals, spec, body, law, block, out):
             if seg_end >= limit_ns:
                 break
             at_limit = False  # the limit ends the loop before it is stepped to
-            if method == DOP853 and sample_ns < control_ns and not past:
-                # the samples before the next law instant that fall inside the step in
-                # progress, in one loop (sample_kernel.dense_samples): each the output the
-                # call below would give, its output step split as below
-                room = min(capacity - row - rows,
-                           (min(control_ns, limit_ns) - 1 - sample_ns) // sample_period_ns + 1)
-                span = sample_ns - t
+            span = seg_end - t
+            # equal steps no longer than h_max, split as Engine._integrate splits them (a
+            # sample period's split is the run's constant: two divisions less a pass)
+            if span == sample_period_ns:
+                n, h = n_p, h_p
+            else:
                 n = max(1, int(math.ceil(span / (h_max * 1e9) - 1e-9)))
                 h = span / (n * 1e9)
+            if method == DOP853 and sample_ns < control_ns and not past \
+                    and memory[dop853_dense._CLOCK] + h * n + h_p * n_p \
+                    < memory[dop853_dense._CLOCK + 1]:
+                # the samples before the next law instant that fall inside the step in
+                # progress, in one loop (sample_kernel.dense_samples): each the output the
+                # call below would give, its output step split as above. Entered where
+                # two or more lie inside (dense_samples' first test, with room for two,
+                # made first: room costs a division): a lone one is the call's below,
+                # whose scalar path costs less than a pass over lanes of one
+                room = min(capacity - row - rows,
+                           (min(control_ns, limit_ns) - 1 - sample_ns) // sample_period_ns + 1)
                 written = sample_kernel.dense_samples(
                     q, m, tau_p, memory, h * n, h_p * n_p, room, sample_ns, sample_period_ns,
                     t_out, q_out, m_out, tau_out, tau_body, row + rows, lanes)
@@ -199,10 +209,10 @@ def closed_loop_run(state, ticks, reals, spec, body, law, block, out):
                                 < memory[dop853_dense._CLOCK + 1])
                     continue
             past = False  # this pass steps on: the next step's samples are dense_samples'
-        span = seg_end - t
-        # equal steps no longer than h_max, split as Engine._integrate splits them
-        n = max(1, int(math.ceil(span / (h_max * 1e9) - 1e-9)))
-        h = span / (n * 1e9)
+        if interpolate:
+            span = seg_end - t
+            n = max(1, int(math.ceil(span / (h_max * 1e9) - 1e-9)))
+            h = span / (n * 1e9)
         t0 = t / 1e9  # as Engine._integrate: the environment's torques see these instants
         failed = -1
         if method == DOP853:  # (never interpolating: closed_loop_args.advance)
