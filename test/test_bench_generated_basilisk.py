@@ -161,3 +161,15 @@ def test_the_cap_stops_a_run_in_its_middle(monkeypatch):
     rtol, bound, err = gb.sweep(scene, 'rkf78', ref, times, cap=0.05)
     assert rtol is None and err == np.inf
     assert 0.05 <= bound < 0.5, bound
+
+
+def test_a_sweep_runs_in_a_child_that_may_die_without_ending_the_bench():
+    """isolated(): the child's result comes back; a child that aborts (as a Basilisk run
+    did from C++, ending a whole peers run) gives None and its wait status, and the
+    parent goes on."""
+    import os
+    from rigid_body_sim.bench import generated_basilisk as gb
+    assert gb.isolated(lambda: (1e-6, 0.25, [1.0, 2.0])) == ((1e-6, 0.25, [1.0, 2.0]), 0)
+    out, status = gb.isolated(os.abort)
+    assert out is None and os.WIFSIGNALED(status) and os.WTERMSIG(status) == 6
+    assert gb.isolated(lambda: 1 / 0)[0] is None  # a Python error too: no result

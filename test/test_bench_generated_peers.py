@@ -1,5 +1,6 @@
 """scipy on the generated scenes (bench/generated_peers.py): the peer integrates the scene's
 own physics, so a ratio compares the same thing."""
+import math
 from dataclasses import replace
 
 import numpy as np
@@ -224,3 +225,28 @@ def test_a_run_stopped_half_way_resumes_from_its_rows(tmp_path):
     written = list(csv.DictReader((out / 'generated_peers.csv').open()))
     assert [r['scene'] for r in written] == [first.name, share[0]['scene']]
     assert written[0]['status'] == made['status'] and written[1] == share[0]
+
+
+def test_a_peer_whose_every_setting_missed_bounds_nothing():
+    """A sweep that ran every rung and missed returns an infinite bound (no finer setting
+    exists to meet the budget at some CPU); such a peer sets no lower bound, and a scene
+    where every peer is so has no ratio."""
+    from types import SimpleNamespace
+    from rigid_body_sim.bench import generated_mujoco as gm
+    scene = SimpleNamespace(budget=1e-9)
+    ref = SimpleNamespace(attitude=np.array([[0.0, 0.0, 0.0, 1.0]]), error=0.0)
+    off = np.array([[0.0, 0.0, np.sin(0.05), np.cos(0.05)]])  # 0.1 rad from the reference
+    rung, bound, err = gm.ladder(scene, ref, (1, 2, 3), lambda r: (1e-4, off), cap=10.0)
+    assert rung is None and bound == math.inf and err == pytest.approx(0.1)
+    row = {'scene': 's'}
+    gone = gp._row_of(row, [('bsk_rkf78', None, math.inf, 0.1),
+                            ('scipy_dop853', None, math.inf, 0.2)], 0.01)
+    assert gone['status'] == gp.NO_SETTING and 'ratio' not in gone
+    capped = gp._row_of(row, [('bsk_rkf78', None, math.inf, 0.1),
+                              ('scipy_dop853', None, 3.0, 0.2)], 0.01)
+    assert capped['status'].startswith('lower bound') and capped['peer'] == 'scipy_dop853'
+    met = gp._row_of(row, [('bsk_rkf78', None, math.inf, 0.1),
+                           ('scipy_dop853', 1e-8, 2.0, 1e-10)], 0.01)
+    assert met['status'] == 'ok' and met['ratio'] == 200.0
+    target = gp.summary_target([dict(met, peer_cpu_s=2.0), dict(gone, scene='b')], 1)
+    assert '1 where auto met it and no peer did at any setting' in target['note']

@@ -123,6 +123,8 @@ def ladder(scene, ref, rungs, run_rung, cap, beat=math.inf):
         if err + ref.error <= scene.budget:
             return rung, c, err
         bound = max(bound, c)
+    else:  # every rung ran and missed: no bound holds (generated_peers._row_of)
+        return None, math.inf, err_last
     return None, bound, err_last
 
 

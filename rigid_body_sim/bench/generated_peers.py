@@ -45,6 +45,7 @@ MEANINGFUL = 0.01  # s: the target holds where the peer needs at least this
 METHODS = ('DOP853', 'RK45')
 RTOLS = tuple(10.0 ** -k for k in range(3, 14))
 INFEASIBLE = 'infeasible: neither auto nor a peer met the budget'
+NO_SETTING = 'no peer met the budget at any setting it has'
 CAP = {True: 0.5, False: 10.0}  # CPU s a peer may spend on one scene's sweep
 
 
@@ -115,6 +116,8 @@ def peer_sweep(scene, method, ref, times, cap, beat=math.inf):
         if err + ref.error <= scene.budget:
             return rtol, c, err
         bound = max(bound, c)
+    else:  # every rtol ran and missed: no finer one would meet it, and no bound holds
+        return None, math.inf, err_last
     return None, bound, err_last
 
 
@@ -127,7 +130,12 @@ def _row_of(row, runs, auto_cpu, auto_met=True):
     peer met it, the row says auto missed."""
     met = [r for r in runs if r[1] is not None]
     best = min(met, key=lambda r: r[2], default=None)
-    low = min((r for r in runs if r[1] is None), key=lambda r: r[2], default=None)
+    # a peer whose every setting ran and missed (bound inf: Basilisk's RKF78 holding the
+    # damping torque over a sample period) bounds nothing: it could not meet the budget
+    low = min((r for r in runs if r[1] is None and math.isfinite(r[2])), key=lambda r: r[2],
+              default=None)
+    if best is None and low is None:
+        return dict(row, status=NO_SETTING)
     if not auto_met:
         if best is None:
             return dict(row, status=INFEASIBLE)
@@ -177,14 +185,16 @@ def summary_target(rows, seed):
     held = [r for r in ok if r['peer_cpu_s'] >= MEANINGFUL]
     bounds = [r for r in rows if r['status'].startswith('lower bound')]
     infeasible = sum(r['status'] == INFEASIBLE for r in rows)
+    beyond = sum(r['status'] == NO_SETTING for r in rows)
     missed = [r['scene'] for r in rows if r['status'].startswith('auto missed')]
-    skipped = len(rows) - len(ok) - len(bounds) - infeasible - len(missed)
+    skipped = len(rows) - len(ok) - len(bounds) - infeasible - beyond - len(missed)
     ratios = sorted(r['ratio'] for r in held)
     note = (f'seed {seed}, {len(rows)} scenes: {len(held)} where the peer needs ≥ '
             f'{MEANINGFUL * 1e3:g} ms (of {len(ok)} measured); {len(bounds)} where no peer '
             f'met the budget within its cap (ratio ≥ '
             f'{min((r["ratio"] for r in bounds), default=math.nan):.3g}); {infeasible} '
-            'infeasible (neither auto nor a peer met the budget); auto missed where a peer '
+            f'infeasible (neither auto nor a peer met the budget); {beyond} where auto met '
+            'it and no peer did at any setting it has; auto missed where a peer '
             f'met it: {", ".join(missed) or "none"}; {skipped} not '
             'measured (detumble, or a reference too coarse); peers: scipy DOP853 and RK45'
             + (', MuJoCo RK4 and Euler' if generated_mujoco.available() else
