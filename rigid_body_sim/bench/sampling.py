@@ -59,13 +59,18 @@ def _simulate_cpu(name, duration, rate, overrides, repeats, counts=None):
         t0 = cpu()
         result = simulate(scene, engine=engine, keep='all')
         spent = cpu() - t0 - (engine.selection_cpu - result.selection_cpu_seconds)
-        n = _faults() - f0
-        faults = [n if spent < best else faults[0], max(faults[1], n)]
+        faults = _kept_faults(faults, _faults() - f0, spent < best)
         best = min(best, spent)
     if counts is not None:
         counts.update(evaluations=engine.total_evaluations, samples=result.sample_count,
                       faults=faults, engine=engine)
     return best
+
+
+def _kept_faults(kept, n, least):
+    """[faults in the least run's clock, most of any run] after a run that faulted ``n``
+    times (``least``: it is the least run so far), from ``kept``, the same before it."""
+    return [n if least else kept[0], max(kept[1], n)]
 
 
 def _alternated(scene, duration, overrides, repeats, a, b):
@@ -80,9 +85,8 @@ def _alternated(scene, duration, overrides, repeats, a, b):
         for i, (rate, counts) in enumerate(((1.0, a), (100.0, b))):
             run = {}
             spent = _simulate_cpu(scene, duration, rate, overrides, 1, run)
-            faults = counts.get('faults', [0, 0])
-            run['faults'] = [run['faults'][0] if spent < best[i] else faults[0],
-                             max(faults[1], run['faults'][1])]
+            run['faults'] = _kept_faults(counts.get('faults', [0, 0]), run['faults'][0],
+                                         spent < best[i])
             counts.update(run)
             best[i] = min(best[i], spent)
     return best[0], best[1]
