@@ -242,6 +242,9 @@ def test_a_peer_whose_every_setting_missed_bounds_nothing():
     gone = gp._row_of(row, [('bsk_rkf78', None, math.inf, 0.1),
                             ('scipy_dop853', None, math.inf, 0.2)], 0.01)
     assert gone['status'] == gp.NO_SETTING and 'ratio' not in gone
+    # where auto missed too, the scene is infeasible, not one that auto met
+    assert gp._row_of(row, [('bsk_rkf78', None, math.inf, 0.1)], 0.01,
+                      auto_met=False)['status'] == gp.INFEASIBLE
     capped = gp._row_of(row, [('bsk_rkf78', None, math.inf, 0.1),
                               ('scipy_dop853', None, 3.0, 0.2)], 0.01)
     assert capped['status'].startswith('lower bound') and capped['peer'] == 'scipy_dop853'

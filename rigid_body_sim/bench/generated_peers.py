@@ -135,13 +135,13 @@ def _row_of(row, runs, auto_cpu, auto_met=True):
     # damping torque over a sample period) bounds nothing: it could not meet the budget
     low = min((r for r in runs if r[1] is None and math.isfinite(r[2])), key=lambda r: r[2],
               default=None)
-    if best is None and low is None:
-        return dict(row, status=NO_SETTING)
     if not auto_met:
         if best is None:
             return dict(row, status=INFEASIBLE)
         return dict(row, peer=best[0], peer_cpu_s=best[2], peer_error=best[3],
                     ratio=best[2] / auto_cpu, status=f'auto missed: {best[0]} met the budget')
+    if best is None and low is None:
+        return dict(row, status=NO_SETTING)
     if best is not None and (low is None or low[2] >= best[2]):
         setting = 'peer_step' if best[0].startswith(('mujoco', 'bsk_rk4')) else 'peer_rtol'
         return dict(row, peer=best[0], peer_cpu_s=best[2], peer_error=best[3],
