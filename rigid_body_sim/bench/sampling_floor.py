@@ -6,7 +6,7 @@ touched): ``store``, a compiled loop writing the block's columns (t ns, q, m, an
 torque where the run's block has it: 64 or 88 bytes); ``evaluation``, the method's sample
 arithmetic alone, lanes as in the run's kernels: the exact grid's ``_lanes`` on the
 scene's own solution and sample period (blocks of 2H + 1 about an anchor, the anchors
-left out), dop853's dense polynomial on the run's own step (``dense_samples``' Horner and
+left out), dop853's dense polynomial on the run's own step (``dop853_samples``' Horner and
 normalisation), or the cubic Hermite's weights and sums (``hermite_run``'s). Per
 right-hand-side evaluation the samples add, ``added``: for dop853 a third of its
 interpolant's build (``_build``: the 3 extra stages and F, once a step holding a
@@ -54,7 +54,7 @@ def store(t, q, m, tau, n):
 @jit
 def dense(memory, n, lanes):
     """n outputs of the dop853 step whose interpolant ``memory`` holds (dop853_dense's
-    layout), at n instants across it, CHUNK at a time: dense_samples' arithmetic (its
+    layout), at n instants across it, CHUNK at a time: dop853_samples' arithmetic (its
     interpolate_lanes, then q normalised) into ``lanes`` (9 + DIM, CHUNK), no checks or
     rows. Returns the last output's q[0] (kept, so that nothing is dropped)."""
     last = 0.0
@@ -230,6 +230,9 @@ def floor_seconds(parts: dict, samples: int, evaluations: int) -> float:
 # Then (dense7: dense_samples' rows a column at a time, unsigned indices): dense_samples
 # ~6.7 ns a sample against the floor's dense + store ~8.2 in one micro-benchmark; scene 1
 # (~150 samples a step) 1.17-1.24x; steps holding ~10 samples 2.0-2.2x (per-step costs).
+# Then (engine.dop853_samples: the samples up to the next event from one loop of dop853's
+# steps, no advance call and no pass of the event loop a step): scenes 14, 16, 17 (~5-12
+# samples a step) 2.2-2.8x -> 1.5-1.9x, interleaved with the code before, load 2-3.
 FLOOR_MAX = 2.0
 # judged only where 100 samples/s adds this many samples: fewer are below the timing noise
 # of two least-of-3 CPU figures (~20 µs at load), e.g. 520 samples at the floor are ~8 µs

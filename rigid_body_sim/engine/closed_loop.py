@@ -30,7 +30,7 @@ from ..control_kernel import control_torque
 from ..physics import dynamics_kernel
 from ..physics.integrators import (dop853_dense, dop853_kernel, exact_flow_kernel,
                                    explicit_kernel, splitting_kernel)
-from . import sample_kernel, sample_steps
+from . import dop853_samples, sample_kernel, sample_steps
 from .sample_kernel import DOP853, EXACT, EULER, RK4, SPLITTING, fixed_steps
 from ..physics.jit import depends_on, jit
 from ..physics.environment import facets_kernel, magnetic_kernel
@@ -54,14 +54,18 @@ N_OUT = 11
 
 
 @jit
-def _stopped(out, at_ns, steps, evals, failed, rows):
+def _stopped(out, at_ns, steps, evals, failed, rows, status=0, reached=0.0):
     """The record of a run that stopped on a failure (``closed_loop_run``'s ``out``):
-    where (ns), the steps and evaluations done, the failure's code, the rows written."""
+    where (ns), the steps and evaluations done, the failure's code, the rows written;
+    dop853's (``ADAPTIVE_FAILED``): its status, and where it failed, ``reached`` s on."""
     out[0] = at_ns
     out[3] = steps
     out[4] = evals
     out[5] = failed
     out[6] = rows
+    if failed == ADAPTIVE_FAILED:
+        out[9] = status
+        out[10] = at_ns + int(reached * 1e9)
 
 
 @jit
@@ -138,15 +142,13 @@ def closed_loop_run(state, ticks, reals, spec, body, law, block, out):
     interpolate = ticks[INTERPOLATE] != 0
     need_room = False
     herm = np.empty((8, 4))  # a step's two ends and derivatives (sample_kernel.segment)
-    # the samples' scratch (hermite_run, dense_samples)
+    # the samples' scratch (hermite_run, dop853_samples)
     lanes = np.empty((sample_kernel.LANES, sample_kernel.CHUNK))
     # dop853's output step between samples, split as below (a run's constants)
     n_p = max(1, int(math.ceil(sample_period_ns / (h_max * 1e9) - 1e-9)))
     h_p = sample_period_ns / (n_p * 1e9)
-    # the next sample lies past dop853's step in progress: dense_samples, called, would
-    # return 0 at its first test (its output step from the last sample is h_p·n_p too)
-    past = False
     while row + rows < capacity:
+        dop853_done = False
         if interpolate:
             # the steps split only the intervals between law instants (and the limit, a
             # physics event here: closed_loop_args.advance); samples inside are interpolated
@@ -179,85 +181,84 @@ def closed_loop_run(state, ticks, reals, spec, body, law, block, out):
             else:
                 n = max(1, int(math.ceil(span / (h_max * 1e9) - 1e-9)))
                 h = span / (n * 1e9)
-            if method == DOP853 and sample_ns < control_ns and not past \
-                    and memory[dop853_dense._CLOCK] + h * n + h_p * n_p \
-                    < memory[dop853_dense._CLOCK + 1]:
-                # the samples before the next law instant that fall inside the step in
-                # progress, in one loop (sample_kernel.dense_samples): each the output the
-                # call below would give, its output step split as above. Entered where
-                # two or more lie inside (dense_samples' first test, with room for two,
-                # made first: room costs a division): a lone one is the call's below,
-                # whose scalar path costs less than a pass over lanes of one
-                room = min(capacity - row - rows,
-                           (min(control_ns, limit_ns) - 1 - sample_ns) // sample_period_ns + 1)
-                written = sample_kernel.dense_samples(
-                    q, m, tau_p, memory, h * n, h_p * n_p, room, sample_ns, sample_period_ns,
-                    t_out, q_out, m_out, tau_out, tau_body, row + rows, lanes)
-                if written > 0:
-                    r = row + rows + written - 1
-                    for i in range(4):
-                        q[i] = q_out[r, i]
-                    for i in range(3):
-                        m[i] = m_out[r, i]
-                    steps += n + (written - 1) * n_p
-                    if written > 1:
-                        h = h_p
-                    rows += written
-                    t = sample_ns + (written - 1) * sample_period_ns
-                    sample_ns = t + sample_period_ns
-                    past = not (memory[dop853_dense._CLOCK] + h_p * n_p
-                                < memory[dop853_dense._CLOCK + 1])
-                    continue
-            past = False  # this pass steps on: the next step's samples are dense_samples'
-        if interpolate:
-            span = seg_end - t
-            n = max(1, int(math.ceil(span / (h_max * 1e9) - 1e-9)))
-            h = span / (n * 1e9)
-        t0 = t / 1e9  # as Engine._integrate: the environment's torques see these instants
-        failed = -1
-        if method == DOP853:  # (never interpolating: closed_loop_args.advance)
-            # one integration over n·h, as DOP853.run: natural steps, the end
-            # interpolated. A sample inside the step in progress is advance's first
-            # test, inlined here: the call itself (its arrays' reference counts) cost
-            # ~150 ns of a sample's ~200
-            if dop853_dense._interpolated(q, m, h * n, tau_p, memory):
-                status, e = dop853_kernel.OK, 0
-            else:
-                status, reached, h_next, e = dop853_dense.advance(
-                    q, m, h * n, tau_p, memory, moments, model, coefficient, rtol, atol,
-                    t0, env)
-            evals += e
-            if status != dop853_kernel.OK:
-                _stopped(out, t, steps, evals, ADAPTIVE_FAILED, rows)
-                out[9] = status
-                out[10] = t + int(reached * 1e9)
-                return h_next if h_next > 0.0 else h * n
-        else:
-            inner = method == SPLITTING and splitting_kernel.inner_dissipation(
-                m, h, weights, moments, model, coefficient)
-            if interpolate:
-                failed, e, written = sample_kernel.segment(
-                    method, q, m, t, seg_end, n, sample_ns, sample_period_ns, weights,
-                    split_axes, moments, tau_p, tau_body, has_tau, model, coefficient, inner,
-                    scratch, q_flow, m_flow, env, herm, lanes, t_out, q_out, m_out, tau_out,
-                    row + rows)
+            if method == DOP853 and sample_ns < min(control_ns, limit_ns):
+                # the samples before the next event and the output at it (a law instant),
+                # in one loop of dop853's steps (dop853_samples, out of line): each the
+                # output the call below would give, its output step split as above, the
+                # integration restarted at a new torque as the call restarts it. It
+                # declines (0 rows, no output) the first call and rows not its own
+                written, n_done, e, status, t_failed, reached, h_out = \
+                    dop853_samples.sampled_steps(
+                        q, m, tau_p, tau_body, memory, moments, model, coefficient, rtol,
+                        atol, env, t, min(control_ns, limit_ns), control_ns < limit_ns,
+                        sample_ns, sample_period_ns, h * n, n, h_p, n_p, h_max, t_out, q_out,
+                        m_out, tau_out, row + rows, capacity - row - rows, lanes)
+                evals += e
+                steps += n_done
                 rows += written
-                sample_ns += written * sample_period_ns
-                if failed == -2:  # an interpolated sample was not finite
-                    _stopped(out, sample_ns, steps, evals + e, -2, rows)
-                    return h
+                if status != dop853_kernel.OK:
+                    _stopped(out, t_failed, steps, evals, ADAPTIVE_FAILED, rows, status,
+                             reached)
+                    return h_out
+                if written > 0:
+                    sample_ns += written * sample_period_ns
+                    if h_out < 0.0:  # at its last sample (the block full, or the limit next)
+                        t = sample_ns - sample_period_ns
+                        h = h_p if written > 1 else h
+                        continue
+                    t = control_ns  # at the law instant: its events below
+                    h = h_out
+                    seg_end = t
+                    at_limit = False
+                    dop853_done = True
+        if not dop853_done:  # (else sampled_steps has reached the law instant)
+            if interpolate:
+                span = seg_end - t
+                n = max(1, int(math.ceil(span / (h_max * 1e9) - 1e-9)))
+                h = span / (n * 1e9)
+            t0 = t / 1e9  # as Engine._integrate: the environment's torques see these instants
+            failed = -1
+            if method == DOP853:  # (never interpolating: closed_loop_args.advance)
+                # one integration over n·h, as DOP853.run: natural steps, the end
+                # interpolated. A sample inside the step in progress is advance's first
+                # test, inlined here: the call itself (its arrays' reference counts) cost
+                # ~150 ns of a sample's ~200
+                if dop853_dense._interpolated(q, m, h * n, tau_p, memory):
+                    status, e = dop853_kernel.OK, 0
+                else:
+                    status, reached, h_next, e = dop853_dense.advance(
+                        q, m, h * n, tau_p, memory, moments, model, coefficient, rtol, atol,
+                        t0, env)
+                evals += e
+                if status != dop853_kernel.OK:
+                    _stopped(out, t, steps, evals, ADAPTIVE_FAILED, rows, status, reached)
+                    return h_next if h_next > 0.0 else h * n
             else:
-                failed, e = fixed_steps(method, q, m, h, n, weights, split_axes, moments,
-                                        tau_p, has_tau, model, coefficient, inner, scratch,
-                                        q_flow, m_flow, t0, env)
-            evals += e
-        if failed >= 0:  # a step failed: the segment's start, and that step's index in it
-            _stopped(out, t, steps + failed + 1, evals, failed, rows)
-            return h
-        steps += n
-        t = seg_end
-        if at_limit:  # (interpolating) the limit's own events are the caller's
-            break
+                inner = method == SPLITTING and splitting_kernel.inner_dissipation(
+                    m, h, weights, moments, model, coefficient)
+                if interpolate:
+                    failed, e, written = sample_kernel.segment(
+                        method, q, m, t, seg_end, n, sample_ns, sample_period_ns, weights,
+                        split_axes, moments, tau_p, tau_body, has_tau, model, coefficient, inner,
+                        scratch, q_flow, m_flow, env, herm, lanes, t_out, q_out, m_out, tau_out,
+                        row + rows)
+                    rows += written
+                    sample_ns += written * sample_period_ns
+                    if failed == -2:  # an interpolated sample was not finite
+                        _stopped(out, sample_ns, steps, evals + e, -2, rows)
+                        return h
+                else:
+                    failed, e = fixed_steps(method, q, m, h, n, weights, split_axes, moments,
+                                            tau_p, has_tau, model, coefficient, inner, scratch,
+                                            q_flow, m_flow, t0, env)
+                evals += e
+            if failed >= 0:  # a step failed: the segment's start, and that step's index in it
+                _stopped(out, t, steps + failed + 1, evals, failed, rows)
+                return h
+            steps += n
+            t = seg_end
+            if at_limit:  # (interpolating) the limit's own events are the caller's
+                break
         if t == control_ns:
             # the body-frame state the law sees (Engine.attitude / angular_velocity)
             cx, cy, cz, cw = -p2b[0], -p2b[1], -p2b[2], p2b[3]
@@ -323,7 +324,7 @@ def closed_loop_run(state, ticks, reals, spec, body, law, block, out):
 
 
 # it calls the step loops and the law from their own files (see jit.depends_on)
-closed_loop_run = depends_on(closed_loop_run, sample_kernel, sample_steps, splitting_kernel,
-                             explicit_kernel, dop853_kernel, dop853_dense, exact_flow_kernel,
-                             dynamics_kernel, control_kernel, control_law, orbit_kernel,
-                             magnetic_kernel, facets_kernel)
+closed_loop_run = depends_on(closed_loop_run, dop853_samples, sample_kernel, sample_steps,
+                             splitting_kernel, explicit_kernel, dop853_kernel, dop853_dense,
+                             exact_flow_kernel, dynamics_kernel, control_kernel, control_law,
+                             orbit_kernel, magnetic_kernel, facets_kernel)

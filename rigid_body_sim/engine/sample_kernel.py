@@ -28,14 +28,13 @@ from ..physics.exact.grid_kernel import grid_instants  # noqa: F401 (stepping ca
 from . import sample_steps
 # a sample this close to a step's end (in steps) is that end's own state; one a step
 from .sample_steps import ON_STEP, hermite_one as _hermite_one, rk4_free_segment
-from ..physics.integrators.dop853_dense import _CLOCK, _LAST, DIM
 from ..physics.jit import depends_on, inline
 from ..physics.environment import facets_kernel, magnetic_kernel
 from ..physics.orbit import kernel as orbit_kernel
 
 # the methods' loops (their classes' ``loop_code``)
 SPLITTING, RK4, EULER, DOP853, EXACT = range(5)
-# samples per pass of the interpolants (hermite_run, dense_samples): scratch of a few rows
+# samples per pass of the interpolants (hermite_run, dop853_samples): scratch of a few rows
 # of CHUNK stays in the L1 cache; LANES rows of it (the closed loop allocates them once)
 CHUNK = 64
 LANES = 16
@@ -205,141 +204,6 @@ def segment(method, q, m, a_ns, b_ns, n, sample_ns, sample_period_ns, weights, s
     return -1, evals, rows
 
 
-@inline
-def dense_samples(q, m, tau_p, memory, hn_first, hn, room, s, sample_period_ns, t_out,
-                  q_out, m_out, tau_out, tau_body, row, lanes):
-    """Samples inside dop853's step in progress, in one loop: at most ``room`` rows from
-    ``row`` on, at the instants s, s + p, … (p = sample_period_ns), each one output step
-    of h·n (``hn_first`` for the first, ``hn`` for the others, as ``closed_loop_run``
-    splits them) after the last. Each is ``dop853_dense._interpolated``'s output, the same
-    operations in the same order, and the memory ends as after its last call; the
-    per-call checks that the state (q, m) is the last output's, with the same torque
-    (tau_p; true from the second sample on: the loop wrote them), are made once; q and m
-    are left to the caller (the last row's). It stops at the first output not strictly
-    inside the step, or not finite (the caller's usual path then takes it). ``lanes``
-    (LANES, CHUNK): scratch. Returns the rows written.
-
-    The samples go CHUNK at a time, each operation over the chunk's samples in a loop of
-    its own: independent lanes, which the compiler runs several to an instruction (each
-    lane's arithmetic is the scalar one, so the values are), the checks included, and the
-    rows a column at a time (q divided by |q| there). At 100 samples/s on a slow body,
-    calling ``_interpolated`` sample by sample from the event loop cost ~95 ns a sample;
-    one sample after another here, ~24 ns; lane by lane, ~12 ns (the scratch allocated
-    per call cost ~250 ns a call, once a step: ~100 ns a sample at ~3 samples a step);
-    then the rows' loops as below, ~10.6 → 6.7 ns a sample (~200 samples a call, its
-    arithmetic and stores alone, bench.sampling_floor's dense + store: ~8).
-    A block whose rows are not (4, 3, 3) wide, or a negative row: 0."""
-    if memory[_CLOCK + 3] <= 0.0 or memory[_CLOCK + 2] == 0.0 or room <= 0 or row < 0 \
-            or not memory[_CLOCK] + hn_first < memory[_CLOCK + 1]:
-        return 0
-    # the rows' lengths as constants for the compiler (numba indexes a C array by its
-    # runtime shape): the row loops' addresses fold (~0.5 ns a sample); any other block
-    # is not this loop's (nothing written: the caller's usual path takes the samples)
-    if q_out.shape[1] != 4 or m_out.shape[1] != 3 or tau_out.shape[1] != 3:
-        return 0
-    last = _LAST
-    for i in range(4):
-        if q[i] != memory[last + i]:
-            return 0
-    for i in range(3):
-        if m[i] != memory[last + 4 + i] or tau_p[i] != memory[last + 7 + i]:
-            return 0
-    out = last + 10
-    h_step = memory[_CLOCK + 1]
-    clock = memory[_CLOCK]  # the last output's position in the step
-    # lanes' rows, by index (views of them cost reference counts): the targets, x, 1 − x,
-    # |q|, the interpolant (DIM rows)
-    TARGET, X, Y, NORM, RAW = 0, 1, 2, 3, 4
-    tau0, tau1, tau2 = tau_body[0], tau_body[1], tau_body[2]  # (stores to rows may alias)
-    written = 0
-    tried = -1  # the chunk column whose raw output the memory keeps (-1: none)
-    span = hn_first
-    stop = False
-    while written < room and not stop:
-        count = 0
-        target = clock
-        while count < min(CHUNK, room - written):
-            target += span
-            if not target < h_step:
-                stop = True
-                break
-            lanes[TARGET, count] = target
-            span = hn
-            count += 1
-        if count == 0:
-            break
-        for k in range(count):
-            x = lanes[TARGET, k] / h_step
-            lanes[X, k] = x
-            lanes[Y, k] = 1.0 - x
-        dop853_dense.interpolate_lanes(memory, lanes, X, Y, RAW, count)
-        # |q| and the finiteness check in one pass, the check counted (a sum over the
-        # lanes, not a search that leaves the loop); x − x is 0 for a finite x, NaN
-        # otherwise, and |q| finite covers q's components
-        bad = 0
-        for k in range(count):
-            norm = math.sqrt(lanes[RAW, k] * lanes[RAW, k]
-                             + lanes[RAW + 1, k] * lanes[RAW + 1, k]
-                             + lanes[RAW + 2, k] * lanes[RAW + 2, k]
-                             + lanes[RAW + 3, k] * lanes[RAW + 3, k])
-            lanes[NORM, k] = norm
-            check = ((norm - norm) + (lanes[RAW + 4, k] - lanes[RAW + 4, k])
-                     + (lanes[RAW + 5, k] - lanes[RAW + 5, k])
-                     + (lanes[RAW + 6, k] - lanes[RAW + 6, k]))
-            bad += not (check == 0.0 and norm > 0.0)
-        good = count
-        if bad:  # the first output not finite: the rows stop before it
-            for k in range(count):
-                norm = lanes[NORM, k]
-                if not ((norm - norm) + (lanes[RAW + 4, k] - lanes[RAW + 4, k])
-                        + (lanes[RAW + 5, k] - lanes[RAW + 5, k])
-                        + (lanes[RAW + 6, k] - lanes[RAW + 6, k]) == 0.0 and norm > 0.0):
-                    good = k
-                    stop = True
-                    break
-        tried = good if good < count else count - 1
-        # the rows a column at a time, each loop's stores at fixed strides, which the
-        # compiler runs several samples to an instruction (sample by sample, all columns
-        # in one loop: ~1.5 ns a sample more), q divided by |q| on its way (a pass of its
-        # own into lanes: ~0.6 ns more); unsigned rows: numba adds no wraparound test for
-        # a negative index (row ≥ 0, tested above)
-        base = np.uint64(row + written)
-        for k in range(good):
-            r = base + np.uint64(k)
-            norm = lanes[NORM, k]
-            q_out[r, 0] = lanes[RAW, k] / norm
-            q_out[r, 1] = lanes[RAW + 1, k] / norm
-            q_out[r, 2] = lanes[RAW + 2, k] / norm
-            q_out[r, 3] = lanes[RAW + 3, k] / norm
-        for k in range(good):
-            r = base + np.uint64(k)
-            m_out[r, 0] = lanes[RAW + 4, k]
-            m_out[r, 1] = lanes[RAW + 5, k]
-            m_out[r, 2] = lanes[RAW + 6, k]
-        for k in range(good):
-            r = base + np.uint64(k)
-            tau_out[r, 0] = tau0
-            tau_out[r, 1] = tau1
-            tau_out[r, 2] = tau2
-        for k in range(good):
-            t_out[base + np.uint64(k)] = s + k * sample_period_ns
-        if good:
-            clock = lanes[TARGET, good - 1]
-            written += good
-            s += good * sample_period_ns
-    if tried >= 0:
-        for i in range(DIM):  # as _interpolated leaves it: the last output tried
-            memory[out + i] = lanes[RAW + i, tried]
-    if written:
-        memory[_CLOCK] = clock
-        r = row + written - 1
-        for i in range(4):
-            memory[last + i] = q_out[r, i]
-        for i in range(3):
-            memory[last + 4 + i] = m_out[r, i]
-    return written
-
-
 def interpolation_allowed(engine, m) -> bool:
     """Whether an offline engine (``Engine.interpolate_samples``) may interpolate samples
     between its fixed method's steps: the cubic Hermite's attitude error, ~(hΩ)⁴/3072 for
@@ -355,7 +219,7 @@ def interpolation_allowed(engine, m) -> bool:
 
 
 # they call the step loops from their own files (see jit.depends_on)
-for _kernel in (fixed_steps, segment, dense_samples):
+for _kernel in (fixed_steps, segment):
     depends_on(_kernel, sample_steps, splitting_kernel, explicit_kernel, dop853_kernel,
                dop853_dense, exact_flow_kernel, dynamics_kernel, orbit_kernel, magnetic_kernel,
                facets_kernel)

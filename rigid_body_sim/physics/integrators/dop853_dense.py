@@ -151,7 +151,7 @@ def interpolate_lanes(memory, lanes, xs, ys, raw, count):
     """:func:`_interpolate` over ``count`` lanes: lanes[raw + i, k] ← the interpolant of
     the step whose F and y_old ``memory`` holds, at lanes[xs, k] (lanes[ys, k] = 1 − that);
     each lane's arithmetic the scalar one, lanes in one loop that the compiler runs several
-    to an instruction (sample_kernel.dense_samples; the samples' floor,
+    to an instruction (engine.dop853_samples; the samples' floor,
     bench.sampling_floor). Rows by index into the one scratch array, not views of it: a
     view costs its parent's reference count (~2-5 ns each, 7-9 a call, a call or two a
     step holding samples)."""
