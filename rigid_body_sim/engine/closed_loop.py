@@ -69,7 +69,7 @@ def _stopped(out, at_ns, steps, evals, failed, rows, status=0, reached=0.0):
 
 
 @jit
-def closed_loop_run(state, ticks, reals, spec, body, law, block, out):
+def closed_loop_run(state, ticks, reals, spec, body, env, law, block, out):
     """Advance ``state`` = (q, m, tau_body, tau_p) in place from ``ticks[T_NS]`` through
     every event instant before ``ticks[LIMIT_NS]``: the law at each control instant
     ``ticks[CONTROL_NS] + k·ticks[PERIOD_NS]`` (``NEVER``: no law; ``tau_p`` is then the
@@ -83,7 +83,8 @@ def closed_loop_run(state, ticks, reals, spec, body, law, block, out):
     between calls as ``DOP853.run`` carries it, with ``reals[RTOL]``, ``reals[ATOL]``;
     ``ticks[MODEL]``: the method's damping code, ``Integrator.loop_model``); ``body`` =
     (moments, axes, p2b, env): the simulated body and its environment (``orbit.kernel``'s
-    array; ON = 0: none);
+    array; ON = 0: none), ``env`` also as an argument of its own: numba types away the
+    inlined loops' ``env is None`` branches for an argument, not for a tuple's item;
     ``law`` = (target, axes, moments, kp, kd, kw, inertia) and ``reals``' law entries:
     the controller's model of it (its own ``inertia`` parameter), as
     :class:`control.AttitudeController` uses.
@@ -96,7 +97,7 @@ def closed_loop_run(state, ticks, reals, spec, body, law, block, out):
     q, m, tau_body, tau_p = state
     t_out, q_out, m_out, tau_out = block
     weights, split_axes, memory = spec
-    moments, axes, p2b, env = body
+    moments, axes, p2b, _ = body
     target, law_axes, law_moments, kp, kd, kw, inertia = law
     limit_ns = ticks[LIMIT_NS]
     control_ns = ticks[CONTROL_NS]
@@ -183,7 +184,7 @@ def closed_loop_run(state, ticks, reals, spec, body, law, block, out):
                 h = span / (n * 1e9)
             if method == DOP853 and sample_ns < min(control_ns, limit_ns):
                 # the samples before the next event and the output at it (a law instant),
-                # in one loop of dop853's steps (dop853_samples, out of line): each the
+                # in one loop of dop853's steps (dop853_samples): each the
                 # output the call below would give, its output step split as above, the
                 # integration restarted at a new torque as the call restarts it. It
                 # declines (0 rows, no output) the first call and rows not its own

@@ -165,8 +165,8 @@ def advance(engine, state: State, law, builder, until_ns: int, cap: int,
     reals[H_MAX], reals[COEFFICIENT] = engine.step_max, engine.dynamics.dissipation.coefficient
     reals[RTOL], reals[ATOL] = rtol, atol
     out = packing.out
-    h = closed_loop_run((q, m, tau, tau_p), ticks, reals, spec,
-                        packing.body(engine.dynamics, engine.body), law_arrays,
+    body = packing.body(engine.dynamics, engine.body)
+    h = closed_loop_run((q, m, tau, tau_p), ticks, reals, spec, body, body[3], law_arrays,
                         builder.columns(cap), out)
     next_control, mode, free, steps, evals, failed, rows, t_end, next_sample, status, \
         failed_ns = out.tolist()  # Python ints, in one call (a lockstep exchange's CPU)

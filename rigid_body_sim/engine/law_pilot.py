@@ -73,8 +73,8 @@ class LawRunner:
         for end in ends:
             ticks[T_NS], ticks[CONTROL_NS], ticks[MODE], ticks[FREE] = t, control, mode, free
             ticks[LIMIT_NS] = self.t0 + int(end * NS) + 1
-            closed_loop_run((q, m, tau, tau_p), ticks, reals, spec, self.body, self.law,
-                            self.block, out)
+            closed_loop_run((q, m, tau, tau_p), ticks, reals, spec, self.body, self.body[3],
+                            self.law, self.block, out)
             failed = int(out[5])
             if failed >= 0 or failed in (ADAPTIVE_FAILED, -2):
                 return None
