@@ -34,11 +34,10 @@ from ..physics import dynamics_kernel
 from ..physics.dynamics_kernel import _finite
 from ..physics.environment import facets_kernel, magnetic_kernel
 from ..physics.integrators import dop853_dense, dop853_kernel
-from ..physics.integrators.dop853_dense import (_CLOCK, _LAST, _SCRATCH, A, A_EXTRA, B, D,
-                                                DIM, E3, E5, MEMORY, _build,
-                                                interpolate_lanes, views)
-from ..physics.integrators.dop853_kernel import (N_STAGES, NON_FINITE, OK, _rhs,
-                                                 _rhs_environment, attempt)
+from ..physics.integrators.dop853_dense import (_CLOCK, _LAST, _SCRATCH, A_EXTRA, D, DIM,
+                                                MEMORY, _build, interpolate_lanes, step_on,
+                                                views)
+from ..physics.integrators.dop853_kernel import NON_FINITE, OK, _rhs, _rhs_environment
 from ..physics.jit import depends_on, inline
 from ..physics.orbit import kernel as orbit_kernel
 from .sample_kernel import CHUNK
@@ -137,19 +136,13 @@ def sampled_steps(q, m, tau_p, tau_body, memory, moments, model, coefficient, rt
             base = h_step - clock  # where y lies, from the last output (t0)
             while target > h_step:
                 target -= h_step
-                for i in range(DIM):
-                    K[0, i] = f[i]
-                status, t_step, h, h_abs, e = attempt(
-                    y, 0.0, base, np.inf, h_abs, K, y_stage, y_new, moments, tau_p, model,
-                    coefficient, rtol, atol, A, B, E3, E5, t0 + base, env)
+                status, h, h_abs, e = step_on(y, f, y_old, K, y_stage, y_new, h_abs, base,
+                                              moments, tau_p, model, coefficient, rtol, atol,
+                                              t0 + base, env)
                 evals += e
                 if status != OK:
                     reached, h_out = base, h if h > 0.0 else span
                     break
-                for i in range(DIM):
-                    y_old[i] = y[i]
-                    y[i] = y_new[i]
-                    f[i] = K[N_STAGES, i]
                 h_step = h
                 base += h
                 built = False

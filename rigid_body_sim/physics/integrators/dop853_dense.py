@@ -230,21 +230,12 @@ def advance(q, m, span, tau, memory, moments, model, coefficient, rtol, atol, t0
     y_new = memory[_SCRATCH + DIM:MEMORY]
     while target > h_step:  # not inside this step: step on from its end
         target -= h_step
-        for i in range(DIM):
-            K[0, i] = f[i]
-        # each step from local time 0: h exactly h_abs, so the steps (and the trajectory)
-        # do not depend on where the outputs fall; the floor is from the call's time
-        status, _, h, h_abs, n = attempt(y, 0.0, base, np.inf, h_abs, K, y_stage, y_new,
-                                         moments, tau, model, coefficient, rtol, atol, A, B,
-                                         E3, E5, t0 + base, env)
+        status, h, h_abs, n = step_on(y, f, y_old, K, y_stage, y_new, h_abs, base, moments,
+                                      tau, model, coefficient, rtol, atol, t0 + base, env)
         nfev += n
         if status != OK:
             clock[3] = 0.0
             return status, base, h, nfev
-        for i in range(DIM):
-            y_old[i] = y[i]
-            y[i] = y_new[i]
-            f[i] = K[N_STAGES, i]
         h_step = h
         base += h
         clock[2] = 0.0  # F belongs to the previous step
@@ -276,6 +267,29 @@ def advance(q, m, span, tau, memory, moments, model, coefficient, rtol, atol, t0
         clock[3] = 0.0
         return NON_FINITE, span, h_abs, nfev
     return OK, span, h_abs, nfev
+
+
+@inline
+def step_on(y, f, y_old, K, y_stage, y_new, h_abs, base, moments, tau, model, coefficient,
+            rtol, atol, t_abs, env):
+    """DOP853's next accepted step from y, the end of the step in progress (``base`` s
+    after the last output, at ``t_abs``), as :func:`advance` and engine.dop853_samples
+    take it: K[0] ← f, then y_old ← y, y ← the new state and f ← its derivative. Each
+    step from local time 0: h exactly h_abs, so the steps (and the trajectory) do not
+    depend on where the outputs fall; the floor is from the last output. Returns (status,
+    the step taken — or the failing one —, the step proposed next, evaluations); on a
+    failure only K and the scratch (y_stage, y_new) are written."""
+    for i in range(DIM):
+        K[0, i] = f[i]
+    status, _, h, h_abs, n = attempt(y, 0.0, base, np.inf, h_abs, K, y_stage, y_new, moments,
+                                     tau, model, coefficient, rtol, atol, A, B, E3, E5, t_abs,
+                                     env)
+    if status == OK:
+        for i in range(DIM):
+            y_old[i] = y[i]
+            y[i] = y_new[i]
+            f[i] = K[N_STAGES, i]
+    return status, h, h_abs, n
 
 
 @inline
@@ -328,7 +342,7 @@ def _interpolated(q, m, span, tau, memory):
 
 # numba's disk cache checks only this file; these embed dop853_kernel's and dynamics_kernel's code
 # (and advance its tableau, imported from scipy through dop853_kernel)
-for _kernel in (views, _build, _interpolate, _interpolated, advance):
+for _kernel in (views, _build, _interpolate, step_on, _interpolated, advance):
     depends_on(_kernel, dynamics_kernel, dop853_kernel, orbit_kernel, magnetic_kernel,
                facets_kernel)
 
