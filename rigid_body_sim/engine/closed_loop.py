@@ -31,7 +31,7 @@ from ..physics import dynamics_kernel
 from ..physics.integrators import (dop853_dense, dop853_kernel, exact_flow_kernel,
                                    explicit_kernel, splitting_kernel)
 from . import dop853_samples, sample_kernel, sample_steps
-from .sample_kernel import DOP853, EXACT, EULER, RK4, SPLITTING, fixed_steps
+from .sample_kernel import DOP853, EXACT, EULER, RK4, SPLITTING, fixed_steps, split
 from ..physics.jit import depends_on, jit
 from ..physics.environment import facets_kernel, magnetic_kernel
 from ..physics.orbit import kernel as orbit_kernel
@@ -146,8 +146,7 @@ def closed_loop_run(state, ticks, reals, spec, body, env, law, block, out):
     # the samples' scratch (hermite_run, dop853_samples)
     lanes = np.empty((sample_kernel.LANES, sample_kernel.CHUNK))
     # dop853's output step between samples, split as below (a run's constants)
-    n_p = max(1, int(math.ceil(sample_period_ns / (h_max * 1e9) - 1e-9)))
-    h_p = sample_period_ns / (n_p * 1e9)
+    n_p, h_p = split(sample_period_ns, h_max)
     while row + rows < capacity:
         dop853_done = False
         if interpolate:
@@ -180,8 +179,7 @@ def closed_loop_run(state, ticks, reals, spec, body, env, law, block, out):
             if span == sample_period_ns:
                 n, h = n_p, h_p
             else:
-                n = max(1, int(math.ceil(span / (h_max * 1e9) - 1e-9)))
-                h = span / (n * 1e9)
+                n, h = split(span, h_max)
             if method == DOP853 and sample_ns < min(control_ns, limit_ns):
                 # the samples before the next event and the output at it (a law instant),
                 # in one loop of dop853's steps (dop853_samples): each the
@@ -214,9 +212,7 @@ def closed_loop_run(state, ticks, reals, spec, body, env, law, block, out):
                     dop853_done = True
         if not dop853_done:  # (else sampled_steps has reached the law instant)
             if interpolate:
-                span = seg_end - t
-                n = max(1, int(math.ceil(span / (h_max * 1e9) - 1e-9)))
-                h = span / (n * 1e9)
+                n, h = split(seg_end - t, h_max)
             t0 = t / 1e9  # as Engine._integrate: the environment's torques see these instants
             failed = -1
             if method == DOP853:  # (never interpolating: closed_loop_args.advance)

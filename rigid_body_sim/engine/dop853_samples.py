@@ -40,7 +40,8 @@ from ..physics.integrators.dop853_dense import (_CLOCK, _LAST, _SCRATCH, A_EXTRA
 from ..physics.integrators.dop853_kernel import NON_FINITE, OK, _rhs, _rhs_environment
 from ..physics.jit import depends_on, inline
 from ..physics.orbit import kernel as orbit_kernel
-from .sample_kernel import CHUNK
+from . import sample_kernel
+from .sample_kernel import CHUNK, split
 
 # lanes' rows, by index (views of them cost reference counts): the targets, x, 1 − x,
 # |q|, the interpolant (DIM rows)
@@ -95,7 +96,6 @@ def sampled_steps(q, m, tau_p, tau_body, memory, moments, model, coefficient, rt
     t_prev = t_ns
     hn = h_p * n_period  # a sample period's output step, as the caller computes it
     span, n = hn_first, n_first
-    span_ns = 0
     status = OK
     reached = 0.0
     h_out = -1.0
@@ -125,11 +125,8 @@ def sampled_steps(q, m, tau_p, tau_body, memory, moments, model, coefficient, rt
             # the output at the end (a law instant), split as the caller splits it
             last_output = True
             span_ns = end_ns - t_prev
-            if span_ns == period_ns:
-                n, span = n_period, hn
-            else:
-                n = max(1, int(math.ceil(span_ns / (h_max * 1e9) - 1e-9)))
-                span = span_ns / (n * 1e9) * n
+            n, h_end = (n_period, h_p) if span_ns == period_ns else split(span_ns, h_max)
+            span = h_end * n
         target = clock + span
         if target > h_step:  # advance's loop: step on from the step's end
             t0 = t_prev / 1e9
@@ -179,7 +176,7 @@ def sampled_steps(q, m, tau_p, tau_body, memory, moments, model, coefficient, rt
                 status, reached, h_out = NON_FINITE, span, h_abs
                 break
             steps += n
-            h_out = h_p if span_ns == period_ns else span_ns / (n * 1e9)
+            h_out = h_end
             break
         if target == h_step:  # on the step's end: its own state, as advance gives it
             norm = math.sqrt(y[0] * y[0] + y[1] * y[1] + y[2] * y[2] + y[3] * y[3])
@@ -238,15 +235,14 @@ def sampled_steps(q, m, tau_p, tau_body, memory, moments, model, coefficient, rt
     memory[_CLOCK + 1] = h_step
     memory[_CLOCK + 2] = 1.0 if built else 0.0
     memory[_CLOCK + 3] = h_abs if status == OK else 0.0  # a failure leaves no memory
-    if written and not last_output:
+    if written and not last_output:  # the state is the last row's (the end's: set above)
         r = row + written - 1
         for i in range(4):
             q[i] = q_out[r, i]
-    for i in range(4):
-        memory[_LAST + i] = q[i]
-    if written and not last_output:
         for i in range(3):
             m[i] = m_out[r, i]
+    for i in range(4):
+        memory[_LAST + i] = q[i]
     for i in range(3):
         memory[_LAST + 4 + i] = m[i]
     return written, steps, evals, status, t_prev, reached, h_out
@@ -307,5 +303,5 @@ def _rows(lanes, good, s, period_ns, t_out, q_out, m_out, tau_out, tau0, tau1, t
 
 
 # numba's disk cache checks only this file; it embeds dop853's and the dynamics' code
-sampled_steps = depends_on(sampled_steps, dop853_dense, dop853_kernel, dynamics_kernel,
-                           orbit_kernel, magnetic_kernel, facets_kernel)
+sampled_steps = depends_on(sampled_steps, sample_kernel, dop853_dense, dop853_kernel,
+                           dynamics_kernel, orbit_kernel, magnetic_kernel, facets_kernel)

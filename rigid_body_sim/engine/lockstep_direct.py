@@ -29,7 +29,7 @@ from ..physics.integrators import exact_flow_kernel, explicit_kernel, splitting_
 from ..physics.jit import depends_on, jit
 from ..physics.orbit import kernel as orbit_kernel
 from . import sample_kernel
-from .sample_kernel import DOP853, SPLITTING, fixed_steps
+from .sample_kernel import DOP853, SPLITTING, fixed_steps, split
 
 # period_kernel's real array ``f``: the step, the damping coefficient, the body's
 # constants for the sample's values (principal → body rotation, principal moments, axes
@@ -67,8 +67,7 @@ def period_kernel(f, ticks, env, q_in, m_in, tau, tau_p, q, m):
     method = ticks[METHOD]
     model = ticks[MODEL]
     coefficient = f[COEFFICIENT]
-    n = max(1, int(math.ceil(span / (f[H_MAX] * 1e9) - 1e-9)))
-    h = span / (n * 1e9)
+    n, h = split(span, f[H_MAX])
     t0 = t / 1e9
     scratch = np.empty((10, 4))
     q_flow = np.empty(4)

@@ -41,6 +41,15 @@ LANES = 16
 
 
 @inline
+def split(span_ns, h_max):
+    """(n, h): ``span_ns`` in n equal steps no longer than ``h_max`` s, as
+    ``Engine._integrate`` splits an interval between events (the compiled loops' one
+    split, so that their steps are the event path's to the bit)."""
+    n = max(1, int(math.ceil(span_ns / (h_max * 1e9) - 1e-9)))
+    return n, span_ns / (n * 1e9)
+
+
+@inline
 def fixed_steps(method, q, m, h, n, weights, split_axes, moments, tau_p, has_tau, model,
                 coefficient, inner, scratch, q_flow, m_flow, t0, env):
     """n steps of h of a fixed-step method's loop from (q, m) at t0 (s), in place: (first
