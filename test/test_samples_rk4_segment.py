@@ -1,8 +1,9 @@
-"""rk4 on the free body, a step holding one sample at most (engine/sample_steps.py): one
-loop over the interval's steps whose first stages are the Hermite's derivatives at the
-step ends. The rows must stay the interpolants of the steps taken one by one (their ends'
-rates evaluated apart), bit for bit, the state the steps' own, and the evaluations only
-the steps' (4 each) plus one where the interval's last step holds a sample."""
+"""rk4 on the free body (engine/sample_steps.py): one loop over the interval's steps whose
+first stages are the Hermite's derivatives at the step ends, a step holding no sample, one,
+a few (written one by one) or many (in lanes, CHUNK at a time). The rows must stay the
+interpolants of the steps taken one by one (their ends' rates evaluated apart), bit for
+bit, the state the steps' own, and the evaluations only the steps' (4 each) plus one where
+the interval's last step holds a sample."""
 import numpy as np
 import pytest
 
@@ -47,14 +48,15 @@ def _reference(q0, m0, tau, a_ns, b_ns, n, first, period, model, coefficient):
             one[0][0], one[1][0], one[2][0], one[3][0] = s, ends[j][0], ends[j][1, :3], tau
         else:
             herm, last = np.vstack([ends[j], ends[j + 1]]), j == n - 1
-            assert sample_kernel.hermite_run(herm, h, a_ns, b_ns, n, span, j, s, period,
+            # this sample alone (the next a span on, past b_ns)
+            assert sample_kernel.hermite_run(herm, h, a_ns, b_ns, n, span, j, s, span,
                                              lanes, *one, tau, 0) == (1, True)
         rows.append(one)
         s += period
     return rows, q, m, last
 
 
-def _segment(q, m, tau, a_ns, b_ns, n, first, period, model, coefficient, room=64):
+def _segment(q, m, tau, a_ns, b_ns, n, first, period, model, coefficient, room=400):
     from rigid_body_sim.engine import sample_kernel
     out = _rows(room)
     got = sample_kernel.segment(
@@ -72,7 +74,13 @@ CASES = [(0, 43_364_117, 11, 3_000_000, 10_000_000, 0, 0.0),
          (0, 120_000_000, 12, 30_000_000, 25_000_000, 0, 0.0),
          (5_000_000, 105_000_000, 20, 5_000_000, 7_000_000, 1, 0.05),
          (0, 100_000_000, 25, 2_000_000, 4_000_000, 2, 0.3),
-         (1_000_000_000, 1_100_000_000, 7, 1_099_999_999, 50_000_000, 0, 0.0)]
+         (1_000_000_000, 1_100_000_000, 7, 1_099_999_999, 50_000_000, 0, 0.0),
+         # a few samples a step (one by one), 16 and 17 (in lanes: LANES_MIN), 100 a step
+         # (CHUNK, then the rest), the last step's samples one by one after the lanes
+         (0, 480_000_000, 4, 1_000_000, 10_000_000, 1, 0.05),
+         (0, 330_000_000, 2, 5_000_000, 10_000_000, 0, 0.0),
+         (0, 1_990_000_000, 2, 3_000_000, 10_000_000, 2, 0.3),
+         (0, 357_000_000, 21, 1_000_000, 1_000_000, 0, 0.0)]
 
 
 @pytest.mark.parametrize('a_ns,b_ns,n,first,period,model,coefficient', CASES)
@@ -110,12 +118,14 @@ def test_the_ends_of_a_step_holding_a_sample_cost_no_evaluation():
     assert (failed, rows, evals) == (-1, 5, 45)
 
 
-def test_a_step_failing_stops_the_interval_with_its_index():
+@pytest.mark.parametrize('period', [10_000_000, 1_000_000])
+def test_a_step_failing_stops_the_interval_with_its_index(period):
     """A non-finite state at step 0 (an infinite torque): the loop reports step 0 of the
-    interval failing, no row written, the state left non-finite, as rk4_free_steps."""
+    interval failing, no row written, the state left non-finite, as rk4_free_steps; with
+    a sample a step at most (rk4_free_segment) and with several (rk4_free_samples)."""
     q, m = _state()
     tau = np.array([np.inf, 0.0, 0.0])
     with np.errstate(all='ignore'):
         (failed, evals, rows), out = _segment(q, m, tau, 0, 40_000_000, 4, 5_000_000,
-                                              10_000_000, 0, 0.0)
+                                              period, 0, 0.0)
     assert (failed, rows) == (0, 0) and not np.isfinite(m).all()

@@ -11,11 +11,12 @@ from rigid_body_sim.bench import sampling
 pytestmark = pytest.mark.fast
 
 
-@pytest.mark.parametrize('repeats,cli_repeats', [(3, 3), (5, 2), (2, 4)])
-def test_cli_runs_alternate_with_in_process_runs(monkeypatch, repeats, cli_repeats):
+@pytest.mark.parametrize('repeats', [1, 3, 5])
+def test_cli_runs_alternate_with_in_process_runs(monkeypatch, repeats):
     """Each CLI run follows in-process runs (two, the second warm), so both minima come
-    from one stretch of load; every run of each kind is made and the least is kept."""
-    calls, inproc, cli = [], iter([5e-3, 3e-3, 4e-3, 6e-3, 2.5e-3]), iter([9, 7, 8, 6])
+    from one stretch of load, and both are minima over as many turns (a CLI's least of 3
+    against in-process's least of 7 read noise as overhead); the least of each is kept."""
+    calls, inproc, cli = [], iter([5e-3, 3e-3, 4e-3, 6e-3, 2.5e-3]), iter([9, 7, 8, 6, 8.5])
 
     def simulate_cpu(scene, duration, rate, overrides, n, counts=None):
         calls.append(('in', n))
@@ -27,13 +28,10 @@ def test_cli_runs_alternate_with_in_process_runs(monkeypatch, repeats, cli_repea
     monkeypatch.setattr(sampling, '_simulate_cpu', simulate_cpu)
     monkeypatch.setattr(sampling, '_cli_cpu', cli_cpu)
     best_in, (best_cli, output, loaded, faults) = sampling._cli_and_inprocess(
-        'slew', 'slew', 1.0, 50.0, repeats, cli_repeats)
-    rounds = max(repeats, cli_repeats)
-    expected = [c for i in range(rounds)
-                for c in [('in', 2)] + ([('cli', 1)] if i < cli_repeats else [])]
-    assert calls == expected
-    assert best_in == min([5e-3, 3e-3, 4e-3, 6e-3, 2.5e-3][:rounds])
-    assert best_cli == min([9, 7, 8, 6][:cli_repeats]) * 1e-3 and output == 0.01
+        'slew', 'slew', 1.0, 50.0, repeats)
+    assert calls == [('in', 2), ('cli', 1)] * repeats
+    assert best_in == min([5e-3, 3e-3, 4e-3, 6e-3, 2.5e-3][:repeats])
+    assert best_cli == min([9, 7, 8, 6, 8.5][:repeats]) * 1e-3 and output == 0.01
 
 
 def test_the_faults_said_are_the_least_runs_and_the_most_of_any(monkeypatch):

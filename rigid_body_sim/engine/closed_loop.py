@@ -30,7 +30,7 @@ from ..control_kernel import control_torque
 from ..physics import dynamics_kernel
 from ..physics.integrators import (dop853_dense, dop853_kernel, exact_flow_kernel,
                                    explicit_kernel, splitting_kernel)
-from . import dop853_samples, sample_kernel, sample_steps
+from . import dop853_samples, rk4_samples, sample_kernel, sample_steps
 from .sample_kernel import DOP853, EXACT, EULER, RK4, SPLITTING, fixed_steps, split
 from ..physics.jit import depends_on, jit
 from ..physics.environment import facets_kernel, magnetic_kernel
@@ -321,7 +321,8 @@ def closed_loop_run(state, ticks, reals, spec, body, env, law, block, out):
 
 
 # it calls the step loops and the law from their own files (see jit.depends_on)
-closed_loop_run = depends_on(closed_loop_run, dop853_samples, sample_kernel, sample_steps,
-                             splitting_kernel, explicit_kernel, dop853_kernel, dop853_dense,
+closed_loop_run = depends_on(closed_loop_run, dop853_samples, rk4_samples, sample_kernel,
+                             sample_steps, splitting_kernel, explicit_kernel, dop853_kernel,
+                             dop853_dense,
                              exact_flow_kernel, dynamics_kernel, control_kernel, control_law,
                              orbit_kernel, magnetic_kernel, facets_kernel)

@@ -7,7 +7,7 @@ the physics (control instants, the end, a command's expiry), and a sample inside
 the cubic Hermite interpolant of the step's two ends and their derivatives (two
 right-hand-side evaluations per step holding a sample, shared by consecutive steps;
 a chunk at a time, :func:`hermite_run`; rk4 on the free body takes them from its stages,
-``sample_steps``): its error, ~(hΩ)⁴/384 of the rotation, is
+``sample_steps`` and ``rk4_samples``): its error, ~(hΩ)⁴/384 of the rotation, is
 checked against the budget before use (:func:`interpolation_allowed`). The state only
 advances by whole steps; interpolated values go to the block, never to the trajectory.
 
@@ -25,19 +25,17 @@ from ..physics import dynamics_kernel
 from ..physics.integrators import (dop853_dense, dop853_kernel, exact_flow_kernel,
                                    explicit_kernel, splitting_kernel)
 from ..physics.exact.grid_kernel import grid_instants  # noqa: F401 (stepping calls it)
-from . import sample_steps
+from . import rk4_samples, sample_steps
+from .rk4_samples import rk4_free_samples
 # a sample this close to a step's end (in steps) is that end's own state; one a step
-from .sample_steps import ON_STEP, hermite_one as _hermite_one, rk4_free_segment
+from .sample_steps import (CHUNK, LANES, ON_STEP,  # noqa: F401 (theirs)
+                           hermite_one as _hermite_one, rk4_free_segment, step_rows)
 from ..physics.jit import depends_on, inline
 from ..physics.environment import facets_kernel, magnetic_kernel
 from ..physics.orbit import kernel as orbit_kernel
 
 # the methods' loops (their classes' ``loop_code``)
 SPLITTING, RK4, EULER, DOP853, EXACT = range(5)
-# samples per pass of the interpolants (hermite_run, dop853_samples): scratch of a few rows
-# of CHUNK stays in the L1 cache; LANES rows of it (the closed loop allocates them once)
-CHUNK = 64
-LANES = 16
 
 
 @inline
@@ -81,39 +79,11 @@ _end, _free_end = explicit_kernel.hermite_end, explicit_kernel.rk4_free_end
 def hermite_run(herm, h, a_ns, b_ns, n, span, held, s, sample_period_ns, scratch, t_out,
                 q_out, m_out, tau_out, tau_body, row):
     """:func:`segment`'s samples from s on that fall strictly inside the step ``held``
-    whose ends herm holds, before b_ns, at most CHUNK: its x, j and theta for each, then
-    the cubic Hermite interpolant one operation at a time over them all (explicit_kernel.
-    hermite_lanes: independent lanes, which the compiler runs several to an instruction,
-    each lane's values the scalar ones; sample by sample this cost ~32 ns a sample), q
-    normalised. Then the checks and rows sample by sample. ``scratch`` (13,
-    CHUNK). Returns (rows written, False if a sample was not finite: the rows before it
-    are written)."""
-    count = 0
-    while count < CHUNK:
-        x = (s + count * sample_period_ns - a_ns) * (n / span)
-        j = int(math.floor(x))
-        theta = x - j
-        if s + count * sample_period_ns >= b_ns or j != held or theta > 1.0 - ON_STEP \
-                or theta < ON_STEP:
-            break
-        scratch[0, count] = theta
-        count += 1
-    explicit_kernel.hermite_lanes(herm, h, count, scratch)
-    for c in range(count):
-        r = row + c
-        norm = scratch[12, c]
-        finite = math.isfinite(norm) and norm > 0.0
-        for i in range(3):
-            finite = finite and math.isfinite(scratch[9 + i, c])
-        if not finite:
-            return c, False
-        for i in range(4):
-            q_out[r, i] = scratch[5 + i, c] / norm
-        for i in range(3):
-            m_out[r, i] = scratch[9 + i, c]
-            tau_out[r, i] = tau_body[i]
-        t_out[r] = s + c * sample_period_ns
-    return count, True
+    whose ends herm holds, before b_ns, at most CHUNK, q normalised (sample_steps.
+    step_rows). ``scratch`` (13, CHUNK). Returns (rows written, False if a sample was not
+    finite: the rows before it are written)."""
+    return step_rows(herm, h, a_ns, b_ns, n, span, held, s, sample_period_ns, scratch, t_out,
+                     q_out, m_out, tau_out, tau_body, row)
 
 
 @inline
@@ -126,10 +96,14 @@ def segment(method, q, m, a_ns, b_ns, n, sample_ns, sample_period_ns, weights, s
     interpolant (herm (8, 4): scratch). Returns (first failing step of the segment or -1,
     -2 if an interpolated sample was not finite, evaluations, rows written)."""
     span = b_ns - a_ns
-    if method == RK4 and env is None and sample_period_ns * n >= span:
-        return rk4_free_segment(q, m, a_ns, b_ns, n, sample_ns, sample_period_ns, moments,
-                                tau_p, tau_body, model, coefficient, t_out, q_out, m_out,
-                                tau_out, row)
+    if method == RK4 and env is None:  # in numbers, a step's ends from its stages
+        if sample_period_ns * n >= span:  # a sample a step at most
+            return rk4_free_segment(q, m, a_ns, b_ns, n, sample_ns, sample_period_ns,
+                                    moments, tau_p, tau_body, model, coefficient, t_out,
+                                    q_out, m_out, tau_out, row)
+        return rk4_free_samples(q, m, a_ns, b_ns, n, sample_ns, sample_period_ns, moments,
+                                tau_p, tau_body, model, coefficient, herm, lanes, t_out,
+                                q_out, m_out, tau_out, row)
     h = span / (n * 1e9)
     t0 = a_ns / 1e9
     k = 0  # steps taken: the state is at a + k·h
@@ -229,6 +203,6 @@ def interpolation_allowed(engine, m) -> bool:
 
 # they call the step loops from their own files (see jit.depends_on)
 for _kernel in (fixed_steps, segment):
-    depends_on(_kernel, sample_steps, splitting_kernel, explicit_kernel, dop853_kernel,
-               dop853_dense, exact_flow_kernel, dynamics_kernel, orbit_kernel, magnetic_kernel,
-               facets_kernel)
+    depends_on(_kernel, sample_steps, rk4_samples, splitting_kernel, explicit_kernel,
+               dop853_kernel, dop853_dense, exact_flow_kernel, dynamics_kernel, orbit_kernel,
+               magnetic_kernel, facets_kernel)
