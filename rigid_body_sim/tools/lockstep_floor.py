@@ -71,6 +71,9 @@ def _per_thread(threads, before, after, main: float, periods: int) -> dict:
     return {k: round(v, 1) for k, v in sorted(out.items()) if v >= 0.05}
 
 
+PRIMES = 60  # instants tried a second apart before the measurement, until one is answered
+
+
 class NoCommand(RuntimeError):
     """No command answered a state within the time allowed."""
 
@@ -142,7 +145,7 @@ def _measure(periods: int, raw: bool, loop: str = 'executor') -> dict:
         # states for every instant, serialised before the measurement (ours cost nothing)
         period = round(1e9 / RATE)
         frames = []
-        for k in range(100 + periods):
+        for k in range(PRIMES + 100 + periods):
             o.header.stamp.sec, o.header.stamp.nanosec = divmod(k * period, 10**9)
             frames.append(serialize_message(o))
         send = odometry.handle.publish_raw
@@ -172,27 +175,30 @@ def _measure(periods: int, raw: bool, loop: str = 'executor') -> dict:
                 answer(k)
         if loop == 'rcl':  # every exchange in one compiled call (nodes/rcl_direct.py),
             exchanges = _compiled(node, sub, odometry, frames)  # compiled before instant 0
-        # Instant 0 is sent again each second until it is answered: our writer's match
-        # (above) says nothing of the controller's reader, which drops what a writer sent
-        # before it had matched that writer (a CI run under load waited 10 s for instant 0).
-        # The controller answers an instant once, so a repeat gets no second command.
-        until = time.monotonic() + 60.0
+        # The first instants are sent a second apart until one is answered: our writer's
+        # and reader's matches (above) say nothing of the controller's reader and writer,
+        # which drop what was sent before they matched (a CI run under load waited 10 s
+        # for instant 0). The controller answers an instant once, so instant 0 sent again
+        # got no second command where its first was lost (a suite run under load: no
+        # command for 60 s): each try is a new instant.
+        first = 0
         while True:
-            send(frames[0])
+            send(frames[first])
             try:
-                answer(0, within=1.0)
+                answer(first, within=1.0)
                 break
             except NoCommand:
-                if time.monotonic() > until:
+                first += 1
+                if first == PRIMES:
                     raise
-        exchanges(1, 100)  # discovery settled, caches warm
+        exchanges(first + 1, first + 100)  # discovery settled, caches warm
         threads = _threads()
         # the process's window holds the threads' (each thread's share, summed, is then
         # within the process's CPU; the other order let the DDS threads run outside it)
         c0 = time.process_time()
         before = _clocks(threads)
         t0, w0 = time.thread_time(), time.monotonic()
-        exchanges(100, 100 + periods)
+        exchanges(first + 100, first + 100 + periods)
         t1, w1 = time.thread_time(), time.monotonic()
         after = _clocks(threads)
         c1 = time.process_time()
