@@ -131,9 +131,15 @@ def _pause(node, base, *received):
     req = srv.SetSimulationState.Request()
     req.state.state = SimulationState.STATE_PAUSED
     client = node.create_client(srv.SetSimulationState, f'{base}/set_simulation_state')
-    assert _call(node, client, req).result.result == Result.RESULT_OK
+    # sent again if its response is lost (ros_helpers.call_service): a second request
+    # finds the simulator paused by the first
+    sends = []
+    got = _call(node, client, req, resend=5.0, sends=sends).result.result
+    assert got == Result.RESULT_OK or sends[0] > 1 and \
+        got == srv.SetSimulationState.Response.ALREADY_IN_TARGET_STATE, (got, sends)
     client = node.create_client(srv.GetEntityState, f'{base}/get_entity_state')
-    last = _stamp(_call(node, client, srv.GetEntityState.Request(entity='base_link')).state)
+    last = _stamp(_call(node, client, srv.GetEntityState.Request(entity='base_link'),
+                        resend=5.0).state)
     assert spin_until(node, lambda: all(r and _stamp(r[-1]) >= last for r in received), 30.0), \
         [(_stamp(r[-1]) - last) / NS for r in received if r]
 
