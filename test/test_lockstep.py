@@ -385,7 +385,8 @@ def test_the_floor_tool_interleaves_its_runs_and_has_a_compiled_loop():
 def test_the_parts_tool_times_each_part_of_the_simulators_exchange(capsys):
     """tools/lockstep_parts.py runs the exchange with the simulator in a process of its own
     and a controller (real processes) and reports its thread's CPU per exchange and each
-    part's: every part spent something, and the nested ones fit in what holds them."""
+    part's: every part spent something (but the exchanges' own loop, which may find every
+    command already taken), and the nested ones fit in what holds them."""
     import re
     from rigid_body_sim.tools.lockstep_parts import PARTS, main
     assert main(['--periods', '20', '--runs', '1']) == 0
@@ -394,7 +395,11 @@ def test_the_parts_tool_times_each_part_of_the_simulators_exchange(capsys):
     parts = {m.group(1): float(m.group(2))
              for m in re.finditer(r'^  (\S+) +([-\d.]+) µs', out, re.M)}
     assert set(parts) == {p[0] for p in PARTS} | {'loop'}, out
-    assert all(v > 0 for k, v in parts.items() if k != 'loop'), out
+    # a command is taken at the top of a turn (take) or, while an instant is held, by the
+    # exchanges' own loop: where every command was in before the loop waited (a suite run
+    # under load, 20 exchanges) the second way had nothing to do
+    assert all(v > 0 for k, v in parts.items() if k not in ('loop', 'exchanges')), out
+    assert parts['exchanges'] >= 0, out
     # the bytes and their write: the general way's publish (t = 0) or the direct one's
     assert parts['bytes'] + parts['write'] <= parts['publish'] + parts['direct'], out
     assert parts['direct.step'] <= parts['direct'] <= parts['held'] <= parts['command'], out
