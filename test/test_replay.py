@@ -137,7 +137,12 @@ def test_replay_topics_remap_offset_loop(ros_process, namespace, rclpy_node, bag
     proc.stop()
     assert {t for t, _, _ in listener.got} == {renamed}
     got = [raw for _, raw, _ in listener.got]
-    assert got[:2 * len(after)] == after + after   # looped, starting 1 s into the bag
+    # looped, starting 1 s into the bag. The listener's reader may match the replay's
+    # writer late on a loaded machine and miss its first messages, as any volatile
+    # subscriber would (a suite run at load 5 got the second first): those may be absent
+    assert got[0] in after[:5], got[:3]
+    lost = after.index(got[0])
+    assert got[:2 * len(after) - lost] == (after + after)[lost:]
 
 
 def test_replay_skips_unavailable_types(ros_process, namespace, rclpy_node, tmp_path):
