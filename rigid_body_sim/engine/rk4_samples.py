@@ -23,7 +23,7 @@ from ..physics.integrators import explicit_kernel
 from ..physics.integrators.explicit_kernel import rk4_free_step
 from ..physics.jit import depends_on, inline
 from . import sample_steps
-from .sample_steps import hold, place, step_rows
+from .sample_steps import hold, place, state_row, step_rows
 
 
 @inline
@@ -48,8 +48,9 @@ def rk4_free_samples(q, m, a_ns, b_ns, n, sample_ns, sample_period_ns, moments, 
     evals = 1
     for k in range(n):
         while j == k and theta == 0.0:  # a sample on this state (step k's start)
-            rows = _state_row(x, y, z, w, m0, m1, m2, s, tau_body, t_out, q_out, m_out,
-                              tau_out, row + rows) - row
+            state_row(x, y, z, w, m0, m1, m2, s, tau_body, t_out, q_out, m_out, tau_out,
+                      row + rows)
+            rows += 1
             s += sample_period_ns
             j, theta = place(s, a_ns, b_ns, n, span)
         held = j == k  # samples inside this step
@@ -80,8 +81,9 @@ def rk4_free_samples(q, m, a_ns, b_ns, n, sample_ns, sample_period_ns, moments, 
                 break
     if failed == -1:
         while j == n and theta == 0.0:  # a sample on the interval's end (within ON_STEP)
-            rows = _state_row(x, y, z, w, m0, m1, m2, s, tau_body, t_out, q_out, m_out,
-                              tau_out, row + rows) - row
+            state_row(x, y, z, w, m0, m1, m2, s, tau_body, t_out, q_out, m_out, tau_out,
+                      row + rows)
+            rows += 1
             s += sample_period_ns
             j, theta = place(s, a_ns, b_ns, n, span)
     q[0], q[1], q[2], q[3] = x, y, z, w
@@ -89,16 +91,6 @@ def rk4_free_samples(q, m, a_ns, b_ns, n, sample_ns, sample_period_ns, moments, 
     return failed, evals, rows
 
 
-@inline
-def _state_row(x, y, z, w, m0, m1, m2, s, tau_body, t_out, q_out, m_out, tau_out, r):
-    """Row r at s: the state itself. Returns r + 1."""
-    q_out[r, 0], q_out[r, 1], q_out[r, 2], q_out[r, 3] = x, y, z, w
-    m_out[r, 0], m_out[r, 1], m_out[r, 2] = m0, m1, m2
-    t_out[r] = s
-    tau_out[r, 0], tau_out[r, 1], tau_out[r, 2] = tau_body[0], tau_body[1], tau_body[2]
-    return r + 1
-
-
 # it inlines the rk4 step, the rates and the rows from their own files (see jit.depends_on)
-for _kernel in (rk4_free_samples, _state_row):
+for _kernel in (rk4_free_samples,):
     depends_on(_kernel, sample_steps, explicit_kernel, dynamics_kernel)

@@ -128,6 +128,15 @@ def hold(herm, y0, d0, y1, d1):
 
 
 @inline
+def state_row(x, y, z, w, m0, m1, m2, s, tau_body, t_out, q_out, m_out, tau_out, r):
+    """Row r at s: the state (x, y, z, w; m0, m1, m2) itself, on a step's end."""
+    q_out[r, 0], q_out[r, 1], q_out[r, 2], q_out[r, 3] = x, y, z, w
+    m_out[r, 0], m_out[r, 1], m_out[r, 2] = m0, m1, m2
+    t_out[r] = s
+    tau_out[r, 0], tau_out[r, 1], tau_out[r, 2] = tau_body[0], tau_body[1], tau_body[2]
+
+
+@inline
 def hermite_one(herm, h, theta, s, q_out, m_out, t_out, tau_out, tau_body, r):
     """``sample_kernel.hermite_run`` where a step holds one sample at most, row r at s, the
     same values (its loops cost ~36 ns of ~140 a sample: rk4 under a law, generated scene
@@ -202,12 +211,8 @@ def rk4_free_segment(q, m, a_ns, b_ns, n, sample_ns, sample_period_ns, moments, 
                 j, theta = place(s, a_ns, b_ns, n, span)
                 held = False
         while j <= k and theta == 0.0:  # a sample on this state
-            r = row + rows
-            q_out[r, 0], q_out[r, 1], q_out[r, 2], q_out[r, 3] = x, y, z, w
-            m_out[r, 0], m_out[r, 1], m_out[r, 2] = m0, m1, m2
-            t_out[r] = s
-            for i in range(3):
-                tau_out[r, i] = tau_body[i]
+            state_row(x, y, z, w, m0, m1, m2, s, tau_body, t_out, q_out, m_out, tau_out,
+                      row + rows)
             rows += 1
             s += sample_period_ns
             j, theta = place(s, a_ns, b_ns, n, span)
@@ -228,6 +233,6 @@ def rk4_free_segment(q, m, a_ns, b_ns, n, sample_ns, sample_period_ns, moments, 
 
 
 # they inline the rk4 step and the rates from their own files (see jit.depends_on)
-for _kernel in (step_rows, rows_in_lanes, ends, hold,
+for _kernel in (step_rows, rows_in_lanes, ends, hold, state_row,
                 hermite_one, hermite_row, rk4_free_segment):
     depends_on(_kernel, explicit_kernel, dynamics_kernel)
